@@ -1,0 +1,90 @@
+"""Complex eigenvalues xi = sigma + i omega of a family of state matrices, tracked.
+
+The paper's damping and frequency figures (Figs. 3-4, 6-7, ...) are the eigenvalues of
+the frozen state matrix S(t): sigma [1/s] (negative: decaying) and omega [rad/s].
+Eigenvalues of non-symmetric matrices cross and veer as parameters change, so a branch is
+followed from one point to the next by correlating the *left* eigenvectors of the previous
+point with the *right* eigenvectors of the next (biorthogonality, W V = I) and solving the
+optimal assignment on the overlaps, never by re-sorting.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+ComplexArray = NDArray[np.complex128]
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Traces:
+    """Tracked eigenvalue branches.
+
+    ``xi[k, j]`` is branch j at point k [1/s]; ``confidence[k, j]`` in [0, 1] is the
+    eigenvector overlap that linked point k to point k-1 (1 at k = 0), a low value
+    flags a point where the branch identity is uncertain (coalescence or too coarse a grid).
+    """
+
+    xi: ComplexArray
+    confidence: FloatArray
+
+    @property
+    def sigma(self) -> FloatArray:
+        """Real parts: damping [1/s] (negative: decaying)."""
+        return self.xi.real
+
+    @property
+    def omega(self) -> FloatArray:
+        """Imaginary parts: frequencies [rad/s]."""
+        return self.xi.imag
+
+
+def _decompose(S: NDArray[np.float64]) -> tuple[ComplexArray, ComplexArray, ComplexArray]:
+    w, V = np.linalg.eig(S)
+    V = V / np.linalg.norm(V, axis=-2, keepdims=True)
+    with np.errstate(all="ignore"):
+        W = np.linalg.inv(V)
+    return w, V, W
+
+
+def _order_lowest(w: ComplexArray, count: int) -> NDArray[np.intp]:
+    """Indices of the ``count`` lowest-frequency modes at one point.
+
+    One eigenvalue per conjugate pair (omega >= 0); real eigenvalues (divergence or
+    over-damped motion) count as modes of zero frequency.
+    """
+    scale = max(float(np.max(np.abs(w))), 1e-300)
+    upper = np.flatnonzero(w.imag > -1e-12 * scale)
+    order = np.lexsort((w.real[upper], np.abs(w.imag[upper])))
+    return upper[order][:count]
+
+
+def track(S: NDArray[np.float64], modes: int) -> Traces:
+    """Eigenvalues of each ``S[k]`` (shape ``(N, m, m)``), the ``modes`` lowest tracked.
+
+    Branches are chosen at the first point (lowest frequencies, one per conjugate pair)
+    and followed by optimal assignment of left/right eigenvector overlaps.
+    """
+    w, V, W = _decompose(S)
+    N, m = w.shape
+    perm = np.empty((N, m), dtype=np.intp)
+    conf = np.ones((N, m))
+    perm[0] = np.arange(m)
+    for k in range(1, N):
+        overlap = np.abs(W[k - 1][perm[k - 1]] @ V[k])  # rows: previous branches
+        if not np.all(np.isfinite(overlap)):
+            # defective previous point: fall back to nearest eigenvalues
+            dist = np.abs(w[k - 1][perm[k - 1]][:, None] - w[k][None, :])
+            rows, cols = linear_sum_assignment(dist)
+            conf[k] = 0.0
+        else:
+            rows, cols = linear_sum_assignment(-overlap)
+            conf[k, rows] = np.minimum(1.0, overlap[rows, cols])
+        perm[k, rows] = cols
+    chosen = _order_lowest(w[0], modes)
+    xi = np.take_along_axis(w, perm[:, chosen], axis=1)
+    return Traces(xi=xi, confidence=conf[:, chosen])

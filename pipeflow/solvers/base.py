@@ -1,0 +1,90 @@
+"""What every solver takes and returns, and the registry they are chosen from."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pipeflow.model import Loading, PipeModel
+
+FloatArray = NDArray[np.float64]
+ProgressCallback = Callable[[float], None]
+
+#: hard ceilings that no option may lift (they bound what one request can cost)
+MAX_STEPS_CEILING = 20_000_000
+MAX_EVALUATIONS_CEILING = 50_000_000
+
+
+@dataclass(frozen=True)
+class Options:
+    """Method options; each solver reads the ones named in its ``option_names``.
+
+    step : time step [s] for fixed-step methods (``rk4``, ``magnus``); None = automatic.
+    max_steps : refuse a run needing more steps than this [-].
+    rtol, atol : tolerances of the ``reference`` integrator (atol in the units of the
+        balanced state, i.e. metres of modal amplitude).
+    integrator : ``solve_ivp`` method for ``reference`` (DOP853, RK45, Radau, BDF, LSODA).
+    tolerance : relative accuracy target of ``magnus`` [-].
+    condition_limit : eigenvector-matrix condition number above which ``cma`` falls back to
+        a Pade matrix exponential for that time [-].
+    """
+
+    step: float | None = None
+    max_steps: int = 2_000_000
+    rtol: float = 1e-12
+    atol: float = 1e-15
+    integrator: str = "DOP853"
+    tolerance: float = 1e-8
+    condition_limit: float = 1e8
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One linear initial-value problem z' = S(t) z + f(t) in balanced coordinates."""
+
+    model: PipeModel
+    loading: Loading
+    z0: FloatArray
+    t: FloatArray  # output times [s], t[0] == 0, strictly increasing
+    options: Options = field(default_factory=Options)
+    progress: ProgressCallback | None = None
+
+    def report(self, fraction: float) -> None:
+        if self.progress is not None:
+            self.progress(min(max(fraction, 0.0), 1.0))
+
+
+@dataclass
+class SolverOutput:
+    """Balanced states at the output times plus what the solver wants to say about them."""
+
+    z: FloatArray  # (len(t), 2n)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+
+class Solver(Protocol):
+    name: ClassVar[str]
+    description: ClassVar[str]
+    option_names: ClassVar[tuple[str, ...]]
+
+    def solve(self, problem: Problem) -> SolverOutput: ...
+
+
+SOLVERS: dict[str, Solver] = {}
+
+
+def register(solver: Solver) -> Solver:
+    SOLVERS[solver.name] = solver
+    return solver
+
+
+def spectral_radius(model: PipeModel, loading: Loading, t_end: float, samples: int = 33) -> float:
+    """Largest |eigenvalue| of the frozen S(t) over [0, t_end] sampled at ``samples`` times [1/s]."""
+    ts = np.linspace(0.0, t_end, samples if not loading.is_time_invariant else 1)
+    S = model.state_matrix(loading.coefficients(ts))
+    return float(np.max(np.abs(np.linalg.eigvals(S))))

@@ -1,0 +1,100 @@
+"""Tight-tolerance reference: scipy ``solve_ivp`` on the same state equation.
+
+Independent of the exponential-based methods (it only evaluates S(t) z + f(t)), so it is
+what the other solvers are tested against.  Its cost is bounded by an evaluation budget.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import ClassVar
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.solvers.base import (
+    MAX_EVALUATIONS_CEILING,
+    FloatArray,
+    Problem,
+    SolverOutput,
+    register,
+)
+
+INTEGRATORS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
+
+
+class _OverBudget(Exception):
+    pass
+
+
+class Reference:
+    name: ClassVar[str] = "reference"
+    description: ClassVar[str] = (
+        "scipy solve_ivp (DOP853 by default) at tight tolerance, for cross-checks."
+    )
+    option_names: ClassVar[tuple[str, ...]] = ("rtol", "atol", "integrator", "max_steps")
+
+    def solve(self, problem: Problem) -> SolverOutput:
+        t0 = time.perf_counter()
+        model, loading, t = problem.model, problem.loading, problem.t
+        opts = problem.options
+        if opts.integrator not in INTEGRATORS:
+            raise InvalidInput(
+                f"unknown integrator {opts.integrator!r}; choose one of {', '.join(INTEGRATORS)}",
+                field="options.integrator",
+            )
+        A = np.stack([model.S_0, model.S_v, model.S_vdot, model.S_v2, model.S_w2])
+        forced = not loading.spin.is_constant
+        budget = min(opts.max_steps * 12, MAX_EVALUATIONS_CEILING)
+        t_end = float(t[-1])
+        count = [0]
+
+        def matrix(s: float) -> FloatArray:
+            c = loading.coefficients(np.array([s]))
+            w = np.array([1.0, c.v[0], c.vdot[0], c.v[0] ** 2, c.w2[0]])
+            return np.tensordot(w, A, axes=1)
+
+        def rhs(s: float, z: FloatArray) -> FloatArray:
+            count[0] += 1
+            if count[0] > budget:
+                raise _OverBudget
+            if count[0] % 2000 == 0:
+                problem.report(s / t_end)
+            out = matrix(s) @ z
+            if forced:
+                out = out + model.forcing(loading.coefficients(np.array([s])))[0]
+            return out
+
+        implicit = opts.integrator in ("Radau", "BDF", "LSODA")
+        try:
+            sol = solve_ivp(
+                rhs,
+                (0.0, t_end),
+                problem.z0.astype(float),
+                method=opts.integrator,
+                t_eval=t,
+                rtol=opts.rtol,
+                atol=opts.atol,
+                **({"jac": lambda s, z: matrix(s)} if implicit else {}),
+            )
+        except _OverBudget:
+            raise BudgetExceeded(
+                f"the reference integrator exceeded its budget of {budget} right-hand-side "
+                "evaluations; loosen rtol/atol, use fewer modes or a shorter t_end",
+                field="options.max_steps",
+            ) from None
+        if not sol.success:
+            raise InvalidInput(f"reference integrator failed: {sol.message}", field="method")
+        diagnostics = {
+            "integrator": opts.integrator,
+            "rtol": opts.rtol,
+            "atol": opts.atol,
+            "rhs_evaluations": int(sol.nfev),
+            "solve_seconds": time.perf_counter() - t0,
+        }
+        problem.report(1.0)
+        return SolverOutput(z=sol.y.T.copy(), diagnostics=diagnostics)
+
+
+register(Reference())

@@ -1,0 +1,178 @@
+"""Classical fixed-step fourth-order Runge-Kutta (the paper's comparison, section 4).
+
+RK4 multiplies each eigen-component by R(h lambda) per step, with
+R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24 (eq. 32 without its stray "f").  A step is stable
+when |R(h lambda)| <= max(1, |e^(h lambda)|) for every eigenvalue of the frozen state
+matrix over the run: never amplifying a mode more than the exact flow does.  On the
+imaginary axis that is h |lambda| <= 2 sqrt(2); with 10 modes of the paper's pipe the
+fastest mode has |lambda| ~ 8e4 1/s, hence the tiny steps and the paper's long CPU times.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pipeflow.errors import BudgetExceeded, UnstableStep
+from pipeflow.model import Loading, PipeModel
+from pipeflow.solvers.base import (
+    MAX_STEPS_CEILING,
+    FloatArray,
+    Problem,
+    SolverOutput,
+    register,
+)
+
+#: default fraction of the largest stable step used when the user gives none
+SAFETY = 0.9
+_BLOCK_ENTRIES = 4_000_000  # stage-matrix entries formed at once (~32 MB)
+
+
+def rk4_amplification(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24, the RK4 amplification factor."""
+    return 1 + z * (1 + z * (1 / 2 + z * (1 / 6 + z / 24)))
+
+
+def _unstable(hl: NDArray[np.complex128]) -> NDArray[np.bool_]:
+    bound = np.maximum(1.0, np.exp(hl.real))
+    return np.abs(rk4_amplification(hl)) > bound * (1 + 1e-12)
+
+
+def largest_stable_step(eigenvalues: NDArray[np.complex128]) -> float:
+    """Largest h [s] with |R(h lambda)| <= max(1, |e^(h lambda)|) for all given lambda [1/s].
+
+    Scans h |lambda| on (0, 4] (RK4's region lies inside |z| < 2.79 off the imaginary
+    axis and |z| <= 2 sqrt(2) on it), then bisects each boundary to 1e-12 relative.
+    """
+    lam = np.asarray(eigenvalues, dtype=complex).ravel()
+    lam = lam[np.abs(lam) > 0]
+    if lam.size == 0:
+        return float("inf")
+    direction = lam / np.abs(lam)
+    r = np.linspace(0.0, 4.0, 4001)[1:]
+    bad = _unstable(r[None, :] * direction[:, None])
+    first = np.where(bad.any(axis=1), bad.argmax(axis=1), r.size)
+    lo = np.where(first > 0, r[np.maximum(first - 1, 0)], 0.0)
+    hi = np.where(first < r.size, r[np.minimum(first, r.size - 1)], 4.0)
+    for _ in range(45):
+        mid = 0.5 * (lo + hi)
+        unstable = _unstable(mid * direction)
+        hi = np.where(unstable, mid, hi)
+        lo = np.where(unstable, lo, mid)
+    return float(np.min(lo / np.abs(lam)))
+
+
+def frozen_eigenvalues(
+    model: PipeModel, loading: Loading, t_end: float, samples: int = 65
+) -> NDArray[np.complex128]:
+    """Eigenvalues of S(t) [1/s] at ``samples`` times over [0, t_end] (one if invariant)."""
+    ts = np.linspace(0.0, t_end, 1 if loading.is_time_invariant else samples)
+    return np.linalg.eigvals(model.state_matrix(loading.coefficients(ts)))
+
+
+class RK4:
+    name: ClassVar[str] = "rk4"
+    description: ClassVar[str] = (
+        "Classical fixed-step 4th-order Runge-Kutta; step chosen for stability unless given."
+    )
+    option_names: ClassVar[tuple[str, ...]] = ("step", "max_steps")
+
+    def solve(self, problem: Problem) -> SolverOutput:
+        t0 = time.perf_counter()
+        model, loading, t = problem.model, problem.loading, problem.t
+        opts = problem.options
+        h_stable = largest_stable_step(frozen_eigenvalues(model, loading, float(t[-1])))
+        if opts.step is not None:
+            if opts.step > h_stable:
+                raise UnstableStep(
+                    f"RK4 step {opts.step:.6g} s is outside the stability region for this "
+                    f"run (largest stable step {h_stable:.6g} s, from the spectral radius "
+                    "of the state matrix; paper eq. 32)",
+                    field="options.step",
+                    largest_stable_step=h_stable,
+                )
+            h_target = opts.step
+        else:
+            h_target = SAFETY * h_stable
+        dt = np.diff(t)
+        substeps = np.maximum(1, np.ceil(dt / h_target - 1e-9)).astype(np.int64)
+        n_steps = int(substeps.sum())
+        budget = min(opts.max_steps, MAX_STEPS_CEILING)
+        if n_steps > budget:
+            raise BudgetExceeded(
+                f"RK4 needs {n_steps} steps of {float(np.max(dt / substeps)):.3g} s for this "
+                f"run, above the step budget of {budget}; shorten t_end, use fewer modes, "
+                "or use the 'cma' or 'magnus' method",
+                field="options.max_steps",
+            )
+        Z = self._integrate(problem, substeps)
+        h_used = dt / substeps
+        diagnostics = {
+            "steps": n_steps,
+            "step_max": float(h_used.max()),
+            "step_min": float(h_used.min()),
+            "largest_stable_step": h_stable,
+            "stability_margin": float(h_stable / h_used.max()),
+            "solve_seconds": time.perf_counter() - t0,
+        }
+        return SolverOutput(z=Z, diagnostics=diagnostics)
+
+    def _integrate(self, problem: Problem, substeps: NDArray[np.int64]) -> FloatArray:
+        model, loading, t = problem.model, problem.loading, problem.t
+        A = np.stack([model.S_0, model.S_v, model.S_vdot, model.S_v2, model.S_w2])
+        forced = not loading.spin.is_constant
+        Z = np.empty((t.size, model.size))
+        z = problem.z0.astype(float).copy()
+        Z[0] = z
+        total = int(substeps.sum())
+        done = 0
+        report_every = max(1, total // 100)
+
+        def coef(times: FloatArray) -> FloatArray:
+            c = loading.coefficients(times)
+            return np.stack([np.ones_like(times), c.v, c.vdot, c.v**2, c.w2], axis=1)
+
+        invariant = loading.is_time_invariant
+        block = max(16, _BLOCK_ENTRIES // (3 * model.size**2))
+        if invariant:
+            S_const = np.tensordot(coef(np.zeros(1))[0], A, axes=1)
+        for k in range(t.size - 1):
+            m = int(substeps[k])
+            h = (t[k + 1] - t[k]) / m
+            if invariant:
+                for _ in range(m):
+                    k1 = S_const @ z
+                    k2 = S_const @ (z + 0.5 * h * k1)
+                    k3 = S_const @ (z + 0.5 * h * k2)
+                    k4 = S_const @ (z + h * k3)
+                    z = z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            else:
+                for b0 in range(0, m, block):
+                    nb = min(block, m - b0)
+                    starts = t[k] + h * (b0 + np.arange(nb))
+                    stage_t = np.concatenate([starts, starts + 0.5 * h, starts + h])
+                    cs = coef(stage_t).reshape(3, nb, 5)
+                    fs = (
+                        model.forcing(loading.coefficients(stage_t)).reshape(3, nb, -1)
+                        if forced
+                        else np.zeros((3, nb, model.size))
+                    )
+                    S_all = np.einsum("snc,cij->snij", cs, A)
+                    for i in range(nb):
+                        S1, S2, S3 = S_all[0, i], S_all[1, i], S_all[2, i]
+                        k1 = S1 @ z + fs[0, i]
+                        k2 = S2 @ (z + 0.5 * h * k1) + fs[1, i]
+                        k3 = S2 @ (z + 0.5 * h * k2) + fs[1, i]
+                        k4 = S3 @ (z + h * k3) + fs[2, i]
+                        z = z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            Z[k + 1] = z
+            done += m
+            if done % report_every < m:
+                problem.report(done / total)
+        return Z
+
+
+register(RK4())
