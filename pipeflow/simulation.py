@@ -212,7 +212,8 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
     over = np.flatnonzero(np.abs(tip) > bound)
     divergence_time = float(t[over[0]]) if over.size else None
-    growing = bool(np.max(frozen.sigma[-1]) > 0)
+    # a growth rate above rounding of the spectrum (1e-9 of |xi|) means a growing mode
+    growing = bool(np.any(frozen.sigma[-1] > 1e-9 * np.abs(frozen.xi[-1])))
     if status == "ok" and (divergence_time is not None or growing):
         status = "diverging"
     if divergence_time is not None:

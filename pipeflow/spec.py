@@ -1,0 +1,311 @@
+"""The JSON specification of a simulation: one schema for the service, the CLI and files.
+
+pydantic models with units in every description and bounds on every cost a request can
+ask for.  :meth:`SimulationSpec.to_simulation` turns a validated spec into the library's
+:class:`~pipeflow.simulation.Simulation`; :meth:`SimulationSpec.canonical` gives the
+normalised form (defaults filled, options the method does not read dropped) that the
+cache key is computed from.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Annotated, Any, Literal
+
+import rfc8785
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from pipeflow import __version__, profiles
+from pipeflow.model import Pipe
+from pipeflow.simulation import Simulation
+from pipeflow.solvers import SOLVERS, Options
+from pipeflow.solvers.base import MAX_STEPS_CEILING
+
+MAX_SAMPLES = 200_001
+MAX_TABLE_POINTS = 10_000
+MAX_POSITIONS = 64
+MAX_EIGEN_SAMPLES = 2001
+MAX_POLY_DEGREE = 8
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class PipeSpec(_Strict):
+    """Pipe and fluid properties (the paper's section 5 values are the example)."""
+
+    E: float = Field(gt=0, description="Young's modulus of the pipe wall [Pa].")
+    I: float = Field(gt=0, description="Second moment of area of the cross-section [m^4].")  # noqa: E741
+    L: float = Field(gt=0, description="Pipe length, hub (clamped) to free tip [m].")
+    M1: float = Field(ge=0, description="Mass of the pipe per unit length [kg/m].")
+    M2: float = Field(ge=0, description="Mass of the conveyed fluid per unit length [kg/m].")
+
+    @model_validator(mode="after")
+    def _mass(self) -> PipeSpec:
+        if self.M1 + self.M2 <= 0:
+            raise ValueError("M1 + M2 must be > 0 kg/m")
+        return self
+
+    def to_pipe(self) -> Pipe:
+        return Pipe(E=self.E, I=self.I, L=self.L, M1=self.M1, M2=self.M2)
+
+
+class ConstantProfile(_Strict):
+    """p(t) = value."""
+
+    kind: Literal["constant"] = "constant"
+    value: float = Field(0.0, description="Value, in the unit of the quantity (m/s or rad/s).")
+
+    def to_profile(self) -> profiles.Profile:
+        return profiles.Constant(self.value)
+
+
+class PolynomialProfile(_Strict):
+    """p(t) = sum_k coefficients[k] t^k with t in seconds (the paper's a, a t, a t^2)."""
+
+    kind: Literal["polynomial"] = "polynomial"
+    coefficients: list[float] = Field(
+        min_length=1,
+        max_length=MAX_POLY_DEGREE + 1,
+        description="c_0, c_1, ...: c_k in (unit of the quantity)/s^k, e.g. m/s^(k+1) for v.",
+    )
+
+    def to_profile(self) -> profiles.Profile:
+        return profiles.Polynomial(tuple(self.coefficients))
+
+
+class HarmonicProfile(_Strict):
+    """p(t) = mean + amplitude sin(frequency t + phase): pulsating flow, oscillating spin."""
+
+    kind: Literal["harmonic"] = "harmonic"
+    mean: float = Field(0.0, description="Mean value (m/s for v, rad/s for w0).")
+    amplitude: float = Field(0.0, description="Amplitude (m/s for v, rad/s for w0).")
+    frequency: float = Field(0.0, ge=0, le=1e7, description="Angular frequency [rad/s].")
+    phase: float = Field(0.0, ge=-1e3, le=1e3, description="Phase at t = 0 [rad].")
+
+    def to_profile(self) -> profiles.Profile:
+        return profiles.Harmonic(self.mean, self.amplitude, self.frequency, self.phase)
+
+
+class TableProfile(_Strict):
+    """Tabulated values interpolated in time; must start at t <= 0 and cover t_end."""
+
+    kind: Literal["table"] = "table"
+    t: list[float] = Field(
+        min_length=2, max_length=MAX_TABLE_POINTS, description="Strictly increasing times [s]."
+    )
+    values: list[float] = Field(
+        min_length=2, max_length=MAX_TABLE_POINTS, description="Values at those times."
+    )
+    interpolation: Literal["linear", "cubic", "pchip"] = Field(
+        "linear", description="linear, cubic (not-a-knot spline) or pchip (monotone)."
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> TableProfile:
+        if len(self.t) != len(self.values):
+            raise ValueError("t and values must have the same length")
+        if any(b <= a for a, b in zip(self.t, self.t[1:], strict=False)):
+            raise ValueError("t must be strictly increasing")
+        if self.t[0] > 0:
+            raise ValueError("the table must start at or before t = 0 s")
+        return self
+
+    def to_profile(self) -> profiles.Profile:
+        return profiles.table(self.t, self.values, self.interpolation)
+
+
+ProfileSpec = Annotated[
+    ConstantProfile | PolynomialProfile | HarmonicProfile | TableProfile,
+    Field(discriminator="kind"),
+]
+
+
+class RotationSpec(_Strict):
+    omega0: ProfileSpec = Field(
+        default_factory=ConstantProfile, description="Spin w0(t) of the hub [rad/s]."
+    )
+
+
+class FlowSpec(_Strict):
+    velocity: ProfileSpec = Field(
+        default_factory=ConstantProfile,
+        description="Flow velocity v(t) [m/s]; v > 0 flows from the clamped end to the tip.",
+    )
+
+
+class InitialSpec(_Strict):
+    u0: float = Field(
+        0.001,
+        ge=-1e3,
+        le=1e3,
+        description="Initial amplitude [m]: u(x,0) = u0 s(x), s chosen by 'shape'.",
+    )
+    du0: float = Field(
+        0.0, ge=-1e6, le=1e6, description="Initial velocity amplitude [m/s]: du/dt(x,0) = du0 s(x)."
+    )
+    shape: Literal["paper", "tip"] = Field(
+        "paper",
+        description=(
+            "'paper': s is eq. (3)'s phi_1, whose tip value is 2.7242, so the initial tip "
+            "displacement is 2.7242 u0 (as in the paper); 'tip': s is the first mode scaled "
+            "to a unit tip value, so u0 is the initial tip displacement."
+        ),
+    )
+
+
+class TimeSpec(_Strict):
+    t_end: float = Field(1.0, gt=0, le=1e6, description="Simulated duration [s].")
+    samples: int = Field(
+        2001, ge=2, le=MAX_SAMPLES, description="Output times, evenly spaced incl. 0 and t_end."
+    )
+
+
+class MethodOptions(_Strict):
+    """Solver options; a method ignores the ones it does not read (and so does the cache key)."""
+
+    step: float | None = Field(
+        None, gt=0, description="rk4/magnus: time step [s]; null picks one automatically."
+    )
+    max_steps: int = Field(
+        2_000_000, ge=1, le=MAX_STEPS_CEILING, description="Refuse runs needing more steps."
+    )
+    rtol: float = Field(1e-12, ge=1e-14, le=1e-2, description="reference: relative tolerance.")
+    atol: float = Field(
+        1e-15, ge=1e-20, le=1.0, description="reference: absolute tolerance [m of modal amplitude]."
+    )
+    integrator: Literal["DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA"] = Field(
+        "DOP853", description="reference: scipy solve_ivp method."
+    )
+    tolerance: float = Field(
+        1e-8, ge=1e-13, le=1e-1, description="magnus: relative accuracy target [-]."
+    )
+    condition_limit: float = Field(
+        1e8,
+        ge=10,
+        le=1e14,
+        description="cma: eigenvector condition number above which expm is used instead [-].",
+    )
+
+
+class OutputSpec(_Strict):
+    positions: list[float] = Field(
+        default_factory=list,
+        max_length=MAX_POSITIONS,
+        description="Extra stations x [m] (0 <= x <= L) whose displacement u(x, t) is returned.",
+    )
+    eigen_modes: int = Field(3, ge=1, le=40, description="Lowest eigenvalue branches to trace.")
+    eigen_samples: int = Field(
+        201, ge=2, le=MAX_EIGEN_SAMPLES, description="Times at which eigenvalues are computed."
+    )
+    modal: bool = Field(False, description="Also return modal coordinates d [m], d' [m/s].")
+    divergence_bound: float | None = Field(
+        None, gt=0, description="Tip amplitude [m] flagged as divergence; null means L."
+    )
+
+
+class SimulationSpec(_Strict):
+    """A simulation request: pipe, loading, initial condition, discretisation and method."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        allow_inf_nan=False,
+        json_schema_extra={
+            "examples": [
+                {
+                    "pipe": {"E": 7.8e9, "I": 1.21e-17, "L": 0.025, "M1": 1.884e-5, "M2": 1.6485e-5},
+                    "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
+                    "flow": {"velocity": {"kind": "polynomial", "coefficients": [0.0, 0.4]}},
+                    "initial": {"u0": 0.001, "du0": 0.0},
+                    "modes": 10,
+                    "time": {"t_end": 1.0, "samples": 2001},
+                    "method": "cma",
+                }
+            ]
+        },
+    )
+
+    pipe: PipeSpec
+    rotation: RotationSpec = Field(default_factory=RotationSpec)
+    flow: FlowSpec = Field(default_factory=FlowSpec)
+    initial: InitialSpec = Field(default_factory=InitialSpec)
+    modes: int = Field(10, ge=1, le=40, description="Number of Galerkin (cantilever) modes.")
+    time: TimeSpec = Field(default_factory=TimeSpec)
+    method: str = Field(
+        "cma",
+        description="Solver: " + "; ".join(f"'{n}': {s.description}" for n, s in SOLVERS.items()),
+        json_schema_extra={"enum": sorted(SOLVERS)},
+    )
+    options: MethodOptions = Field(default_factory=MethodOptions)
+    output: OutputSpec = Field(default_factory=OutputSpec)
+
+    @field_validator("method")
+    @classmethod
+    def _known_method(cls, v: str) -> str:
+        if v not in SOLVERS:
+            raise ValueError(f"unknown method {v!r}; choose one of {', '.join(sorted(SOLVERS))}")
+        return v
+
+    @model_validator(mode="after")
+    def _consistent(self) -> SimulationSpec:
+        if self.output.eigen_modes > self.modes:
+            raise ValueError("output.eigen_modes cannot exceed modes")
+        for i, x in enumerate(self.output.positions):
+            if not 0 <= x <= self.pipe.L:
+                raise ValueError(f"output.positions[{i}] = {x} m is outside [0, L]")
+        for name, prof in (("flow.velocity", self.flow.velocity), ("rotation.omega0", self.rotation.omega0)):
+            if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
+                raise ValueError(f"{name}: the table ends at {prof.t[-1]} s, before time.t_end")
+        return self
+
+    def to_simulation(self) -> Simulation:
+        opts = self.options
+        return Simulation(
+            pipe=self.pipe.to_pipe(),
+            flow=self.flow.velocity.to_profile(),
+            spin=self.rotation.omega0.to_profile(),
+            u0=self.initial.u0,
+            du0=self.initial.du0,
+            initial_shape=self.initial.shape,
+            modes=self.modes,
+            t_end=self.time.t_end,
+            samples=self.time.samples,
+            method=self.method,
+            options=Options(
+                step=opts.step,
+                max_steps=opts.max_steps,
+                rtol=opts.rtol,
+                atol=opts.atol,
+                integrator=opts.integrator,
+                tolerance=opts.tolerance,
+                condition_limit=opts.condition_limit,
+            ),
+            positions=tuple(self.output.positions),
+            eigen_modes=self.output.eigen_modes,
+            eigen_samples=self.output.eigen_samples,
+            include_modal=self.output.modal,
+            divergence_bound=self.output.divergence_bound,
+        )
+
+    def canonical(self) -> dict[str, Any]:
+        """Normalised JSON form: every default filled in, unread method options dropped."""
+        data = self.model_dump(mode="json")
+        used = set(SOLVERS[self.method].option_names)
+        data["options"] = {k: v for k, v in data["options"].items() if k in used}
+        return data
+
+
+#: the paper's section-5 example, v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s
+PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_config["json_schema_extra"]["examples"][0]  # type: ignore[index,call-overload]
+
+
+def cache_key(spec: SimulationSpec, kind: str = "simulation") -> str:
+    """SHA-256 of the RFC 8785 canonical JSON of the normalised spec, salted with the version.
+
+    Equivalent requests (key order, ``1`` vs ``1.0``, defaults omitted or spelled out,
+    options the method ignores) share a key; any change to a number that matters changes it.
+    """
+    payload = {"pipeflow": __version__, "kind": kind, "spec": spec.canonical()}
+    return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()
