@@ -51,7 +51,7 @@ def _decompose(S: NDArray[np.float64]) -> tuple[ComplexArray, ComplexArray, Comp
     return w, V, W
 
 
-def _order_lowest(w: ComplexArray, count: int) -> NDArray[np.intp]:
+def order_lowest(w: ComplexArray, count: int) -> NDArray[np.intp]:
     """Indices of the ``count`` lowest-frequency modes at one point.
 
     One eigenvalue per conjugate pair (omega >= 0); real eigenvalues (divergence or
@@ -63,13 +63,25 @@ def _order_lowest(w: ComplexArray, count: int) -> NDArray[np.intp]:
     return upper[order][:count]
 
 
-def track(S: NDArray[np.float64], modes: int) -> Traces:
-    """Eigenvalues of each ``S[k]`` (shape ``(N, m, m)``), the ``modes`` lowest tracked.
+def decompose(S: NDArray[np.float64]) -> tuple[ComplexArray, ComplexArray, ComplexArray]:
+    """Batched eigen-decomposition of ``S`` (shape ``(N, m, m)``).
 
-    Branches are chosen at the first point (lowest frequencies, one per conjugate pair)
-    and followed by optimal assignment of left/right eigenvector overlaps.
+    Returns eigenvalues ``w`` (N, m), right eigenvectors ``V`` (unit columns) and the left
+    ones ``W = V^-1`` (rows), so that ``W V = I`` (non-finite where V is singular).
     """
-    w, V, W = _decompose(S)
+    return _decompose(S)
+
+
+def assign(
+    w: ComplexArray, V: ComplexArray, W: ComplexArray
+) -> tuple[NDArray[np.intp], FloatArray]:
+    """Follow every eigenvalue branch through consecutive decompositions.
+
+    Returns ``perm`` (N, m): column j of ``w[k, perm[k]]`` is branch j at point k (branch
+    j is eigenvalue j of the first point), and ``confidence`` (N, m) in [0, 1]: the
+    left/right eigenvector overlap that linked point k to point k-1 (1 at k = 0).
+    Optimal assignment (Hungarian algorithm) on the overlaps, not greedy matching.
+    """
     N, m = w.shape
     perm = np.empty((N, m), dtype=np.intp)
     conf = np.ones((N, m))
@@ -85,6 +97,20 @@ def track(S: NDArray[np.float64], modes: int) -> Traces:
             rows, cols = linear_sum_assignment(-overlap)
             conf[k, rows] = np.minimum(1.0, overlap[rows, cols])
         perm[k, rows] = cols
-    chosen = _order_lowest(w[0], modes)
+    return perm, conf
+
+
+def track(S: NDArray[np.float64], modes: int) -> Traces:
+    """Eigenvalues of each ``S[k]`` (shape ``(N, m, m)``), the ``modes`` lowest tracked.
+
+    Branches are chosen at the first point (lowest frequencies, one per conjugate pair)
+    and followed by optimal assignment of left/right eigenvector overlaps.
+    """
+    w, V, W = _decompose(S)
+    perm, conf = assign(w, V, W)
+    chosen = order_lowest(w[0], modes)
     xi = np.take_along_axis(w, perm[:, chosen], axis=1)
     return Traces(xi=xi, confidence=conf[:, chosen])
+
+
+_order_lowest = order_lowest  # backwards-compatible private name
