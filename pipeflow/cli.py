@@ -1,0 +1,316 @@
+"""The ``pipeflow`` command line: run a simulation, export CSV, draw the paper's figures.
+
+Installed as the ``pipeflow`` console script.  Every subcommand reads and writes the same
+JSON as the HTTP service (:class:`pipeflow.spec.SimulationSpec` in, the result dictionary
+out).  Web libraries are imported only inside the subcommands that talk HTTP
+(``serve``, ``--server``), so ``import pipeflow.cli`` keeps the library free of them.
+
+Exit status: 0 success, 2 invalid input (the message names the field), 1 other failures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import IO, Any
+
+from pipeflow.errors import PipeflowError
+
+EXAMPLE_HELP = """\
+the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s):
+
+  pipeflow example > spec.json                  # write the example spec
+  pipeflow run spec.json -o result.json         # run it locally (about a second)
+  pipeflow run spec.json --format csv -o tip.csv                 # t [s], u(L,t) [m]
+  pipeflow run spec.json --format csv --table eigenvalues        # sigma [1/s], omega [rad/s]
+  pipeflow plot result.json --name tip_displacement --out tip.png
+  pipeflow plot spec.json --name frequency --out freq.svg        # runs the spec, then plots
+  pipeflow serve --port 8000                    # the HTTP service and viewer at /
+  pipeflow run spec.json --server http://localhost:8000          # run on a server
+"""
+
+
+class ProgressBar:
+    """A one-line progress bar on a text stream (stderr), drawn at most every 0.1 s.
+
+    ``enabled=None`` draws only when the stream is a terminal.
+    """
+
+    def __init__(self, label: str, stream: IO[str] | None = None, enabled: bool | None = None):
+        self.stream = stream if stream is not None else sys.stderr
+        if enabled is None:
+            enabled = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.enabled = enabled
+        self.label = label
+        self._last = -1.0
+        self._fraction = -1.0
+        self._shown = False
+        self._start = time.monotonic()
+
+    def __call__(self, fraction: float) -> None:
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if (fraction < 1.0 and now - self._last < 0.1) or fraction == self._fraction:
+            return
+        self._last = now
+        self._fraction = fraction
+        width = 30
+        filled = round(width * min(max(fraction, 0.0), 1.0))
+        bar = "#" * filled + "-" * (width - filled)
+        self.stream.write(
+            f"\r{self.label} [{bar}] {100 * fraction:5.1f}% {now - self._start:6.1f} s"
+        )
+        self.stream.flush()
+        self._shown = True
+
+    def close(self) -> None:
+        if self._shown:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._shown = False
+
+
+def _read_json(path: str) -> Any:
+    text = sys.stdin.read() if path == "-" else Path(path).read_text(encoding="utf-8")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PipeflowError(f"{path} is not valid JSON: {exc}", field="input") from exc
+
+
+def _unwrap(data: Any) -> Any:
+    """The result inside a service envelope (``{"key": ..., "result": {...}}``), or ``data``."""
+    if isinstance(data, dict) and isinstance(data.get("result"), dict):
+        return data["result"]
+    return data
+
+
+def _is_result(data: Any) -> bool:
+    return isinstance(data, dict) and "t" in data and "tip_displacement" in data
+
+
+def _progress(args: argparse.Namespace, label: str) -> ProgressBar:
+    return ProgressBar(label, enabled=True if args.progress else (False if args.quiet else None))
+
+
+def _run_local(spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
+    from pipeflow.simulation import simulate
+    from pipeflow.spec import SimulationSpec
+
+    spec = SimulationSpec.model_validate(spec_data)
+    try:
+        result = simulate(spec.to_simulation(), progress=bar)
+    finally:
+        bar.close()
+    return result.to_dict()
+
+
+def _run_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
+    from pipeflow_client import Client  # imported here: the library has no web imports
+
+    with Client(server) as client:
+        try:
+            return client.simulate_raw(spec_data, progress=bar)
+        finally:
+            bar.close()
+
+
+def _result_for(args: argparse.Namespace, data: Any) -> dict[str, Any]:
+    data = _unwrap(data)
+    if _is_result(data):
+        return data
+    bar = _progress(args, "simulating")
+    if getattr(args, "server", None):
+        return _run_remote(data, args.server, bar)
+    return _run_local(data, bar)
+
+
+def _write(out: str | None, payload: str | bytes) -> None:
+    if out in (None, "-"):
+        if isinstance(payload, bytes):
+            sys.stdout.buffer.write(payload)
+        else:
+            sys.stdout.write(payload)
+        return
+    path = Path(out)
+    if isinstance(payload, bytes):
+        path.write_bytes(payload)
+    else:
+        path.write_text(payload, encoding="utf-8", newline="")
+
+
+def cmd_example(args: argparse.Namespace) -> int:
+    from pipeflow.spec import PAPER_EXAMPLE
+
+    _write(args.output, json.dumps(PAPER_EXAMPLE, indent=2) + "\n")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    result = _result_for(args, _read_json(args.spec))
+    if args.format == "csv":
+        from pipeflow.export import to_csv
+
+        _write(args.output, to_csv(result, args.table))
+    else:
+        _write(args.output, json.dumps(result, indent=None if args.compact else 1) + "\n")
+    for w in result.get("warnings", []):
+        print(f"warning: {w}", file=sys.stderr)
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from pipeflow.plots import PlotError, render
+
+    fmt = args.format or Path(args.out).suffix.lstrip(".").lower()
+    if fmt not in ("png", "svg"):
+        raise PlotError("give --out a .png or .svg file name, or --format", field="--out")
+    result = _result_for(args, _read_json(args.input))
+    _write(args.out, render(result, args.name, fmt, title=args.title))
+    if args.out not in (None, "-"):
+        print(f"wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    import uvicorn  # imported here: the library has no web imports
+
+    uvicorn.run("service.main:app", host=args.host, port=args.port, workers=args.workers)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from pipeflow import __version__
+    from pipeflow.export import TABLES
+    from pipeflow.plots import PLOTS
+
+    p = argparse.ArgumentParser(
+        prog="pipeflow",
+        description=(
+            "Vibration of a rotating cantilevered pipe conveying fluid with time-varying "
+            "flow v(t) [m/s] and spin w0(t) [rad/s] (complex modal analysis, RK4, reference)."
+        ),
+        epilog=EXAMPLE_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--version", action="version", version=f"pipeflow {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def progress_flags(sp: argparse.ArgumentParser) -> None:
+        g = sp.add_mutually_exclusive_group()
+        g.add_argument(
+            "--progress", action="store_true", help="always draw the progress bar on stderr"
+        )
+        g.add_argument("--quiet", action="store_true", help="never draw the progress bar")
+
+    sp = sub.add_parser(
+        "example",
+        help="print the paper's example spec (JSON)",
+        description="Print the paper's section-5 example as a simulation spec (JSON, SI units).",
+    )
+    sp.add_argument("-o", "--output", help="write to this file instead of stdout")
+    sp.set_defaults(func=cmd_example)
+
+    sp = sub.add_parser(
+        "run",
+        help="run a simulation spec, print the result as JSON or CSV",
+        description=(
+            "Run the simulation described by SPEC (JSON; '-' reads stdin) locally, or on a "
+            "pipeflow server with --server, and write the result."
+        ),
+        epilog=EXAMPLE_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument("spec", help="simulation spec JSON file ('-': stdin); see 'pipeflow example'")
+    sp.add_argument("--format", choices=("json", "csv"), default="json", help="output format")
+    sp.add_argument(
+        "--table",
+        choices=tuple(TABLES),
+        default="history",
+        help="CSV table: " + "; ".join(f"{k}: {v}" for k, v in TABLES.items()),
+    )
+    sp.add_argument("-o", "--output", help="write to this file instead of stdout")
+    sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
+    sp.add_argument("--compact", action="store_true", help="JSON on one line")
+    progress_flags(sp)
+    sp.set_defaults(func=cmd_run)
+
+    sp = sub.add_parser(
+        "plot",
+        help="draw a figure (PNG or SVG) of a result, or of a spec after running it",
+        description=(
+            "Draw one figure of INPUT, a result JSON (from 'pipeflow run' or the service) or "
+            "a spec JSON (run first, locally or with --server). Plots: "
+            + "; ".join(f"{k}: {v.title}" for k, v in PLOTS.items())
+        ),
+        epilog=EXAMPLE_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument("input", help="result or spec JSON file ('-': stdin)")
+    sp.add_argument("--name", choices=tuple(PLOTS), default="tip_displacement", help="which plot")
+    sp.add_argument("--out", required=True, help="output file, .png or .svg ('-': stdout)")
+    sp.add_argument("--format", choices=("png", "svg"), help="image format (default: from --out)")
+    sp.add_argument("--title", help="figure title (default: the plot's name)")
+    sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
+    progress_flags(sp)
+    sp.set_defaults(func=cmd_plot)
+
+    sp = sub.add_parser(
+        "serve",
+        help="run the HTTP service (API and viewer)",
+        description="Run the pipeflow HTTP service with uvicorn; the viewer is at /.",
+    )
+    sp.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1)")
+    sp.add_argument("--port", type=int, default=8000, help="TCP port (default 8000)")
+    sp.add_argument("--workers", type=int, default=1, help="uvicorn worker processes")
+    sp.set_defaults(func=cmd_serve)
+    return p
+
+
+def _describe_validation(exc: Exception) -> list[str]:
+    errors = getattr(exc, "errors", None)
+    if not callable(errors):
+        return [str(exc)]
+    lines = []
+    for e in errors():
+        loc = ".".join(str(x) for x in e.get("loc", ()))
+        lines.append(f"{loc or 'spec'}: {e.get('msg', '')}")
+    return lines
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``pipeflow`` console script; returns the exit status."""
+    from pydantic import ValidationError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except ValidationError as exc:
+        for line in _describe_validation(exc):
+            print(f"error: {line}", file=sys.stderr)
+        return 2
+    except PipeflowError as exc:
+        where = f"{exc.field}: " if exc.field else ""
+        print(f"error: {where}{exc.message}", file=sys.stderr)
+        return 2
+    except (ValueError, KeyError) as exc:
+        # plot/export errors carry a field too
+        field = getattr(exc, "field", None)
+        print(f"error: {field + ': ' if field else ''}{exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

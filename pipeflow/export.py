@@ -1,0 +1,118 @@
+"""CSV export of a simulation result: time histories and eigenvalue traces.
+
+Works on the JSON form of a result (:meth:`pipeflow.simulation.Result.to_dict`, which is
+also what the service stores), so the command line, the service and a notebook export the
+same bytes.  Every table has one header row naming each column and its SI unit in
+brackets, e.g. ``t [s],tip_displacement [m]``; numbers are written with Python's shortest
+round-trip representation, so reading the CSV back gives the identical floats.
+
+Tables
+------
+``history``
+    ``t [s]``, ``tip_displacement [m]`` (u(L, t)), one ``u(x=<x>) [m]`` column per
+    requested station x [m], and, when the result carries modal coordinates,
+    ``d_j [m]`` and ``ddot_j [m/s]``.
+``eigenvalues``
+    Tracked eigenvalues xi = sigma + i omega of the frozen state matrix S(t):
+    ``t [s]`` then ``sigma_j [1/s]`` (damping, negative: decaying), ``omega_j [rad/s]``
+    (frequency) and ``confidence_j [-]`` (tracking confidence, 0..1) for each branch j.
+``cma_exponents``
+    The same columns for the eigenvalues of P(t)/t, the exponents the paper's CMA applies.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+#: table name -> one-line description (units in the column headers)
+TABLES: dict[str, str] = {
+    "history": "time history: t [s], tip displacement [m], stations [m], modal coordinates",
+    "eigenvalues": "frozen-time eigenvalues of S(t): sigma [1/s], omega [rad/s] per branch",
+    "cma_exponents": "eigenvalues of P(t)/t (the CMA exponents): sigma [1/s], omega [rad/s]",
+}
+
+CSV_MEDIA_TYPE = "text/csv"
+
+
+class ExportError(ValueError):
+    """The requested table cannot be made from this result (names the table)."""
+
+    def __init__(self, message: str, field: str = "table") -> None:
+        super().__init__(message)
+        self.message = message
+        self.field = field
+
+
+def available_tables(result: dict[str, Any]) -> list[str]:
+    """Names of the tables that :func:`to_csv` can produce from ``result``."""
+    names = []
+    if "t" in result and "tip_displacement" in result:
+        names.append("history")
+    for name in ("eigenvalues", "cma_exponents"):
+        if isinstance(result.get(name), dict) and result[name].get("modes"):
+            names.append(name)
+    return names
+
+
+def table(result: dict[str, Any], name: str = "history") -> tuple[list[str], list[list[float]]]:
+    """Header (``"name [unit]"`` strings) and columns of table ``name`` of ``result``."""
+    if name not in TABLES:
+        raise ExportError(f"unknown table {name!r}; choose one of {', '.join(TABLES)}")
+    if name not in available_tables(result):
+        raise ExportError(f"this result has no {name!r} table")
+    if name == "history":
+        return _history(result)
+    return _traces(result[name])
+
+
+def _history(result: dict[str, Any]) -> tuple[list[str], list[list[float]]]:
+    header = ["t [s]", "tip_displacement [m]"]
+    columns: list[list[float]] = [list(result["t"]), list(result["tip_displacement"])]
+    for station in result.get("displacements", []):
+        header.append(f"u(x={_num(station['x'])}) [m]")
+        columns.append(list(station["u"]))
+    modal = result.get("modal")
+    if modal:
+        for key, unit in (("d", "m"), ("ddot", "m/s")):
+            rows = modal[key]
+            n = len(rows[0]) if rows else 0
+            for j in range(n):
+                header.append(f"{key}_{j + 1} [{unit}]")
+                columns.append([r[j] for r in rows])
+    return header, columns
+
+
+def _traces(block: dict[str, Any]) -> tuple[list[str], list[list[float]]]:
+    header = ["t [s]"]
+    columns: list[list[float]] = [list(block["t"])]
+    for mode in block["modes"]:
+        j = mode["mode"]
+        header += [f"sigma_{j} [1/s]", f"omega_{j} [rad/s]", f"confidence_{j} [-]"]
+        columns += [list(mode["sigma"]), list(mode["omega"]), list(mode["confidence"])]
+    return header, columns
+
+
+def _num(x: Any) -> str:
+    return repr(float(x))
+
+
+def write_csv(header: Sequence[str], columns: Sequence[Sequence[float]]) -> str:
+    """CSV text (``\\r\\n`` line ends, RFC 4180) of equal-length ``columns`` under ``header``."""
+    lengths = {len(c) for c in columns}
+    if len(lengths) > 1:
+        raise ExportError(f"columns have different lengths {sorted(lengths)}")
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\r\n")
+    writer.writerow(header)
+    rows: Iterable[tuple[float, ...]] = zip(*columns, strict=True)
+    writer.writerows([_num(x) if x is not None else "" for x in row] for row in rows)
+    return buf.getvalue()
+
+
+def to_csv(result: dict[str, Any], name: str = "history") -> str:
+    """Table ``name`` (see :data:`TABLES`) of a JSON result as CSV text with a unit header."""
+    header, columns = table(result, name)
+    return write_csv(header, columns)

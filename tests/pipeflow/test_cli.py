@@ -1,0 +1,97 @@
+"""The pipeflow command line: example, run (JSON/CSV), plot, errors naming fields, help."""
+
+from __future__ import annotations
+
+import io
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from pipeflow.cli import ProgressBar, main
+from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+
+
+@pytest.fixture
+def small_spec(tmp_path: Path) -> Path:
+    spec = json.loads(json.dumps(PAPER_EXAMPLE))
+    spec.update(modes=4, time={"t_end": 0.1, "samples": 41})
+    spec["output"] = {"eigen_modes": 2, "eigen_samples": 11}
+    path = tmp_path / "spec.json"
+    path.write_text(json.dumps(spec))
+    return path
+
+
+def test_example_is_the_papers_spec(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["example"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data == PAPER_EXAMPLE
+    SimulationSpec.model_validate(data)
+
+
+def test_run_json_then_csv_then_plot(
+    small_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "result.json"
+    assert main(["run", str(small_spec), "-o", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    assert result["status"] == "ok" and len(result["t"]) == 41
+    assert result["initial_tip_displacement"] == pytest.approx(2.7242e-3, rel=1e-3)
+
+    assert main(["run", str(out), "--format", "csv", "--table", "eigenvalues"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("t [s],sigma_1 [1/s],omega_1 [rad/s]")
+    assert len(lines) == 12
+
+    png = tmp_path / "tip.png"
+    assert main(["plot", str(out), "--name", "tip_displacement", "--out", str(png)]) == 0
+    assert png.read_bytes().startswith(b"\x89PNG")
+    svg = tmp_path / "f.svg"
+    # a spec is run first, then plotted
+    assert main(["plot", str(small_spec), "--name", "frequency", "--out", str(svg), "--quiet"]) == 0
+    assert b"frequency" in svg.read_bytes()
+
+
+def test_invalid_spec_names_the_field(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    spec = json.loads(json.dumps(PAPER_EXAMPLE))
+    spec["pipe"]["L"] = -1.0
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(spec))
+    assert main(["run", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "pipe.L" in err and "greater than 0" in err
+
+
+def test_bad_json_and_bad_plot_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "x.json"
+    path.write_text("{not json")
+    assert main(["run", str(path)]) == 2
+    assert "not valid JSON" in capsys.readouterr().err
+    assert main(["plot", str(path), "--out", "x.gif"]) == 2
+    assert "--out" in capsys.readouterr().err
+
+
+def test_progress_bar_only_on_tty_or_forced() -> None:
+    quiet = io.StringIO()
+    bar = ProgressBar("x", stream=quiet)  # StringIO is not a terminal
+    bar(0.5)
+    bar.close()
+    assert quiet.getvalue() == ""
+    forced = io.StringIO()
+    bar = ProgressBar("simulating", stream=forced, enabled=True)
+    bar(0.25)
+    bar(1.0)
+    bar.close()
+    text = forced.getvalue()
+    assert "simulating [" in text and "100.0%" in text and text.endswith("\n")
+
+
+def test_console_script_help_shows_the_papers_example() -> None:
+    exe = shutil.which("pipeflow")
+    if exe is None:
+        pytest.fail("the pipeflow console script is not installed (pip install -e .)")
+    out = subprocess.run([exe, "run", "--help"], capture_output=True, text=True, check=True)
+    assert "v = 0.4 t m/s, w0 = 100 rad/s" in out.stdout
+    assert "--format {json,csv}" in out.stdout

@@ -1,0 +1,93 @@
+"""Figures of results: PNG/SVG bytes, axis labels with units, overlays, determinism."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from typing import Any
+
+import pytest
+
+from pipeflow.model import PAPER_PIPE
+from pipeflow.plots import PLOTS, PlotError, available_plots, figure, render, to_bytes
+from pipeflow.profiles import Constant, polynomial
+from pipeflow.simulation import Simulation, simulate
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _run(a: float, positions: tuple[float, ...] = ()) -> dict[str, Any]:
+    sim = Simulation(
+        PAPER_PIPE,
+        flow=polynomial(0, a),
+        spin=Constant(100.0),
+        modes=4,
+        t_end=0.2,
+        samples=81,
+        eigen_modes=2,
+        eigen_samples=11,
+        positions=positions,
+    )
+    return simulate(sim).to_dict()
+
+
+@pytest.fixture(scope="module")
+def result() -> dict[str, Any]:
+    return _run(0.4, positions=(0.0125,))
+
+
+def _svg_text(data: bytes) -> str:
+    root = ET.fromstring(data)  # well-formed XML
+    return " ".join(t for el in root.iter() if el.tag.endswith("text") for t in el.itertext())
+
+
+def test_available_plots(result: dict[str, Any]) -> None:
+    assert available_plots(result) == list(PLOTS)
+    no_stations = dict(result, displacements=[])
+    assert "displacements" not in available_plots(no_stations)
+    assert available_plots({"t": [0.0], "tip_displacement": [0.0]}) == ["tip_displacement"]
+
+
+@pytest.mark.parametrize(
+    ("name", "labels"),
+    [
+        ("tip_displacement", ["time t [s]", "tip displacement u(L, t) [m]"]),
+        ("damping", ["time t [s]", "damping σ [1/s]"]),
+        ("frequency", ["time t [s]", "frequency ω [rad/s]"]),
+        ("argand", ["damping σ [1/s]", "frequency ω [rad/s]"]),
+        ("displacements", ["time t [s]", "displacement u(x, t) [m]", "x = 0.0125 m"]),
+    ],
+)
+def test_svg_has_axis_labels_with_units(
+    result: dict[str, Any], name: str, labels: list[str]
+) -> None:
+    text = _svg_text(render(result, name, "svg"))
+    for label in labels:
+        assert label in text
+
+
+def test_png_bytes_and_determinism(result: dict[str, Any]) -> None:
+    a = render(result, "tip_displacement", "png")
+    assert a.startswith(PNG_MAGIC)
+    assert render(result, "tip_displacement", "png") == a
+    assert render(result, "damping", "svg") == render(result, "damping", "svg")
+
+
+def test_overlay_legend_and_title(result: dict[str, Any]) -> None:
+    other = _run(0.2)
+    fig = figure("frequency", [("v = 0.4 t m/s", result), ("v = 0.2 t m/s", other)], title="Fig. 7")
+    ax = fig.axes[0]
+    assert len(ax.lines) == 2
+    assert ax.get_title() == "Fig. 7"
+    text = _svg_text(to_bytes(fig, "svg"))
+    assert "v = 0.4 t m/s" in text and "v = 0.2 t m/s" in text
+
+
+def test_errors_name_the_field(result: dict[str, Any]) -> None:
+    with pytest.raises(PlotError, match="unknown plot 'bode'") as err:
+        render(result, "bode")
+    assert err.value.field == "name"
+    with pytest.raises(PlotError) as err:
+        render(result, "damping", "jpg")
+    assert err.value.field == "format"
+    with pytest.raises(PlotError, match="no data for the 'damping' plot"):
+        render({"t": [0.0, 1.0], "tip_displacement": [0.0, 0.0]}, "damping")
