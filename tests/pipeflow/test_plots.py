@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -91,3 +94,22 @@ def test_errors_name_the_field(result: dict[str, Any]) -> None:
     assert err.value.field == "format"
     with pytest.raises(PlotError, match="no data for the 'damping' plot"):
         render({"t": [0.0, 1.0], "tip_displacement": [0.0, 0.0]}, "damping")
+
+
+def test_paper_figures_example_script(tmp_path: Path) -> None:
+    """examples/paper_figures.py draws the requested figures (coarse settings: a smoke test)."""
+    script = Path(__file__).resolve().parents[2] / "examples" / "paper_figures.py"
+    spec = importlib.util.spec_from_file_location("paper_figures", script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        del sys.modules[spec.name]
+    assert [c.first_figure for c in module.cases()] == [2, 5, 8, 11, 14, 17, 20, 23, 26]
+    args = ["--out", str(tmp_path), "--only", "6", "27", "--modes", "2", "--samples", "51"]
+    assert module.main(args) == 0
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert files == ["fig06_damping.png", "fig27_damping.png"]
+    assert (tmp_path / files[0]).read_bytes().startswith(PNG_MAGIC)
