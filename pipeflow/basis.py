@@ -3,7 +3,7 @@
 All functions work on the non-dimensional coordinate ``xi = x / L`` in [0, 1].
 The modes returned here are normalised so that ``integral_0^1 phi_j(xi)^2 dxi = 1``
 (tip value ``|phi_j(1)| = 2``).  The paper's eq. (3) shape is a multiple of ours:
-``phi_paper_j = paper_scale(j) * phi_j`` (tip value of the first paper mode: 2.7242).
+``phi_paper_j = paper_scale(j) * phi_j`` (tip value of the first paper mode: 2.7244).
 
 Numerical form
 --------------

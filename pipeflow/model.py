@@ -327,8 +327,8 @@ class PipeModel:
     ) -> tuple[FloatArray, FloatArray]:
         """Modal initial conditions for u(x,0) = u0 s(x), du/dt(x,0) = du0 s(x) (eq. 9).
 
-        ``shape="paper"``: s is the paper's eq. (3) first mode, whose tip value is 2.7242,
-        so the initial tip displacement is 2.7242 u0 [m].
+        ``shape="paper"``: s is the paper's eq. (3) first mode, whose tip value is 2.7244,
+        so the initial tip displacement is 2.7244 u0 [m].
         ``shape="tip"``: s is the first mode scaled to a unit tip value, so u0 is the
         initial tip displacement [m].
         """

@@ -92,24 +92,27 @@ class Polynomial(Profile):
     """p(t) = sum_k coefficients[k] t^k (the paper's a, a t, a t^2)."""
 
     coefficients: tuple[float, ...]
-    _p: _Poly = field(init=False, repr=False, compare=False)
+    _c: tuple[FloatArray, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if len(self.coefficients) == 0:
             raise ValueError("a polynomial needs at least one coefficient")
-        object.__setattr__(self, "_p", _Poly(np.asarray(self.coefficients, dtype=float)))
+        p = _Poly(np.asarray(self.coefficients, dtype=float))
+        # value, derivative, integral and integral of the square, highest power first
+        polys = (p, p.deriv(), p.integ(lbnd=0.0), (p * p).integ(lbnd=0.0))
+        object.__setattr__(self, "_c", tuple(q.coef[::-1].copy() for q in polys))
 
     def value(self, t: ArrayLike) -> FloatArray:
-        return np.asarray(self._p(_arr(t)), dtype=float)
+        return np.polyval(self._c[0], _arr(t))
 
     def derivative(self, t: ArrayLike) -> FloatArray:
-        return np.asarray(self._p.deriv()(_arr(t)), dtype=float)
+        return np.polyval(self._c[1], _arr(t))
 
     def integral(self, t: ArrayLike) -> FloatArray:
-        return np.asarray(self._p.integ(lbnd=0.0)(_arr(t)), dtype=float)
+        return np.polyval(self._c[2], _arr(t))
 
     def integral_square(self, t: ArrayLike) -> FloatArray:
-        return np.asarray((self._p * self._p).integ(lbnd=0.0)(_arr(t)), dtype=float)
+        return np.polyval(self._c[3], _arr(t))
 
     @property
     def is_constant(self) -> bool:

@@ -32,7 +32,7 @@ class Simulation:
     flow : flow velocity profile v(t) [m/s] (v > 0 from the clamped end to the tip).
     spin : spin profile w0(t) [rad/s].
     u0, du0 : initial amplitude [m] and velocity amplitude [m/s] of the initial shape.
-    initial_shape : "paper" (eq. 3's phi_1, tip value 2.7242 u0) or "tip" (u0 is the tip).
+    initial_shape : "paper" (eq. 3's phi_1, tip value 2.7244 u0) or "tip" (u0 is the tip).
     modes : number of Galerkin modes n (1..40).
     t_end : simulated duration [s]; samples : number of output times (incl. 0 and t_end).
     method : solver name (see ``pipeflow.solvers.SOLVERS``); options : its options.

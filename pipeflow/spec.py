@@ -149,8 +149,8 @@ class InitialSpec(_Strict):
     shape: Literal["paper", "tip"] = Field(
         "paper",
         description=(
-            "'paper': s is eq. (3)'s phi_1, whose tip value is 2.7242, so the initial tip "
-            "displacement is 2.7242 u0 (as in the paper); 'tip': s is the first mode scaled "
+            "'paper': s is eq. (3)'s phi_1, whose tip value is 2.7244, so the initial tip "
+            "displacement is 2.7244 u0 (as in the paper); 'tip': s is the first mode scaled "
             "to a unit tip value, so u0 is the initial tip displacement."
         ),
     )

@@ -50,7 +50,12 @@ class Reference:
         t_end = float(t[-1])
         count = [0]
 
+        invariant = loading.is_time_invariant
+        S_const = model.state_matrix(loading.coefficients(np.zeros(1)))[0]
+
         def matrix(s: float) -> FloatArray:
+            if invariant:
+                return S_const
             c = loading.coefficients(np.array([s]))
             w = np.array([1.0, c.v[0], c.vdot[0], c.v[0] ** 2, c.w2[0]])
             return np.tensordot(w, A, axes=1)
@@ -61,9 +66,13 @@ class Reference:
                 raise _OverBudget
             if count[0] % 2000 == 0:
                 problem.report(s / t_end)
-            out = matrix(s) @ z
+            if invariant:
+                return S_const @ z
+            c = loading.coefficients(np.array([s]))
+            w = np.array([1.0, c.v[0], c.vdot[0], c.v[0] ** 2, c.w2[0]])
+            out = (A @ z).T @ w  # S(s) z without forming S(s)
             if forced:
-                out = out + model.forcing(loading.coefficients(np.array([s])))[0]
+                out = out + c.wdot[0] * model.f_wdot
             return out
 
         implicit = opts.integrator in ("Radau", "BDF", "LSODA")
