@@ -1,0 +1,326 @@
+"""Critical flow velocity: every crossing of the stability boundary over a velocity range.
+
+For constant spin w0 [rad/s], each eigenvalue branch xi_j(v) = sigma_j + i omega_j of the
+frozen state matrix is followed from v = 0 to ``v_max`` (left/right eigenvector
+assignment, :func:`pipeflow.stability.core.follow`).  Wherever a branch's sigma_j changes
+sign the crossing is located by Brent's method on sigma_j(v) of that tracked branch, to a
+relative tolerance ``rtol`` (1e-10 by default, far inside the 1e-6 asked for).  A
+*flutter* crossing is a complex pair passing sigma = 0 with omega > 0, a *divergence* a real
+eigenvalue passing through 0.  Narrow windows that fall between two grid points (the
+S-shaped parts of the u_cr(beta) curve) are caught by maximising sigma_j wherever it has a
+local maximum (or, inside an unstable stretch, a local minimum) close to zero.
+
+Reverse flow (v < 0) is answered with :data:`~pipeflow.stability.core.REVERSE_FLOW_CAVEAT`
+and no threshold.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from scipy.optimize import brentq, minimize_scalar
+
+from pipeflow.errors import InvalidInput
+from pipeflow.model import Pipe, build_model
+from pipeflow.stability.core import (
+    REVERSE_FLOW_CAVEAT,
+    Branches,
+    FloatArray,
+    Progress,
+    check_modes,
+    check_range,
+    follow,
+    growth_rate,
+    rounding_level,
+    state_matrices,
+)
+
+Kind = Literal["flutter", "divergence"]
+Direction = Literal["loss", "gain"]
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """One branch crossing sigma = 0 as the flow velocity increases.
+
+    velocity : flow velocity at the crossing [m/s].
+    frequency : omega of the crossing branch there [rad/s] (0 for divergence).
+    mode : mode number (1 = lowest frequency at v = 0).
+    kind : "flutter" (complex pair, omega > 0) or "divergence" (real eigenvalue through 0).
+    direction : "loss" (the mode becomes unstable) or "gain" (it becomes stable again).
+    boundary : True when the pipe as a whole changes stability here (no other mode is
+        unstable on either side); a crossing while another mode is unstable is False.
+    flow_number : u = v L sqrt(M2/EI) [-] (None if M2 = 0).
+    dimensionless_frequency : omega sqrt((M1+M2) L^4 / EI) [-].
+    """
+
+    velocity: float
+    frequency: float
+    mode: int
+    kind: Kind
+    direction: Direction
+    boundary: bool
+    flow_number: float | None
+    dimensionless_frequency: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "velocity": self.velocity,
+            "frequency": self.frequency,
+            "frequency_hz": self.frequency / (2 * math.pi),
+            "mode": self.mode,
+            "kind": self.kind,
+            "direction": self.direction,
+            "boundary": self.boundary,
+            "flow_number": self.flow_number,
+            "dimensionless_frequency": self.dimensionless_frequency,
+        }
+
+
+@dataclass
+class CriticalVelocity:
+    """Result of :func:`critical_velocities` (SI units; :meth:`to_dict` for JSON).
+
+    critical_velocity : first loss of stability in the range [m/s] (v >= 0 part), or None
+        when the pipe stays stable there (or is already unstable at the range start, see
+        ``stable_at_start`` and ``warnings``).
+    crossings : every branch crossing of sigma = 0 in the v >= 0 part, by velocity.
+    stable_at_start : stability at max(v_min, 0) (None when the whole range is v < 0).
+    reverse_flow : the aspirating-pipe caveat when the range reaches v < 0, else None.
+    """
+
+    pipe: Pipe
+    omega0: float
+    modes: int
+    velocity_range: tuple[float, float]
+    critical_velocity: float | None
+    crossings: list[Crossing]
+    stable_at_start: bool | None
+    reverse_flow: dict[str, Any] | None
+    warnings: list[str] = field(default_factory=list)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def stable_throughout(self) -> bool:
+        return bool(self.stable_at_start) and not any(
+            c.boundary and c.direction == "loss" for c in self.crossings
+        )
+
+    def dimensionless(self) -> dict[str, Any]:
+        p = self.pipe
+        u = (
+            None
+            if self.critical_velocity is None or p.M2 == 0
+            else float(p.flow_number(self.critical_velocity))
+        )
+        return {
+            "beta": p.beta,
+            "gamma": float(p.spin_number(self.omega0)),
+            "u_cr": u,
+            "u_range": (
+                None if p.M2 == 0 else [float(p.flow_number(x)) for x in self.velocity_range]
+            ),
+            "time_scale": p.time_scale,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "critical_velocity": self.critical_velocity,
+            "stable_throughout": self.stable_throughout,
+            "stable_at_start": self.stable_at_start,
+            "crossings": [c.to_dict() for c in self.crossings],
+            "dimensionless": self.dimensionless(),
+            "omega0": self.omega0,
+            "modes": self.modes,
+            "velocity_range": list(self.velocity_range),
+            "reverse_flow": self.reverse_flow,
+            "warnings": list(self.warnings),
+            "diagnostics": dict(self.diagnostics),
+        }
+
+
+def _roots_of_branch(
+    br: Branches, j: int, start: int, tol: FloatArray, rtol: float
+) -> list[tuple[float, int]]:
+    """(v, k) of every sign change of branch j's sigma after grid index ``start``."""
+    s = br.xi[:, j].real
+    unstable = s > tol
+    p = br.p
+    out: list[tuple[float, int]] = []
+
+    def sigma(x: float, k: int, shift: float) -> float:
+        return br.branch_at(j, k, x).real - shift
+
+    def root(a: float, b: float, k: int) -> float:
+        fa, fb = sigma(a, k, 0.0), sigma(b, k, 0.0)
+        shift = 0.0
+        if fa * fb > 0:  # an end sits in the rounding band (v = 0): use its edge
+            shift = float(tol[k])
+        scale = max(abs(a), abs(b))
+        return float(brentq(sigma, a, b, args=(k, shift), xtol=1e-14 * scale + 1e-300, rtol=rtol))
+
+    for k in range(start, p.size - 1):
+        if unstable[k] != unstable[k + 1]:
+            out.append((root(p[k], p[k + 1], k), k))
+    # narrow windows inside one grid interval: a local extremum of sigma near zero
+    for k in range(max(start, 1), p.size - 1):
+        a, b = p[k - 1], p[k + 1]
+        if unstable[k - 1] or unstable[k] or unstable[k + 1]:
+            if not (unstable[k - 1] and unstable[k] and unstable[k + 1]):
+                continue
+            if not (s[k] <= s[k - 1] and s[k] <= s[k + 1]):
+                continue
+            sign = 1.0  # minimise sigma: does it dip below zero?
+        else:
+            if not (s[k] >= s[k - 1] and s[k] >= s[k + 1]):
+                continue
+            sign = -1.0  # maximise sigma: does it poke above zero?
+        reach = 4.0 * max(abs(s[k] - s[k - 1]), abs(s[k] - s[k + 1]))
+        if abs(s[k]) > reach:
+            continue
+        res = minimize_scalar(
+            lambda x, k=k, sign=sign: -sign * sigma(x, k, 0.0),
+            bounds=(a, b),
+            method="bounded",
+            options={"xatol": 1e-12 * max(abs(a), abs(b))},
+        )
+        x = float(res.x)
+        ext = sigma(x, k, 0.0)
+        if (sign < 0 and ext > tol[k]) or (sign > 0 and ext <= tol[k]):
+            for lo, hi in ((a, x), (x, b)):
+                fl, fh = sigma(lo, k, 0.0), sigma(hi, k, 0.0)
+                if fl * fh < 0:
+                    out.append((float(brentq(sigma, lo, hi, args=(k, 0.0), rtol=rtol)), k))
+    return out
+
+
+def critical_velocities(
+    pipe: Pipe,
+    omega0: float = 0.0,
+    velocity_range: tuple[float, float] = (0.0, 1.0),
+    modes: int = 10,
+    points: int = 401,
+    rtol: float = 1e-10,
+    progress: Progress | None = None,
+) -> CriticalVelocity:
+    """Every crossing of the stability boundary for v in ``velocity_range`` [m/s].
+
+    Parameters
+    ----------
+    pipe : pipe and fluid properties.
+    omega0 : constant spin w0 [rad/s].
+    velocity_range : (v_min, v_max) [m/s]; the v < 0 part gets the reverse-flow caveat.
+    modes : Galerkin modes n.
+    points : grid points of the branch-following sweep over [0, v_max] (refined where
+        the tracking confidence drops); crossings are then located by root-finding.
+    rtol : relative tolerance of each crossing velocity [-].
+    progress : called with a fraction in [0, 1]; may raise ``Cancelled`` to stop.
+    """
+    check_modes(modes)
+    v_min, v_max = float(velocity_range[0]), float(velocity_range[1])
+    check_range(v_min, v_max, "velocity_range")
+    if points < 3:
+        raise InvalidInput("points must be >= 3", field="points")
+    model = build_model(pipe, modes)
+    warnings: list[str] = []
+    reverse: dict[str, Any] | None = None
+    if v_min < 0:
+        rate = float(growth_rate(model, v_min, omega0)[0])
+        reverse = {
+            "velocity_range": [v_min, min(v_max, 0.0)],
+            "predicted_unstable": rate > 0,
+            "growth_rate_at_v_min": rate,
+            "caveat": REVERSE_FLOW_CAVEAT,
+        }
+        warnings.append(
+            "the range reaches reverse flow (v < 0): this model predicts flutter for any "
+            "v < 0, which experiments do not show; see reverse_flow.caveat"
+        )
+    result = CriticalVelocity(
+        pipe=pipe,
+        omega0=float(omega0),
+        modes=modes,
+        velocity_range=(v_min, v_max),
+        critical_velocity=None,
+        crossings=[],
+        stable_at_start=None,
+        reverse_flow=reverse,
+        warnings=warnings,
+    )
+    if v_max <= 0:
+        return result
+    if pipe.M2 == 0:
+        warnings.append("M2 = 0: no fluid, the flow velocity does not enter the model")
+    lo = max(v_min, 0.0)
+    # follow from v = 0 so that mode numbers are those of the v = 0 (rotating-beam) modes
+    head = np.linspace(0.0, lo, max(2, points // 4), endpoint=False) if lo > 0 else np.empty(0)
+    grid = np.concatenate([head, np.linspace(lo, v_max, points)])
+
+    def matrices(v: FloatArray) -> FloatArray:
+        return state_matrices(model, v, omega0)
+
+    if progress is not None:
+        progress(0.0)
+    br = follow(
+        matrices, grid, min_confidence=0.5, max_points=2 * grid.size, max_levels=4,
+        progress=progress,
+    )  # fmt: skip
+    tol = rounding_level(br.xi)
+    start = int(np.searchsorted(br.p, lo))
+    radius = float(np.max(np.abs(br.xi)))
+    found: list[tuple[float, int, int]] = []
+    m = br.xi.shape[1]
+    for j in range(m):
+        for v, k in _roots_of_branch(br, j, start, tol, rtol):
+            found.append((v, j, k))
+        if progress is not None:
+            progress(0.5 + 0.5 * (j + 1) / m)
+
+    unstable0 = br.xi[start].real > tol[start]
+    count = sum(1 for j in range(m) if unstable0[j] and br.upper(j, start))
+    crossings: list[Crossing] = []
+    for v, j, k in sorted(found):
+        xi = br.branch_at(j, k, v)
+        if xi.imag < -1e-9 * max(abs(xi), 1e-9 * radius):
+            continue  # the conjugate of a reported flutter crossing
+        # direction from the tracked branch: unstable just after the crossing?
+        after = br.branch_at(j, k, v * (1 + 1e-7) + 1e-12 * radius).real
+        before = br.branch_at(j, k, v * (1 - 1e-7)).real
+        loss = after > before
+        was = count > 0
+        count += 1 if loss else -1
+        divergence = abs(xi.imag) <= 1e-7 * radius
+        crossings.append(
+            Crossing(
+                velocity=v,
+                frequency=0.0 if divergence else abs(xi.imag),
+                mode=int(br.mode[j]),
+                kind="divergence" if divergence else "flutter",
+                direction="loss" if loss else "gain",
+                boundary=was != (count > 0),
+                flow_number=None if pipe.M2 == 0 else float(pipe.flow_number(v)),
+                dimensionless_frequency=(0.0 if divergence else abs(xi.imag)) * pipe.time_scale,
+            )
+        )
+    result.crossings = crossings
+    result.stable_at_start = not any(unstable0[j] and br.upper(j, start) for j in range(m))
+    first = [c for c in crossings if c.boundary and c.direction == "loss"]
+    if result.stable_at_start and first:
+        result.critical_velocity = first[0].velocity
+    if not result.stable_at_start:
+        warnings.append(
+            f"already unstable at v = {lo:.6g} m/s: the first loss of stability lies below "
+            "the range"
+        )
+    result.diagnostics = {
+        "grid_points": int(br.p.size),
+        "inserted_points": int(br.inserted.sum()),
+        "min_tracking_confidence": float(np.min(br.confidence[start:])),
+        "rtol": rtol,
+    }
+    if progress is not None:
+        progress(1.0)
+    return result
