@@ -19,7 +19,7 @@ with ``a = (1 - s) e^lambda / 2`` and ``b = (1 + s) / 2`` computed without overf
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,7 +35,7 @@ def _root_function(z: float) -> float:
     return float(np.cos(z) + 1.0 / np.cosh(z))
 
 
-@lru_cache(maxsize=None)
+@cache
 def cantilever_roots(n: int) -> tuple[float, ...]:
     """First ``n`` roots ``lambda_j = theta_j L`` of ``cos(z) cosh(z) = -1`` [-].
 

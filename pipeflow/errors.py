@@ -32,5 +32,5 @@ class BudgetExceeded(PipeflowError):
     """A run would cost more (steps, evaluations, memory) than the configured budget."""
 
 
-class Cancelled(Exception):  # noqa: N818 - it is a signal, not an error condition
+class Cancelled(Exception):
     """Raised inside a solver when its progress callback asks it to stop."""

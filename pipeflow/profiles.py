@@ -103,16 +103,16 @@ class Polynomial(Profile):
         object.__setattr__(self, "_c", tuple(q.coef[::-1].copy() for q in polys))
 
     def value(self, t: ArrayLike) -> FloatArray:
-        return np.polyval(self._c[0], _arr(t))
+        return np.asarray(np.polyval(self._c[0], _arr(t)), dtype=float)
 
     def derivative(self, t: ArrayLike) -> FloatArray:
-        return np.polyval(self._c[1], _arr(t))
+        return np.asarray(np.polyval(self._c[1], _arr(t)), dtype=float)
 
     def integral(self, t: ArrayLike) -> FloatArray:
-        return np.polyval(self._c[2], _arr(t))
+        return np.asarray(np.polyval(self._c[2], _arr(t)), dtype=float)
 
     def integral_square(self, t: ArrayLike) -> FloatArray:
-        return np.polyval(self._c[3], _arr(t))
+        return np.asarray(np.polyval(self._c[3], _arr(t)), dtype=float)
 
     @property
     def is_constant(self) -> bool:

@@ -13,7 +13,6 @@ import hashlib
 from typing import Annotated, Any, Literal
 
 import rfc8785
-
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pipeflow import __version__, profiles
@@ -37,7 +36,7 @@ class PipeSpec(_Strict):
     """Pipe and fluid properties (the paper's section 5 values are the example)."""
 
     E: float = Field(gt=0, description="Young's modulus of the pipe wall [Pa].")
-    I: float = Field(gt=0, description="Second moment of area of the cross-section [m^4].")  # noqa: E741
+    I: float = Field(gt=0, description="Second moment of area of the cross-section [m^4].")
     L: float = Field(gt=0, description="Pipe length, hub (clamped) to free tip [m].")
     M1: float = Field(ge=0, description="Mass of the pipe per unit length [kg/m].")
     M2: float = Field(ge=0, description="Mass of the conveyed fluid per unit length [kg/m].")
@@ -196,7 +195,9 @@ class OutputSpec(_Strict):
         max_length=MAX_POSITIONS,
         description="Extra stations x [m] (0 <= x <= L) whose displacement u(x, t) is returned.",
     )
-    eigen_modes: int = Field(3, ge=1, le=40, description="Lowest eigenvalue branches to trace.")
+    eigen_modes: int = Field(
+        3, ge=1, le=40, description="Lowest eigenvalue branches to trace (capped at modes)."
+    )
     eigen_samples: int = Field(
         201, ge=2, le=MAX_EIGEN_SAMPLES, description="Times at which eigenvalues are computed."
     )
@@ -215,7 +216,13 @@ class SimulationSpec(_Strict):
         json_schema_extra={
             "examples": [
                 {
-                    "pipe": {"E": 7.8e9, "I": 1.21e-17, "L": 0.025, "M1": 1.884e-5, "M2": 1.6485e-5},
+                    "pipe": {
+                        "E": 7.8e9,
+                        "I": 1.21e-17,
+                        "L": 0.025,
+                        "M1": 1.884e-5,
+                        "M2": 1.6485e-5,
+                    },
                     "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
                     "flow": {"velocity": {"kind": "polynomial", "coefficients": [0.0, 0.4]}},
                     "initial": {"u0": 0.001, "du0": 0.0},
@@ -236,7 +243,7 @@ class SimulationSpec(_Strict):
     method: str = Field(
         "cma",
         description="Solver: " + "; ".join(f"'{n}': {s.description}" for n, s in SOLVERS.items()),
-        json_schema_extra={"enum": sorted(SOLVERS)},
+        json_schema_extra={"enum": list(sorted(SOLVERS))},
     )
     options: MethodOptions = Field(default_factory=MethodOptions)
     output: OutputSpec = Field(default_factory=OutputSpec)
@@ -251,11 +258,15 @@ class SimulationSpec(_Strict):
     @model_validator(mode="after")
     def _consistent(self) -> SimulationSpec:
         if self.output.eigen_modes > self.modes:
-            raise ValueError("output.eigen_modes cannot exceed modes")
+            # normalise: there are only `modes` branches (keeps equivalent requests one key)
+            self.output.eigen_modes = self.modes
         for i, x in enumerate(self.output.positions):
             if not 0 <= x <= self.pipe.L:
                 raise ValueError(f"output.positions[{i}] = {x} m is outside [0, L]")
-        for name, prof in (("flow.velocity", self.flow.velocity), ("rotation.omega0", self.rotation.omega0)):
+        for name, prof in (
+            ("flow.velocity", self.flow.velocity),
+            ("rotation.omega0", self.rotation.omega0),
+        ):
             if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
                 raise ValueError(f"{name}: the table ends at {prof.t[-1]} s, before time.t_end")
         return self
@@ -298,7 +309,7 @@ class SimulationSpec(_Strict):
 
 
 #: the paper's section-5 example, v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s
-PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_config["json_schema_extra"]["examples"][0]  # type: ignore[index,call-overload]
+PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_json_schema()["examples"][0]
 
 
 def cache_key(spec: SimulationSpec, kind: str = "simulation") -> str:
@@ -307,5 +318,5 @@ def cache_key(spec: SimulationSpec, kind: str = "simulation") -> str:
     Equivalent requests (key order, ``1`` vs ``1.0``, defaults omitted or spelled out,
     options the method ignores) share a key; any change to a number that matters changes it.
     """
-    payload = {"pipeflow": __version__, "kind": kind, "spec": spec.canonical()}
+    payload: dict[str, Any] = {"pipeflow": __version__, "kind": kind, "spec": spec.canonical()}
     return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()

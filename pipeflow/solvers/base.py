@@ -84,7 +84,7 @@ def register(solver: Solver) -> Solver:
 
 
 def spectral_radius(model: PipeModel, loading: Loading, t_end: float, samples: int = 33) -> float:
-    """Largest |eigenvalue| of the frozen S(t) over [0, t_end] sampled at ``samples`` times [1/s]."""
+    """Largest |eigenvalue| [1/s] of the frozen S(t), sampled at ``samples`` times in [0, t_end]."""
     ts = np.linspace(0.0, t_end, samples if not loading.is_time_invariant else 1)
     S = model.state_matrix(loading.coefficients(ts))
     return float(np.max(np.abs(np.linalg.eigvals(S))))

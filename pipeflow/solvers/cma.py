@@ -25,9 +25,9 @@ MAX_DUHAMEL_NODES = 400_000
 _CHUNK = 512  # output times per batched eigen-decomposition (bounds memory at 40 modes)
 
 
-def exp_apply(P: FloatArray, vectors: FloatArray, condition_limit: float) -> tuple[
-    FloatArray, FloatArray, np.ndarray
-]:
+def exp_apply(
+    P: FloatArray, vectors: FloatArray, condition_limit: float
+) -> tuple[FloatArray, FloatArray, np.ndarray]:
     """exp(P_k) @ vectors_k for a stack of matrices, by eigen-decomposition.
 
     Returns ``(result, condition_numbers, fell_back)``: where the eigenvector matrix of
@@ -56,7 +56,7 @@ class CMA:
 
     def solve(self, problem: Problem) -> SolverOutput:
         t0 = time.perf_counter()
-        model, loading, t = problem.model, problem.loading, problem.t
+        loading, t = problem.loading, problem.t
         limit = problem.options.condition_limit
         diagnostics: dict[str, object] = {"time_invariant": loading.is_time_invariant}
         warnings: list[str] = []

@@ -33,7 +33,7 @@ _BLOCK_ENTRIES = 4_000_000  # stage-matrix entries formed at once (~32 MB)
 
 def rk4_amplification(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
     """R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24, the RK4 amplification factor."""
-    return 1 + z * (1 + z * (1 / 2 + z * (1 / 6 + z / 24)))
+    return np.asarray(1 + z * (1 + z * (1 / 2 + z * (1 / 6 + z / 24))), dtype=complex)
 
 
 def _unstable(hl: NDArray[np.complex128]) -> NDArray[np.bool_]:
@@ -70,7 +70,7 @@ def frozen_eigenvalues(
 ) -> NDArray[np.complex128]:
     """Eigenvalues of S(t) [1/s] at ``samples`` times over [0, t_end] (one if invariant)."""
     ts = np.linspace(0.0, t_end, 1 if loading.is_time_invariant else samples)
-    return np.linalg.eigvals(model.state_matrix(loading.coefficients(ts)))
+    return np.asarray(np.linalg.eigvals(model.state_matrix(loading.coefficients(ts))), dtype=complex)
 
 
 class RK4:

@@ -28,7 +28,7 @@ def paper_sim(flow: Profile, method: str = "cma", **kw: object) -> Simulation:
     return Simulation(PAPER_PIPE, **base)  # type: ignore[arg-type]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def reference_run(case: str, modes: int = 4, t_end: float = 0.25) -> Result:
     """Tight-tolerance DOP853 solution of a paper case (cached across tests)."""
     return simulate(

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from tests.pipeflow.cases import PAPER_FLOWS, paper_sim, reference_run
 from scipy.linalg import expm
 
 from pipeflow.model import PAPER_PIPE, Loading, build_model
@@ -10,6 +9,7 @@ from pipeflow.profiles import Constant, Harmonic, polynomial
 from pipeflow.simulation import simulate
 from pipeflow.solvers import Options, Problem
 from pipeflow.solvers.cma import CMA
+from tests.pipeflow.cases import PAPER_FLOWS, paper_sim, reference_run
 
 
 def rel_err(a: np.ndarray, b: np.ndarray) -> float:
@@ -42,7 +42,9 @@ def test_cma_matches_expm_for_constant_coefficients_10_modes() -> None:
     for k in (1, 700, 2000):
         z = expm(S * res.t[k]) @ z0
         d, _ = model.from_balanced(z)
-        assert abs(d @ model.tip - res.tip_displacement[k]) < 1e-11 * abs(res.initial_tip_displacement)
+        assert abs(d @ model.tip - res.tip_displacement[k]) < 1e-11 * abs(
+            res.initial_tip_displacement
+        )
 
 
 @pytest.mark.parametrize(
@@ -80,7 +82,9 @@ def test_cma_varying_spin_forcing_matches_reference() -> None:
     negligible against omega_1^2 = 8.5e4, so S(t) barely varies, CMA's commutator error is
     tiny (~1e-7 seen) and what is tested is the forcing integral. Starting from rest the
     whole response is forced. Tolerance 1e-6 relative."""
-    kw = dict(flow=Constant(0.0), spin=Harmonic(0.0, 0.5, 1000.0), modes=3, t_end=0.1, samples=201, u0=0.0)
+    kw = dict(
+        flow=Constant(0.0), spin=Harmonic(0.0, 0.5, 1000.0), modes=3, t_end=0.1, samples=201, u0=0.0
+    )
     ref = simulate(paper_sim(method="reference", **kw))  # type: ignore[arg-type]
     cma = simulate(paper_sim(**kw))  # type: ignore[arg-type]
     assert np.max(np.abs(ref.tip_displacement)) > 1e-5  # a real forced response [m]
@@ -101,7 +105,12 @@ def test_ill_conditioned_eigenvectors_fall_back_to_expm() -> None:
     must give the same answer (1e-10) and say so in diagnostics and warnings."""
     base = simulate(paper_sim(Harmonic(0.2, 0.1, 30.0), t_end=0.05, samples=51))
     forced = simulate(
-        paper_sim(Harmonic(0.2, 0.1, 30.0), t_end=0.05, samples=51, options=Options(condition_limit=1.0 + 1e-9))
+        paper_sim(
+            Harmonic(0.2, 0.1, 30.0),
+            t_end=0.05,
+            samples=51,
+            options=Options(condition_limit=1.0 + 1e-9),
+        )
     )
     assert forced.diagnostics["expm_fallbacks"] > 0
     assert any("ill-conditioned" in w for w in forced.warnings)

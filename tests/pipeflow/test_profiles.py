@@ -27,10 +27,10 @@ def test_integrals_match_quadrature(p: Profile) -> None:
         i2 = quad(lambda s: float(p.value(s)) ** 2, 0, t, points=pts, epsabs=1e-14)[0]
         assert abs(float(p.integral(t)) - i1) < 1e-12
         assert abs(float(p.integral_square(t)) - i2) < 1e-12
-    t = np.array([0.11, 0.52, 0.93])
+    tt = np.array([0.11, 0.52, 0.93])
     h = 1e-6
-    fd = (p.value(t + h) - p.value(t - h)) / (2 * h)
-    assert np.allclose(p.derivative(t), fd, atol=1e-6)
+    fd = (p.value(tt + h) - p.value(tt - h)) / (2 * h)
+    assert np.allclose(p.derivative(tt), fd, atol=1e-6)
 
 
 def test_constant_flags() -> None:

@@ -1,0 +1,59 @@
+"""Simulation driver: validation, non-finite handling, JSON output."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pipeflow.errors import InvalidInput
+from pipeflow.model import PAPER_PIPE
+from pipeflow.profiles import Constant, table
+from pipeflow.simulation import Simulation, simulate
+from tests.pipeflow.cases import paper_sim
+
+
+def test_overflow_is_reported_not_serialised() -> None:
+    """v = -0.4 m/s grows like e^(14.9 t); over 60 s that overflows double precision. The
+    result keeps the finite prefix, says 'overflow', and its JSON has no NaN/Inf."""
+    r = simulate(paper_sim(Constant(-0.4), modes=3, t_end=60.0, samples=601))
+    assert r.status == "overflow"
+    assert r.divergence_time is not None and r.divergence_time < 1.0
+    assert np.all(np.isfinite(r.tip_displacement)) and r.t.size < 601
+    text = json.dumps(r.to_dict(), allow_nan=False)
+    assert "NaN" not in text and "Infinity" not in text
+
+
+def test_divergence_time_is_when_bound_is_passed() -> None:
+    r = simulate(paper_sim(Constant(-0.4), modes=3, t_end=1.0, samples=1001, divergence_bound=0.01))
+    assert r.status == "diverging"
+    k = int(np.flatnonzero(np.abs(r.tip_displacement) > 0.01)[0])
+    assert r.divergence_time == pytest.approx(r.t[k])
+    assert np.all(np.abs(r.tip_displacement[:k]) <= 0.01)
+
+
+@pytest.mark.parametrize(
+    ("kw", "field"),
+    [
+        ({"method": "nope"}, "method"),
+        ({"t_end": -1.0}, "time.t_end"),
+        ({"t_end": math.inf}, "time.t_end"),
+        ({"samples": 1}, "time.samples"),
+        ({"modes": 41}, "modes"),
+        ({"positions": (0.5,)}, "positions.0"),
+        ({"flow": table([0, 0.5], [0.1, 0.2])}, "flow.velocity"),
+    ],
+)
+def test_invalid_input_names_the_field(kw: dict[str, object], field: str) -> None:
+    with pytest.raises(InvalidInput) as err:
+        simulate(Simulation(PAPER_PIPE, **kw))  # type: ignore[arg-type]
+    assert err.value.field == field
+
+
+def test_table_profile_matches_polynomial() -> None:
+    """A linear table of v = 0.4 t gives the same run as the polynomial (same closed forms)."""
+    from pipeflow.profiles import polynomial
+
+    a = simulate(paper_sim(polynomial(0, 0.4), modes=3, t_end=0.1, samples=101))
+    b = simulate(paper_sim(table([0.0, 0.1], [0.0, 0.04]), modes=3, t_end=0.1, samples=101))
+    assert np.allclose(a.tip_displacement, b.tip_displacement, rtol=0, atol=1e-14)
