@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq, minimize_scalar
 
 from pipeflow.eigen import assign, decompose
 from pipeflow.errors import InvalidInput
@@ -102,16 +103,24 @@ def damping_ratio(xi: ComplexArray) -> FloatArray:
 def mode_numbers(w: ComplexArray) -> NDArray[np.intp]:
     """Mode number (1-based, by frequency) of each eigenvalue of one point; pairs share it.
 
-    Real eigenvalues (frequency 0) are numbered like any other mode (they come first).
+    A conjugate pair is one mode, and so is a real pair +-s (a divergent mode of the
+    conservative v = 0 system); other real eigenvalues are modes of frequency 0 (they
+    come first).
     """
     scale = max(float(np.max(np.abs(w))), 1e-300)
     tol = 1e-9 * scale
-    upper = np.flatnonzero(w.imag >= -tol)
+    real = np.abs(w.imag) <= tol
+    lower = w.imag < -tol
+    for i in np.flatnonzero(real & (w.real < 0)):
+        mirror = real & (w.real > 0) & (np.abs(w.real + w[i].real) <= 1e-6 * scale)
+        if mirror.any():
+            lower[i] = True
+    upper = np.flatnonzero(~lower)
     order = upper[np.lexsort((w.real[upper], np.abs(w.imag[upper])))]
     number = np.zeros(w.size, dtype=np.intp)
     number[order] = np.arange(1, order.size + 1)
-    for i in np.flatnonzero(w.imag < -tol):
-        partner = order[np.argmin(np.abs(w[order] - np.conj(w[i])))]
+    for i in np.flatnonzero(lower):
+        partner = order[np.argmin(np.abs(w[order] - np.conj(w[i])) * np.abs(w[order] + w[i]))]
         number[i] = number[partner]
     return number
 
@@ -212,3 +221,92 @@ def nondimensional_pipe(beta: float) -> Pipe:
     if not 0 < beta < 1:
         raise InvalidInput(f"beta must be in (0, 1), got {beta}", field="beta")
     return Pipe(E=1.0, I=1.0, L=1.0, M1=1.0 - beta, M2=beta)
+
+
+def sign_changes(
+    p: FloatArray,
+    s: FloatArray,
+    tol: FloatArray,
+    sigma: Callable[[float, int], float],
+    start: int = 0,
+    rtol: float = 1e-10,
+) -> list[tuple[float, int, bool]]:
+    """Where a real part ``s`` sampled on ``p`` crosses the stability threshold.
+
+    ``s[k]`` is sigma at ``p[k]`` [1/s], unstable where ``s > tol``; ``sigma(x, k)`` evaluates
+    the same quantity anywhere in the interval around point k.  Every change of state after
+    index ``start`` is located by Brent's method to relative tolerance ``rtol``; a narrow
+    window inside one interval (a local maximum of s poking above zero between stable
+    samples, or a local minimum dipping below it between unstable ones, which is how the
+    S-shaped parts of u_cr(beta) look on a coarse grid) is found by bounded optimisation
+    where the extremum lies within a few sample steps of zero.
+
+    Returns ``(x, k, loss)`` per crossing: position, interval index, and whether the
+    quantity becomes unstable there with increasing p.
+    """
+    unstable = s > tol
+    out: list[tuple[float, int, bool]] = []
+
+    def root(a: float, b: float, k: int) -> float:
+        fa, fb = sigma(a, k), sigma(b, k)
+        shift = 0.0
+        if fa * fb > 0:  # one end sits in the rounding band (v = 0): use the band's edge
+            shift = float(tol[k])
+        scale = max(abs(a), abs(b))
+        return float(
+            brentq(lambda x: sigma(x, k) - shift, a, b, xtol=1e-14 * scale + 1e-300, rtol=rtol)
+        )
+
+    for k in range(start, p.size - 1):
+        if unstable[k] != unstable[k + 1]:
+            out.append((root(p[k], p[k + 1], k), k, bool(unstable[k + 1])))
+    for k in range(max(start, 1), p.size - 1):
+        trio = unstable[k - 1 : k + 2]
+        if trio.all():
+            if not (s[k] <= s[k - 1] and s[k] <= s[k + 1]):
+                continue
+            sign = 1.0  # minimise: does it dip below zero?
+        elif not trio.any():
+            if not (s[k] >= s[k - 1] and s[k] >= s[k + 1]):
+                continue
+            sign = -1.0  # maximise: does it poke above zero?
+        else:
+            continue
+        reach = 4.0 * max(abs(s[k] - s[k - 1]), abs(s[k] - s[k + 1]))
+        if abs(s[k]) > reach:
+            continue
+        a, b = float(p[k - 1]), float(p[k + 1])
+        res = minimize_scalar(
+            lambda x, k=k, sign=sign: -sign * sigma(x, k),
+            bounds=(a, b),
+            method="bounded",
+            options={"xatol": 1e-12 * max(abs(a), abs(b))},
+        )
+        x = float(res.x)
+        ext = sigma(x, k)
+        if (sign < 0 and ext > tol[k]) or (sign > 0 and ext <= tol[k]):
+            first_loss = sign < 0
+            for (lo, hi), loss in (((a, x), first_loss), ((x, b), not first_loss)):
+                if (sigma(lo, k) - tol[k]) * (sigma(hi, k) - tol[k]) < 0:
+                    out.append((root(lo, hi, k), k, loss))
+    return sorted(out)
+
+
+def stable_intervals(
+    lo: float, hi: float, stable_at_start: bool, boundary: list[tuple[float, bool]]
+) -> list[list[float]]:
+    """Intervals of [lo, hi] where the pipe is stable, from the boundary crossings.
+
+    ``boundary`` holds ``(x, loss)`` for each change of the pipe's stability, in order.
+    """
+    out: list[list[float]] = []
+    begin: float | None = lo if stable_at_start else None
+    for x, loss in boundary:
+        if loss and begin is not None:
+            out.append([begin, x])
+            begin = None
+        elif not loss and begin is None:
+            begin = x
+    if begin is not None:
+        out.append([begin, hi])
+    return out

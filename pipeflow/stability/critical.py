@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any, Literal
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from pipeflow.errors import InvalidInput
 from pipeflow.model import Pipe, build_model
@@ -35,6 +35,8 @@ from pipeflow.stability.core import (
     follow,
     growth_rate,
     rounding_level,
+    sign_changes,
+    stable_intervals,
     state_matrices,
 )
 
@@ -85,8 +87,10 @@ class CriticalVelocity:
     """Result of :func:`critical_velocities` (SI units; :meth:`to_dict` for JSON).
 
     critical_velocity : first loss of stability in the range [m/s] (v >= 0 part), or None
-        when the pipe stays stable there (or is already unstable at the range start, see
-        ``stable_at_start`` and ``warnings``).
+        when there is none.  If the pipe is already unstable at the start of the range
+        (``stable_at_start`` False, e.g. divergence by fast spin at v = 0), this is the first
+        loss after stability is regained; ``stable_intervals`` gives the whole picture.
+    stable_intervals : [[v_a, v_b], ...] [m/s] where the pipe is stable (v >= 0 part).
     crossings : every branch crossing of sigma = 0 in the v >= 0 part, by velocity.
     stable_at_start : stability at max(v_min, 0) (None when the whole range is v < 0).
     reverse_flow : the aspirating-pipe caveat when the range reaches v < 0, else None.
@@ -100,6 +104,7 @@ class CriticalVelocity:
     crossings: list[Crossing]
     stable_at_start: bool | None
     reverse_flow: dict[str, Any] | None
+    stable_intervals: list[list[float]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     diagnostics: dict[str, Any] = field(default_factory=dict)
 
@@ -131,6 +136,7 @@ class CriticalVelocity:
             "critical_velocity": self.critical_velocity,
             "stable_throughout": self.stable_throughout,
             "stable_at_start": self.stable_at_start,
+            "stable_intervals": self.stable_intervals,
             "crossings": [c.to_dict() for c in self.crossings],
             "dimensionless": self.dimensionless(),
             "omega0": self.omega0,
@@ -142,59 +148,8 @@ class CriticalVelocity:
         }
 
 
-def _roots_of_branch(
-    br: Branches, j: int, start: int, tol: FloatArray, rtol: float
-) -> list[tuple[float, int]]:
-    """(v, k) of every sign change of branch j's sigma after grid index ``start``."""
-    s = br.xi[:, j].real
-    unstable = s > tol
-    p = br.p
-    out: list[tuple[float, int]] = []
-
-    def sigma(x: float, k: int, shift: float) -> float:
-        return br.branch_at(j, k, x).real - shift
-
-    def root(a: float, b: float, k: int) -> float:
-        fa, fb = sigma(a, k, 0.0), sigma(b, k, 0.0)
-        shift = 0.0
-        if fa * fb > 0:  # an end sits in the rounding band (v = 0): use its edge
-            shift = float(tol[k])
-        scale = max(abs(a), abs(b))
-        return float(brentq(sigma, a, b, args=(k, shift), xtol=1e-14 * scale + 1e-300, rtol=rtol))
-
-    for k in range(start, p.size - 1):
-        if unstable[k] != unstable[k + 1]:
-            out.append((root(p[k], p[k + 1], k), k))
-    # narrow windows inside one grid interval: a local extremum of sigma near zero
-    for k in range(max(start, 1), p.size - 1):
-        a, b = p[k - 1], p[k + 1]
-        if unstable[k - 1] or unstable[k] or unstable[k + 1]:
-            if not (unstable[k - 1] and unstable[k] and unstable[k + 1]):
-                continue
-            if not (s[k] <= s[k - 1] and s[k] <= s[k + 1]):
-                continue
-            sign = 1.0  # minimise sigma: does it dip below zero?
-        else:
-            if not (s[k] >= s[k - 1] and s[k] >= s[k + 1]):
-                continue
-            sign = -1.0  # maximise sigma: does it poke above zero?
-        reach = 4.0 * max(abs(s[k] - s[k - 1]), abs(s[k] - s[k + 1]))
-        if abs(s[k]) > reach:
-            continue
-        res = minimize_scalar(
-            lambda x, k=k, sign=sign: -sign * sigma(x, k, 0.0),
-            bounds=(a, b),
-            method="bounded",
-            options={"xatol": 1e-12 * max(abs(a), abs(b))},
-        )
-        x = float(res.x)
-        ext = sigma(x, k, 0.0)
-        if (sign < 0 and ext > tol[k]) or (sign > 0 and ext <= tol[k]):
-            for lo, hi in ((a, x), (x, b)):
-                fl, fh = sigma(lo, k, 0.0), sigma(hi, k, 0.0)
-                if fl * fh < 0:
-                    out.append((float(brentq(sigma, lo, hi, args=(k, 0.0), rtol=rtol)), k))
-    return out
+def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
+    return br.branch_at(j, k, x).real
 
 
 def critical_velocities(
@@ -271,25 +226,22 @@ def critical_velocities(
     tol = rounding_level(br.xi)
     start = int(np.searchsorted(br.p, lo))
     radius = float(np.max(np.abs(br.xi)))
-    found: list[tuple[float, int, int]] = []
+    found: list[tuple[float, int, int, bool]] = []
     m = br.xi.shape[1]
     for j in range(m):
-        for v, k in _roots_of_branch(br, j, start, tol, rtol):
-            found.append((v, j, k))
+        sigma_j = partial(_branch_sigma, br, j)
+        for v, k, loss in sign_changes(br.p, br.xi[:, j].real, tol, sigma_j, start, rtol):
+            found.append((v, j, k, loss))
         if progress is not None:
             progress(0.5 + 0.5 * (j + 1) / m)
 
     unstable0 = br.xi[start].real > tol[start]
     count = sum(1 for j in range(m) if unstable0[j] and br.upper(j, start))
     crossings: list[Crossing] = []
-    for v, j, k in sorted(found):
+    for v, j, k, loss in sorted(found):
         xi = br.branch_at(j, k, v)
         if xi.imag < -1e-9 * max(abs(xi), 1e-9 * radius):
             continue  # the conjugate of a reported flutter crossing
-        # direction from the tracked branch: unstable just after the crossing?
-        after = br.branch_at(j, k, v * (1 + 1e-7) + 1e-12 * radius).real
-        before = br.branch_at(j, k, v * (1 - 1e-7)).real
-        loss = after > before
         was = count > 0
         count += 1 if loss else -1
         divergence = abs(xi.imag) <= 1e-7 * radius
@@ -308,12 +260,19 @@ def critical_velocities(
     result.crossings = crossings
     result.stable_at_start = not any(unstable0[j] and br.upper(j, start) for j in range(m))
     first = [c for c in crossings if c.boundary and c.direction == "loss"]
-    if result.stable_at_start and first:
+    if first:
         result.critical_velocity = first[0].velocity
+    result.stable_intervals = stable_intervals(
+        lo,
+        v_max,
+        result.stable_at_start,
+        [(c.velocity, c.direction == "loss") for c in crossings if c.boundary],
+    )
     if not result.stable_at_start:
         warnings.append(
-            f"already unstable at v = {lo:.6g} m/s: the first loss of stability lies below "
-            "the range"
+            f"already unstable at v = {lo:.6g} m/s (below the range, or by divergence under "
+            "spin at v = 0); critical_velocity is the first loss after stability is regained, "
+            "see stable_intervals"
         )
     result.diagnostics = {
         "grid_points": int(br.p.size),

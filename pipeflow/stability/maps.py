@@ -1,0 +1,333 @@
+"""Stability maps: critical flow velocity against spin, and u_cr(beta) in Paidoussis' form.
+
+Both scan a grid with one batched eigenvalue call and then locate every crossing of the
+stability boundary along each velocity line by Brent's method on the largest real part
+g(v) = max sigma of the whole spectrum (the zero level of g *is* the stability boundary),
+including narrow windows between samples (:func:`pipeflow.stability.core.sign_changes`).
+Several crossings on one line are the S-shaped segments of the u_cr(beta) curve: the pipe
+loses, regains and loses stability again.  Mode numbers need branch following; for one
+line use :func:`pipeflow.stability.critical.critical_velocities`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.model import Pipe, PipeModel, build_model
+from pipeflow.stability.core import (
+    REVERSE_FLOW_CAVEAT,
+    FloatArray,
+    Progress,
+    check_modes,
+    check_range,
+    eigenvalues,
+    nondimensional_pipe,
+    rounding_level,
+    sign_changes,
+    stable_intervals,
+)
+
+#: eigenvalue problems per batched call (bounds memory: 4096 x 80 x 80 complex ~ 0.4 GB max)
+CHUNK = 4096
+#: ceiling on grid points x (2n)^3 for one map
+MAX_MAP_WORK = 2e10
+
+
+@dataclass(frozen=True)
+class BoundaryCrossing:
+    """A crossing of the stability boundary along one velocity line.
+
+    velocity : [m/s] (for the beta map: the flow number u [-]).
+    direction : "loss" or "gain" of stability with increasing velocity.
+    kind : "flutter" or "divergence"; frequency : omega of the crossing mode [rad/s]
+        (for the beta map: non-dimensional, omega times the time scale).
+    """
+
+    velocity: float
+    direction: str
+    kind: str
+    frequency: float
+
+
+def _work_check(points: int, modes: int, field: str) -> None:
+    work = points * (2.0 * modes) ** 3
+    if work > MAX_MAP_WORK:
+        raise BudgetExceeded(
+            f"the map needs {points} eigenvalue problems of size {2 * modes}: "
+            f"{work:.3g} > {MAX_MAP_WORK:.3g} units; use fewer points or modes",
+            field=field,
+        )
+
+
+def _spectra(model: PipeModel, v: FloatArray, w0: FloatArray, progress: Progress | None) -> Any:
+    vv, ww = np.broadcast_arrays(v, w0)
+    shape = vv.shape
+    vv, ww = vv.ravel(), ww.ravel()
+    out = np.empty((vv.size, model.size), dtype=complex)
+    for i in range(0, vv.size, CHUNK):
+        out[i : i + CHUNK] = eigenvalues(model, vv[i : i + CHUNK], ww[i : i + CHUNK])
+        if progress is not None:
+            progress(0.8 * min(1.0, (i + CHUNK) / vv.size))
+    return out.reshape(*shape, model.size)
+
+
+def _line(
+    model: PipeModel, v: FloatArray, w0: float, xi: Any, rtol: float
+) -> list[BoundaryCrossing]:
+    """Boundary crossings along one line of constant spin, v >= 0 part only."""
+    g = xi.real.max(axis=-1)
+    tol = rounding_level(xi)
+    radius = float(np.max(np.abs(xi)))
+    start = int(np.searchsorted(v, 0.0))
+
+    def growth(x: float, k: int) -> float:
+        return float(eigenvalues(model, x, w0)[0].real.max())
+
+    out = []
+    for x, _, loss in sign_changes(v, g, tol, growth, start, rtol):
+        w = eigenvalues(model, x, w0)[0]
+        top = w[np.argmax(w.real)]
+        divergence = abs(top.imag) <= 1e-7 * radius
+        out.append(
+            BoundaryCrossing(
+                velocity=x,
+                direction="loss" if loss else "gain",
+                kind="divergence" if divergence else "flutter",
+                frequency=0.0 if divergence else abs(float(top.imag)),
+            )
+        )
+    return out
+
+
+def _first_loss(crossings: list[BoundaryCrossing]) -> float | None:
+    losses = [c.velocity for c in crossings if c.direction == "loss"]
+    return losses[0] if losses else None
+
+
+@dataclass
+class SpinMap:
+    """Critical flow velocities against spin (SI units; :meth:`to_dict` for JSON).
+
+    spins : w0 [rad/s]; velocities : v grid [m/s]; growth[i, k] : max sigma [1/s] at
+    (spins[i], velocities[k]); crossings[i] : the boundary crossings at spins[i] for v >= 0;
+    critical_velocity[i] : the first loss [m/s] or None (if the line starts unstable, e.g.
+    divergence by fast spin at v = 0, the first loss after stability is regained; see
+    stable_at_start and stable_intervals).
+    """
+
+    pipe: Pipe
+    modes: int
+    spins: FloatArray
+    velocities: FloatArray
+    growth: FloatArray
+    crossings: list[list[BoundaryCrossing]]
+    stable_at_start: list[bool]
+    critical_velocity: list[float | None]
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        p = self.pipe
+        return {
+            "kind": "spin_map",
+            "spins": self.spins.tolist(),
+            "spins_rpm": (self.spins * 60 / (2 * math.pi)).tolist(),
+            "velocities": self.velocities.tolist(),
+            "growth_rate": self.growth.tolist(),
+            "critical_velocity": self.critical_velocity,
+            "stable_at_start": self.stable_at_start,
+            "stable_intervals": [
+                stable_intervals(
+                    max(0.0, float(self.velocities[0])),
+                    float(self.velocities[-1]),
+                    ok,
+                    [(c.velocity, c.direction == "loss") for c in line],
+                )
+                for ok, line in zip(self.stable_at_start, self.crossings, strict=True)
+            ],
+            "crossings": [
+                [
+                    {
+                        "velocity": c.velocity,
+                        "direction": c.direction,
+                        "kind": c.kind,
+                        "frequency": c.frequency,
+                        "frequency_hz": c.frequency / (2 * math.pi),
+                    }
+                    for c in line
+                ]
+                for line in self.crossings
+            ],
+            "dimensionless": {
+                "beta": p.beta,
+                "gamma": p.spin_number(self.spins).tolist(),
+                "u_cr": [
+                    None if v is None or p.M2 == 0 else float(p.flow_number(v))
+                    for v in self.critical_velocity
+                ],
+                "time_scale": p.time_scale,
+            },
+            "warnings": list(self.warnings),
+            "diagnostics": {"galerkin_modes": self.modes, "points": int(self.growth.size)},
+        }
+
+
+def spin_map(
+    pipe: Pipe,
+    velocity_range: tuple[float, float],
+    spin_range: tuple[float, float],
+    modes: int = 10,
+    velocity_points: int = 100,
+    spin_points: int = 100,
+    rtol: float = 1e-10,
+    progress: Progress | None = None,
+) -> SpinMap:
+    """Growth-rate map over (w0, v) and the critical velocities at each spin.
+
+    velocity_range [m/s] and spin_range [rad/s] are sampled evenly; crossings are searched
+    on the v >= 0 part of each line (v < 0 gets the reverse-flow caveat) and located to
+    relative tolerance ``rtol``.
+    """
+    check_modes(modes)
+    check_range(*velocity_range, field="velocity_range")
+    check_range(*spin_range, field="spin_range")
+    if velocity_points < 3 or spin_points < 1:
+        raise InvalidInput("need >= 3 velocity points and >= 1 spin point", field="points")
+    _work_check(velocity_points * spin_points, modes, "points")
+    model = build_model(pipe, modes)
+    v = np.linspace(*velocity_range, velocity_points)
+    if velocity_range[0] < 0 < velocity_range[1]:
+        v = np.union1d(v, [0.0])  # the line must pass through the marginal point v = 0
+    w = np.linspace(*spin_range, spin_points)
+    xi = _spectra(model, v[None, :], w[:, None], progress)
+    warnings = [REVERSE_FLOW_CAVEAT] if velocity_range[0] < 0 else []
+    crossings, stable, critical = [], [], []
+    start = int(np.searchsorted(v, 0.0))
+    for i in range(w.size):
+        line = _line(model, v, float(w[i]), xi[i], rtol) if start < v.size else []
+        ok = bool(start < v.size and xi[i, start].real.max() <= rounding_level(xi[i, start]))
+        crossings.append(line)
+        stable.append(ok)
+        critical.append(_first_loss(line))
+        if progress is not None:
+            progress(0.8 + 0.2 * (i + 1) / w.size)
+    return SpinMap(
+        pipe=pipe,
+        modes=modes,
+        spins=w,
+        velocities=v,
+        growth=xi.real.max(axis=-1),
+        crossings=crossings,
+        stable_at_start=stable,
+        critical_velocity=critical,
+        warnings=warnings,
+    )
+
+
+@dataclass
+class BetaMap:
+    """u_cr(beta) at fixed non-dimensional spin gamma (:meth:`to_dict` for JSON).
+
+    For each beta: every crossing of the stability boundary in flow number u [-] (several
+    where the curve is S-shaped), the non-dimensional frequency there, and u_cr (first loss).
+    """
+
+    modes: int
+    gamma: float
+    betas: FloatArray
+    u_range: tuple[float, float]
+    crossings: list[list[BoundaryCrossing]]
+    stable_at_start: list[bool]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def u_cr(self) -> list[float | None]:
+        return [_first_loss(c) for c in self.crossings]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "beta_map",
+            "gamma": self.gamma,
+            "betas": self.betas.tolist(),
+            "u_range": list(self.u_range),
+            "u_cr": self.u_cr,
+            "stable_at_start": self.stable_at_start,
+            "crossings": [
+                [
+                    {
+                        "u": c.velocity,
+                        "direction": c.direction,
+                        "kind": c.kind,
+                        "frequency": c.frequency,
+                    }
+                    for c in line
+                ]
+                for line in self.crossings
+            ],
+            "curve": [
+                [float(b), c.velocity]
+                for b, line in zip(self.betas, self.crossings, strict=True)
+                for c in line
+            ],
+            "multiple_crossings": [
+                float(b)
+                for b, line in zip(self.betas, self.crossings, strict=True)
+                if len(line) > 1
+            ],
+            "warnings": list(self.warnings),
+            "diagnostics": {"galerkin_modes": self.modes},
+        }
+
+
+def beta_map(
+    beta_range: tuple[float, float],
+    u_range: tuple[float, float] = (0.0, 20.0),
+    gamma: float = 0.0,
+    modes: int = 10,
+    beta_points: int = 50,
+    u_points: int = 201,
+    rtol: float = 1e-10,
+    progress: Progress | None = None,
+) -> BetaMap:
+    """The u_cr(beta) curve: boundary crossings in u for each beta, gamma fixed.
+
+    Non-dimensional throughout (E = I = L = 1, M1 + M2 = 1: physics notes section 1):
+    beta = M2/(M1+M2) in (0, 1), u = v L sqrt(M2/EI) >= 0, gamma = w0 L^2 sqrt((M1+M2)/EI);
+    frequencies are omega sqrt((M1+M2) L^4/EI).
+    """
+    check_modes(modes)
+    check_range(*beta_range, field="beta_range")
+    check_range(*u_range, field="u_range")
+    if not (0 < beta_range[0] and beta_range[1] < 1):
+        raise InvalidInput("beta must lie in (0, 1)", field="beta_range")
+    if u_range[0] < 0:
+        raise InvalidInput("u_range must be >= 0 (" + REVERSE_FLOW_CAVEAT + ")", field="u_range")
+    if beta_points < 1 or u_points < 3:
+        raise InvalidInput("need >= 1 beta point and >= 3 u points", field="points")
+    _work_check(beta_points * u_points, modes, "points")
+    betas = np.linspace(*beta_range, beta_points)
+    u = np.linspace(*u_range, u_points)
+    crossings, stable = [], []
+    for i, beta in enumerate(betas):
+        model = build_model(nondimensional_pipe(float(beta)), modes)
+        scale = 1.0 / math.sqrt(beta)  # v = u / sqrt(beta)
+        xi = eigenvalues(model, u * scale, gamma)
+        line = _line(model, u * scale, gamma, xi, rtol)
+        crossings.append(
+            [BoundaryCrossing(c.velocity / scale, c.direction, c.kind, c.frequency) for c in line]
+        )
+        stable.append(bool(xi[0].real.max() <= rounding_level(xi[0])))
+        if progress is not None:
+            progress((i + 1) / betas.size)
+    return BetaMap(
+        modes=modes,
+        gamma=float(gamma),
+        betas=betas,
+        u_range=(float(u_range[0]), float(u_range[1])),
+        crossings=crossings,
+        stable_at_start=stable,
+    )

@@ -1,0 +1,216 @@
+"""Eigenvalue sweeps: Argand diagrams (against flow velocity) and Campbell diagrams (spin).
+
+Modes are followed from point to point by the optimal assignment of left/right eigenvector
+overlaps (:func:`pipeflow.eigen.assign`), never by sorting; each point carries the overlap
+that linked it to the previous one as a tracking confidence, and where it drops below
+``min_confidence`` midpoints are inserted (up to ``max_points``).  A conjugate pair is one
+mode: frequencies are reported as |omega| >= 0 (after a branch passes the real axis the
+followed member of the pair may be the lower one; its partner is the conjugate).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pipeflow.eigen import order_lowest
+from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.model import Pipe, build_model
+from pipeflow.stability.core import (
+    REVERSE_FLOW_CAVEAT,
+    ComplexArray,
+    FloatArray,
+    Progress,
+    check_modes,
+    check_range,
+    damping_ratio,
+    follow,
+    state_matrices,
+)
+
+Parameter = Literal["velocity", "spin"]
+RPM = 60.0 / (2.0 * math.pi)  # rpm per rad/s
+
+#: refinement can at most multiply the number of points by this factor
+MAX_REFINEMENT_FACTOR = 4
+
+
+@dataclass
+class Sweep:
+    """Tracked eigenvalues along a sweep (SI units; :meth:`to_dict` for JSON).
+
+    parameter : "velocity" (Argand: values in m/s at constant spin ``fixed`` rad/s) or
+        "spin" (Campbell: values in rad/s at constant flow velocity ``fixed`` m/s).
+    values : swept parameter at each point (refined points included).
+    xi : (points, modes) eigenvalues sigma + i|omega| [1/s].
+    confidence : (points, modes) tracking confidence in [0, 1].
+    mode : mode numbers (1 = lowest frequency at the first point).
+    inserted : the point was added by refinement.
+    """
+
+    pipe: Pipe
+    modes: int
+    parameter: Parameter
+    fixed: float
+    values: FloatArray
+    xi: ComplexArray
+    confidence: FloatArray
+    mode: NDArray[np.intp]
+    inserted: NDArray[np.bool_]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def sigma(self) -> FloatArray:
+        """Damping [1/s] (negative: decaying)."""
+        return np.asarray(self.xi.real)
+
+    @property
+    def omega(self) -> FloatArray:
+        """Frequency [rad/s]."""
+        return np.asarray(self.xi.imag)
+
+    def to_dict(self) -> dict[str, Any]:
+        p = self.pipe
+        spin = self.parameter == "spin"
+        axis: dict[str, Any] = {
+            "name": self.parameter,
+            "unit": "rad/s" if spin else "m/s",
+            "values": self.values.tolist(),
+        }
+        if spin:
+            axis["values_hz"] = (self.values / (2 * math.pi)).tolist()
+            axis["values_rpm"] = (self.values * RPM).tolist()
+            axis["gamma"] = p.spin_number(self.values).tolist()
+        elif p.M2 > 0:
+            axis["flow_number"] = p.flow_number(self.values).tolist()
+        zeta = damping_ratio(self.xi)
+        branches = []
+        for j in range(self.xi.shape[1]):
+            b: dict[str, Any] = {
+                "mode": int(self.mode[j]),
+                "sigma": self.sigma[:, j].tolist(),
+                "omega": self.omega[:, j].tolist(),
+                "frequency_hz": (self.omega[:, j] / (2 * math.pi)).tolist(),
+                "damping_ratio": zeta[:, j].tolist(),
+                "confidence": self.confidence[:, j].tolist(),
+            }
+            if spin:
+                b["frequency_rpm"] = (self.omega[:, j] * RPM).tolist()
+            branches.append(b)
+        fixed_name = "velocity" if spin else "omega0"
+        return {
+            "kind": "campbell" if spin else "argand",
+            "parameter": axis,
+            "fixed": {fixed_name: self.fixed},
+            "inserted": self.inserted.tolist(),
+            "modes": branches,
+            "dimensionless": {
+                "beta": p.beta,
+                "time_scale": p.time_scale,
+                **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
+                **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
+            },
+            "warnings": list(self.warnings),
+            "diagnostics": {
+                "points": int(self.values.size),
+                "inserted_points": int(self.inserted.sum()),
+                "min_confidence": float(np.min(self.confidence)),
+                "galerkin_modes": self.modes,
+            },
+        }
+
+
+def sweep(
+    pipe: Pipe,
+    parameter: Parameter,
+    value_range: tuple[float, float],
+    fixed: float = 0.0,
+    modes: int = 10,
+    tracked: int = 4,
+    points: int = 201,
+    min_confidence: float = 0.9,
+    max_points: int | None = None,
+    progress: Progress | None = None,
+) -> Sweep:
+    """Eigenvalues against flow velocity (Argand) or spin (Campbell), modes tracked.
+
+    Parameters
+    ----------
+    pipe : pipe and fluid properties.
+    parameter : "velocity" (value_range in m/s, ``fixed`` = spin w0 in rad/s) or "spin"
+        (value_range in rad/s, ``fixed`` = flow velocity v in m/s).
+    value_range : (first, last) value of the swept parameter; evenly spaced ``points``.
+    modes : Galerkin modes n; tracked : how many of the lowest modes to report (<= n).
+    min_confidence : refine (insert midpoints) where tracking confidence falls below this.
+    max_points : cap on the points after refinement (default 4 x points).
+    progress : called with a fraction in [0, 1]; may raise ``Cancelled``.
+    """
+    check_modes(modes)
+    if not 1 <= tracked <= modes:
+        raise InvalidInput(f"tracked modes must be between 1 and {modes}", field="tracked_modes")
+    lo, hi = float(value_range[0]), float(value_range[1])
+    check_range(lo, hi, "range")
+    if points < 2:
+        raise InvalidInput("points must be >= 2", field="points")
+    if not 0 <= min_confidence <= 1:
+        raise InvalidInput("min_confidence must be in [0, 1]", field="min_confidence")
+    cap = max_points if max_points is not None else MAX_REFINEMENT_FACTOR * points
+    if cap < points:
+        raise BudgetExceeded("max_points must be >= points", field="max_points")
+    model = build_model(pipe, modes)
+    warnings: list[str] = []
+    if parameter == "velocity":
+
+        def matrices(p: FloatArray) -> FloatArray:
+            return state_matrices(model, p, fixed)
+
+        if lo < 0:
+            warnings.append(REVERSE_FLOW_CAVEAT)
+    elif parameter == "spin":
+
+        def matrices(p: FloatArray) -> FloatArray:
+            return state_matrices(model, fixed, p)
+
+        if fixed < 0:
+            warnings.append(REVERSE_FLOW_CAVEAT)
+    else:
+        raise InvalidInput(f"unknown sweep parameter {parameter!r}", field="parameter")
+    if progress is not None:
+        progress(0.0)
+    br = follow(
+        matrices,
+        np.linspace(lo, hi, points),
+        watch=lambda w0: order_lowest(w0, tracked),
+        min_confidence=min_confidence,
+        max_points=cap,
+        progress=progress,
+    )
+    chosen = order_lowest(br.xi[0], tracked)
+    xi = br.xi[:, chosen]
+    xi = xi.real + 1j * np.abs(xi.imag)
+    conf = br.confidence[:, chosen]
+    low = int(np.sum(np.min(conf, axis=1) < min_confidence))
+    if low:
+        warnings.append(
+            f"{low} points keep a tracking confidence below {min_confidence} after refinement "
+            "(eigenvalues coalescing, e.g. a mode passing through the real axis, or the "
+            "point cap was reached): branch identities there are uncertain"
+        )
+    if progress is not None:
+        progress(1.0)
+    return Sweep(
+        pipe=pipe,
+        modes=modes,
+        parameter=parameter,
+        fixed=float(fixed),
+        values=br.p,
+        xi=xi,
+        confidence=conf,
+        mode=br.mode[chosen],
+        inserted=br.inserted,
+        warnings=warnings,
+    )
