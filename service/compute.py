@@ -1,0 +1,106 @@
+"""What every computing endpoint does, for any job kind: cache, single flight, jobs.
+
+Routes stay thin: they validate the body (FastAPI + the kind's spec model) and call
+:func:`run_sync` (answer with the result) or :func:`submit_job` (answer 202 with a job).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from datetime import UTC, datetime
+from typing import Any
+
+from fastapi import Response
+from pydantic import BaseModel
+
+from service.kinds import JobKind
+from service.problems import ProblemError
+from service.runner import ComputationCancelled, ComputationFailed, QueueFull, Runner
+from service.store import Job, Store
+
+
+def envelope(key: str, cached: bool, body: bytes) -> bytes:
+    """``{"key": ..., "cached": ..., **result}`` without re-encoding the stored result."""
+    head = b'{"key":"%s","cached":%s' % (key.encode(), b"true" if cached else b"false")
+    rest = body.strip()[1:]  # the stored body is a JSON object: drop its '{'
+    return head + (b"," + rest if rest.strip() != b"}" else b"}")
+
+
+def result_response(key: str, cached: bool, body: bytes) -> Response:
+    return Response(
+        envelope(key, cached, body),
+        media_type="application/json",
+        headers={
+            "X-Cache": "HIT" if cached else "MISS",
+            "ETag": f'"{key}"',
+            "Content-Location": f"/v1/results/{key}",
+        },
+    )
+
+
+def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
+    return ProblemError(
+        503,
+        f"all {runner.capacity} computation slots are taken ({exc}); retry later",
+        slug="saturated",
+        headers={"Retry-After": str(runner.settings.retry_after_s)},
+    )
+
+
+async def run_sync(
+    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
+) -> Response:
+    """Serve the result for ``spec``: from the cache, or computed now (once per key)."""
+    key = kind.key(spec)
+    if not refresh:
+        body = await asyncio.to_thread(store.get_result, key)
+        if body is not None:
+            return result_response(key, True, body)
+    try:
+        task = await runner.submit(kind, key, kind.canonical(spec), force=refresh)
+        body = await asyncio.shield(task)
+    except QueueFull as exc:
+        raise _saturated(runner, exc) from None
+    except ComputationFailed as exc:
+        raise ProblemError.from_document(exc.problem) from None
+    except ComputationCancelled as exc:
+        raise ProblemError(409, f"the computation was cancelled: {exc}", slug="cancelled") from None
+    return result_response(key, False, body)
+
+
+async def submit_job(
+    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
+) -> tuple[str, Job]:
+    """Accept a job for ``spec`` (idempotent: the id is the parameter hash)."""
+    key = kind.key(spec)
+    canonical = kind.canonical(spec)
+    if not refresh and not runner.is_active(key) and await asyncio.to_thread(store.has_result, key):
+        await asyncio.to_thread(store.mark_succeeded, key, kind.name, canonical)
+    else:
+        try:
+            await runner.submit(kind, key, canonical, force=refresh)
+        except QueueFull as exc:
+            raise _saturated(runner, exc) from None
+    job = await asyncio.to_thread(store.get_job, key)
+    assert job is not None
+    return key, job
+
+
+def _time(t: float | None) -> datetime | None:
+    return None if t is None else datetime.fromtimestamp(t, tz=UTC)
+
+
+def job_document(job: Job) -> dict[str, Any]:
+    """The JSON of a job record (see :class:`service.schemas.JobStatus`)."""
+    return {
+        "key": job.key,
+        "kind": job.kind,
+        "status": job.status,
+        "progress": job.progress,
+        "created": _time(job.created),
+        "started": _time(job.started),
+        "finished": _time(job.finished),
+        "updated": _time(job.updated),
+        "error": job.error,
+        "result": f"/v1/results/{job.key}" if job.status == "succeeded" else None,
+    }

@@ -1,0 +1,61 @@
+"""Job kinds: what the job runner can compute.
+
+A kind is a name, a validated spec model (pydantic, with a ``canonical()`` method giving
+its normalised JSON form for the cache key) and a pure function in pipeflow's terms,
+``function(spec, progress) -> JSON-able dict``, where ``progress(fraction)`` may raise
+:class:`pipeflow.errors.Cancelled`.  Function and model are pickled by reference into the
+worker processes, so both must be importable module-level names.
+
+To add a kind: write the function, ``register(JobKind("compare", CompareSpec, compare))``
+below, and add a route that calls :func:`service.compute.run_sync` or
+:func:`service.compute.submit_job` with it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import rfc8785
+from pydantic import BaseModel
+
+from pipeflow import __version__
+from pipeflow.simulation import simulate
+from pipeflow.solvers.base import ProgressCallback
+from pipeflow.spec import SimulationSpec, cache_key
+
+
+@dataclass(frozen=True)
+class JobKind:
+    name: str
+    spec: type[BaseModel]
+    function: Callable[[Any, ProgressCallback], dict[str, Any]]
+
+    def canonical(self, spec: BaseModel) -> dict[str, Any]:
+        canon = getattr(spec, "canonical", None)
+        return canon() if callable(canon) else spec.model_dump(mode="json")
+
+    def key(self, spec: BaseModel) -> str:
+        """The parameter hash: :func:`pipeflow.spec.cache_key` salted with this kind."""
+        if isinstance(spec, SimulationSpec):
+            return cache_key(spec, self.name)
+        payload: Any = {"pipeflow": __version__, "kind": self.name, "spec": self.canonical(spec)}
+        return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()
+
+
+KINDS: dict[str, JobKind] = {}
+
+
+def register(kind: JobKind) -> JobKind:
+    KINDS[kind.name] = kind
+    return kind
+
+
+def run_simulation(spec: SimulationSpec, progress: ProgressCallback) -> dict[str, Any]:
+    """One simulation as JSON (see :meth:`pipeflow.simulation.Result.to_dict`)."""
+    return simulate(spec.to_simulation(), progress=progress).to_dict()
+
+
+SIMULATION = register(JobKind("simulation", SimulationSpec, run_simulation))

@@ -1,0 +1,89 @@
+"""The ASGI application: ``uvicorn service.main:app``.
+
+:func:`create_app` builds the app from :class:`~service.settings.Settings` (environment
+variables ``PIPEFLOW_*``); the module-level ``app`` uses the environment's settings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.openapi.utils import get_openapi
+
+from pipeflow import __version__
+from service import problems
+from service.middleware import BodyLimit
+from service.routes import health, jobs, results, simulations
+from service.runner import Runner
+from service.settings import Settings, get_settings
+from service.store import Store
+
+DESCRIPTION = """\
+Vibration of a rotating cantilevered pipe conveying fluid with time-varying flow
+velocity v(t) [m/s] and spin w0(t) [rad/s] (Wang & Zhong, CMES 114(1), 2018).
+SI units throughout. Results are cached by the parameter hash `key`; errors are
+RFC 9457 `application/problem+json`.
+"""
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the service; ``settings`` defaults to the environment's."""
+    settings = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        store = Store(settings.db_path, settings.cache_max_bytes, settings.memory_cache_bytes)
+        runner = Runner(settings, store)
+        app.state.store = store
+        app.state.runner = runner
+        await runner.start()
+        try:
+            yield
+        finally:
+            await runner.stop()
+            store.close()
+
+    app = FastAPI(
+        title="pipeflow",
+        version=__version__,
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    problems.install(app)
+    for module in (simulations, jobs, results, health):
+        app.include_router(module.router)
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            app.openapi_schema = _problem_media_types(
+                get_openapi(
+                    title=app.title,
+                    version=app.version,
+                    description=app.description,
+                    routes=app.routes,
+                )
+            )
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+    return app
+
+
+def _problem_media_types(doc: dict[str, Any]) -> dict[str, Any]:
+    """Error responses are application/problem+json, not application/json."""
+    for path in doc.get("paths", {}).values():
+        for operation in path.values():
+            for code, resp in operation.get("responses", {}).items():
+                content = resp.get("content")
+                is_error = code.isdigit() and int(code) >= 400
+                if is_error and content and "application/json" in content:
+                    content[problems.PROBLEM_MEDIA_TYPE] = content.pop("application/json")
+    return doc
+
+
+app = create_app()

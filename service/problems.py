@@ -1,0 +1,296 @@
+"""RFC 9457 ``application/problem+json`` for every error, in one place.
+
+Handlers map request-validation errors (with the offending field), :class:`PipeflowError`
+(with its ``field``), HTTP errors (404, 405, 413) and :class:`ProblemError` raised by the
+service to problem documents.  Unexpected exceptions become a 500 problem; bad input never
+reaches that path because it is validated first.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from pipeflow.errors import PipeflowError
+
+log = logging.getLogger("service")
+
+PROBLEM_MEDIA_TYPE = "application/problem+json"
+TYPE_BASE = "https://pipeflow.dev/problems/"
+
+_TITLES = {
+    400: "Bad request",
+    404: "Not found",
+    405: "Method not allowed",
+    409: "Conflict",
+    413: "Request body too large",
+    415: "Unsupported media type",
+    422: "Invalid input",
+    500: "Internal server error",
+    503: "Service unavailable",
+}
+
+
+class FieldError(BaseModel):
+    """One offending input."""
+
+    field: str | None = Field(
+        description="Dotted path of the offending field, e.g. 'pipe.E' (null: the whole body)."
+    )
+    pointer: str | None = Field(
+        None, description="JSON Pointer (RFC 6901) into the request body, e.g. '#/pipe/E'."
+    )
+    location: str = Field("body", description="Where the input is: body, query or path.")
+    message: str = Field(description="What is wrong with it.")
+    type: str = Field("value_error", description="Machine-readable error type.")
+
+
+class Problem(BaseModel):
+    """An RFC 9457 problem document (``application/problem+json``)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    type: str = Field("about:blank", description="URI identifying the problem type.")
+    title: str = Field(description="Short summary of the problem type.")
+    status: int = Field(description="HTTP status code.")
+    detail: str | None = Field(None, description="Explanation of this occurrence.")
+    instance: str | None = Field(None, description="The request path.")
+    errors: list[FieldError] | None = Field(
+        None, description="Offending inputs (validation errors)."
+    )
+
+
+class ProblemError(Exception):
+    """Raise from a handler to answer with a problem document."""
+
+    def __init__(
+        self,
+        status: int,
+        detail: str,
+        *,
+        slug: str | None = None,
+        title: str | None = None,
+        headers: dict[str, str] | None = None,
+        errors: list[dict[str, Any]] | None = None,
+    ) -> None:
+        super().__init__(detail)
+        self.status = status
+        self.detail = detail
+        self.slug = slug
+        self.title = title
+        self.headers = headers
+        self.errors = errors
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any]) -> ProblemError:
+        """Re-raise a problem document produced elsewhere (e.g. in a worker)."""
+        err = cls(int(doc.get("status", 500)), str(doc.get("detail", "")))
+        err.doc = dict(doc)
+        return err
+
+    doc: dict[str, Any] | None = None
+
+    def document(self, instance: str | None = None) -> dict[str, Any]:
+        if self.doc is not None:
+            return {**self.doc, "instance": instance} if instance else dict(self.doc)
+        return problem(
+            self.status,
+            self.detail,
+            slug=self.slug,
+            title=self.title,
+            errors=self.errors,
+            instance=instance,
+        )
+
+
+def problem(
+    status: int,
+    detail: str | None,
+    *,
+    slug: str | None = None,
+    title: str | None = None,
+    errors: list[dict[str, Any]] | None = None,
+    instance: str | None = None,
+) -> dict[str, Any]:
+    """A problem document as a dict (``slug`` names the type under :data:`TYPE_BASE`)."""
+    doc: dict[str, Any] = {
+        "type": TYPE_BASE + slug if slug else "about:blank",
+        "title": title or _TITLES.get(status, "Error"),
+        "status": status,
+    }
+    if detail:
+        doc["detail"] = detail
+    if instance:
+        doc["instance"] = instance
+    if errors:
+        doc["errors"] = errors
+    return doc
+
+
+def pipeflow_problem(exc: PipeflowError) -> dict[str, Any]:
+    """422 problem for a refusal by the library, pointing at ``exc.field``."""
+    name = type(exc).__name__
+    slug = re.sub(r"(?<!^)(?=[A-Z])", "-", name).lower()
+    err: dict[str, Any] = {
+        "field": exc.field,
+        "pointer": _pointer(exc.field.split(".")) if exc.field else None,
+        "location": "body",
+        "message": exc.message,
+        "type": slug,
+    }
+    doc = problem(422, exc.message, slug=slug, errors=[err])
+    if hasattr(exc, "largest_stable_step"):
+        doc["largest_stable_step"] = exc.largest_stable_step
+    return doc
+
+
+def response(doc: dict[str, Any], headers: dict[str, str] | None = None) -> JSONResponse:
+    return JSONResponse(
+        doc, status_code=int(doc["status"]), media_type=PROBLEM_MEDIA_TYPE, headers=headers
+    )
+
+
+def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI ``responses`` entries declaring the problem documents a route can return."""
+    descriptions = {
+        304: "Not modified: the client's copy (If-None-Match) is current.",
+        404: "Unknown key.",
+        409: "The job is in a state that does not allow this.",
+        413: "Request body larger than the configured limit.",
+        422: "Invalid input; `errors` names each offending field.",
+        503: "Saturated or not ready; retry after the Retry-After header [s].",
+    }
+    out: dict[int | str, dict[str, Any]] = {}
+    for code in codes:
+        entry: dict[str, Any] = {"description": descriptions.get(code, _TITLES.get(code, ""))}
+        if code >= 400:
+            entry["model"] = Problem
+        if code == 503:
+            entry["headers"] = {
+                "Retry-After": {"description": "Seconds to wait", "schema": {"type": "integer"}}
+            }
+        out[code] = entry
+    return out
+
+
+# -- mapping validation errors to fields -------------------------------------------------
+
+
+def _pointer(parts: list[Any]) -> str:
+    escaped = [str(p).replace("~", "~0").replace("/", "~1") for p in parts]
+    return "#/" + "/".join(escaped) if escaped else "#"
+
+
+def _walk(body: Any, loc: tuple[Any, ...]) -> list[Any]:
+    """Follow ``loc`` through the submitted body, dropping the union tags pydantic inserts."""
+    path: list[Any] = []
+    node = body
+    for part in loc:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+            path.append(part)
+        elif isinstance(node, dict) and node.get("kind") == part:
+            continue  # discriminated-union tag, e.g. ('velocity', 'polynomial', 'coefficients')
+        elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            node = node[part]
+            path.append(part)
+        else:  # a missing field, or below one
+            path.append(part)
+            node = None
+    return path
+
+
+_LEADING_FIELD = re.compile(r"^(?:Value error, )?([A-Za-z_]\w*(?:\.\w+)*)")
+
+
+def _field_from_message(body: Any, base: list[Any], msg: str) -> list[Any]:
+    """Model-level validators name the field at the start of their message; resolve it.
+
+    ``"output.eigen_modes cannot exceed modes"`` raised on the whole body points at
+    ``output.eigen_modes``; ``"M1 + M2 must be > 0"`` raised on ``pipe`` at ``pipe.M1``.
+    """
+    m = _LEADING_FIELD.match(msg)
+    if not m:
+        return base
+    node = body
+    for part in base:
+        node = node[part] if isinstance(node, dict | list) else None
+    parts = m.group(1).split(".")
+    if len(parts) > 1 or (isinstance(node, dict) and parts[0] in node):
+        return base + parts
+    return base
+
+
+def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
+    body = getattr(exc, "body", None)
+    out = []
+    for err in exc.errors():
+        loc = tuple(err.get("loc", ()))
+        where = str(loc[0]) if loc else "body"
+        rest = loc[1:]
+        if where == "body":
+            path = _walk(body, rest)
+            if err.get("type") == "value_error" or err.get("type") == "assertion_error":
+                path = _field_from_message(body, path, str(err.get("msg", "")))
+            if err.get("type") == "json_invalid":
+                path = []
+        else:
+            path = list(rest)
+        field = ".".join(str(p) for p in path) or None
+        out.append(
+            {
+                "field": field,
+                "pointer": _pointer(path) if where == "body" else None,
+                "location": where,
+                "message": str(err.get("msg", "invalid")),
+                "type": str(err.get("type", "value_error")),
+            }
+        )
+    return out
+
+
+# -- handlers ------------------------------------------------------------------------------
+
+
+def install(app: FastAPI) -> None:
+    """Register the problem+json exception handlers on ``app``."""
+
+    @app.exception_handler(RequestValidationError)
+    async def _validation(request: Request, exc: RequestValidationError) -> JSONResponse:
+        errors = validation_errors(exc)
+        detail = "; ".join(f"{e['field'] or 'body'}: {e['message']}" for e in errors[:5])
+        return response(
+            problem(422, detail, slug="validation", errors=errors, instance=request.url.path)
+        )
+
+    @app.exception_handler(PipeflowError)
+    async def _pipeflow(request: Request, exc: PipeflowError) -> JSONResponse:
+        doc = pipeflow_problem(exc)
+        doc["instance"] = request.url.path
+        return response(doc)
+
+    @app.exception_handler(ProblemError)
+    async def _problem(request: Request, exc: ProblemError) -> JSONResponse:
+        return response(exc.document(request.url.path), exc.headers)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        detail = exc.detail if isinstance(exc.detail, str) else None
+        return response(
+            problem(exc.status_code, detail, instance=request.url.path),
+            dict(exc.headers) if exc.headers else None,
+        )
+
+    @app.exception_handler(Exception)
+    async def _internal(request: Request, exc: Exception) -> JSONResponse:
+        log.exception("unhandled error on %s", request.url.path)
+        return response(
+            problem(500, "an internal error occurred; it is logged", instance=request.url.path)
+        )

@@ -1,0 +1,46 @@
+"""Liveness and readiness probes."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from pipeflow import __version__
+from service.deps import RunnerDep
+from service.problems import ProblemError, responses
+from service.schemas import Health, Readiness
+
+router = APIRouter(tags=["health"])
+
+
+@router.get("/healthz", operation_id="getHealth", summary="Liveness", response_model=Health)
+async def healthz() -> Health:
+    """The process is up and serving HTTP."""
+    return Health(version=__version__)
+
+
+@router.get(
+    "/readyz",
+    operation_id="getReadiness",
+    summary="Readiness: workers started and a free slot",
+    response_model=Readiness,
+    responses=responses(503),
+)
+async def readyz(runner: RunnerDep) -> Readiness:
+    """200 when the worker processes are up and the queue has room, else 503."""
+    if not runner.ready:
+        raise ProblemError(
+            503,
+            "worker processes are starting",
+            slug="not-ready",
+            headers={"Retry-After": "1"},
+        )
+    if runner.saturated:
+        raise ProblemError(
+            503,
+            "the computation queue is full",
+            slug="saturated",
+            headers={"Retry-After": str(runner.settings.retry_after_s)},
+        )
+    return Readiness(
+        workers=runner.settings.workers, in_flight=runner.in_flight, capacity=runner.capacity
+    )

@@ -1,0 +1,47 @@
+"""GET /v1/results/{key}: stored results with a strong ETag."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Annotated
+
+from fastapi import APIRouter, Header, Path, Response
+
+from service.compute import result_response
+from service.deps import RunnerDep, StoreDep
+from service.problems import ProblemError, responses
+from service.routes.simulations import CACHE_HEADERS
+from service.schemas import KEY_PATTERN, SimulationResponse
+
+router = APIRouter(prefix="/v1/results", tags=["results"])
+
+
+def _matches(if_none_match: str, key: str) -> bool:
+    """RFC 9110 If-None-Match: weak comparison against the entity tag ``"<key>"``."""
+    tags = [t.strip() for t in if_none_match.split(",")]
+    return any(t == "*" or t.removeprefix("W/") == f'"{key}"' for t in tags)
+
+
+@router.get(
+    "/{key}",
+    operation_id="getResult",
+    summary="A stored result",
+    response_model=SimulationResponse,
+    responses={200: {"headers": CACHE_HEADERS}, **responses(304, 404, 422)},
+)
+async def get_result(
+    key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
+    store: StoreDep,
+    runner: RunnerDep,
+    if_none_match: Annotated[str | None, Header()] = None,
+) -> Response:
+    """The result stored under ``key`` (as POST /v1/simulations returned it), with
+    ``ETag: "<key>"``; ``If-None-Match`` with that tag is answered 304."""
+    if if_none_match is not None and _matches(if_none_match, key):
+        if await asyncio.to_thread(store.has_result, key):
+            return Response(status_code=304, headers={"ETag": f'"{key}"'})
+    body = await asyncio.to_thread(store.get_result, key)
+    if body is None:
+        pending = " yet; its job is still in progress" if runner.is_active(key) else ""
+        raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
+    return result_response(key, True, body)

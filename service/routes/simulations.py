@@ -1,0 +1,58 @@
+"""POST /v1/simulations: run one simulation and return it."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Query, Response
+
+from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+from service.compute import run_sync
+from service.deps import RunnerDep, StoreDep
+from service.kinds import SIMULATION
+from service.problems import responses
+from service.schemas import SimulationResponse
+
+router = APIRouter(prefix="/v1", tags=["simulations"])
+
+SpecBody = Annotated[
+    SimulationSpec,
+    Body(
+        openapi_examples={
+            "paper": {
+                "summary": "The paper's section 5: v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s",
+                "value": PAPER_EXAMPLE,
+            }
+        }
+    ),
+]
+Refresh = Annotated[
+    bool, Query(description="Recompute even if the result is cached (and replace it).")
+]
+
+CACHE_HEADERS: dict[str, Any] = {
+    "X-Cache": {
+        "description": "HIT when served from the cache, MISS when computed for this request.",
+        "schema": {"type": "string", "enum": ["HIT", "MISS"]},
+    },
+    "ETag": {"description": "Strong validator: the key in quotes.", "schema": {"type": "string"}},
+}
+
+
+@router.post(
+    "/simulations",
+    operation_id="runSimulation",
+    summary="Run one simulation (or serve it from the cache)",
+    response_model=SimulationResponse,
+    responses={
+        200: {"headers": CACHE_HEADERS},
+        **responses(409, 413, 422, 503),
+    },
+)
+async def run_simulation(
+    spec: SpecBody, runner: RunnerDep, store: StoreDep, refresh: Refresh = False
+) -> Response:
+    """Validate the spec, then answer with the result: cached if an equivalent request
+    (same key) was computed before, otherwise computed in a worker process.  Identical
+    concurrent requests share one computation."""
+    return await run_sync(runner, store, SIMULATION, spec, refresh)
