@@ -231,15 +231,16 @@ def period_of(flow: Profile, spin: Profile) -> float:
     """Common period T = 2 pi / frequency [s] of harmonic flow and/or spin."""
     harmonic = [p for p in (flow, spin) if isinstance(p, Harmonic) and p.frequency > 0]
     # a zero-amplitude harmonic still sets the period (the check against exp(S T))
-    freqs = [p.frequency for p in harmonic if p.amplitude != 0] or [
-        p.frequency for p in harmonic
-    ][:1]
+    freqs = [p.frequency for p in harmonic if p.amplitude != 0] or [p.frequency for p in harmonic][
+        :1
+    ]
     for name, p in (("flow.velocity", flow), ("rotation.omega0", spin)):
         if not isinstance(p, Harmonic | Constant):
             raise InvalidInput("Floquet analysis needs constant or harmonic profiles", field=name)
     if not freqs:
         raise InvalidInput(
-            "Floquet analysis needs a harmonic flow or spin with frequency > 0 (for constant coefficients use the critical-velocity analysis)",
+            "Floquet analysis needs a harmonic flow or spin with frequency > 0 (for "
+            "constant coefficients use the critical-velocity analysis)",
             field="flow.velocity",
         )
     if len(freqs) == 2 and not math.isclose(freqs[0], freqs[1], rel_tol=1e-12):
