@@ -350,7 +350,7 @@ class ResonanceChart:
     def regions(self) -> list[dict[str, Any]]:
         labels, count = ndimage.label(self.unstable)
         cands = self.resonances()
-        out = []
+        out: list[dict[str, Any]] = []
         for r in range(1, count + 1):
             ii, jj = np.nonzero(labels == r)
             tip = np.argmin(self.amplitudes[ii] * 1e6 + np.abs(jj - jj.mean()))
