@@ -70,7 +70,8 @@ def frozen_eigenvalues(
 ) -> NDArray[np.complex128]:
     """Eigenvalues of S(t) [1/s] at ``samples`` times over [0, t_end] (one if invariant)."""
     ts = np.linspace(0.0, t_end, 1 if loading.is_time_invariant else samples)
-    return np.asarray(np.linalg.eigvals(model.state_matrix(loading.coefficients(ts))), dtype=complex)
+    S = model.state_matrix(loading.coefficients(ts))
+    return np.asarray(np.linalg.eigvals(S), dtype=complex)
 
 
 class RK4:
