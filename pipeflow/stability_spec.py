@@ -1,0 +1,412 @@
+"""JSON request specs of the stability analyses, and the pure functions that run them.
+
+- ``POST /v1/stability``: :class:`StabilitySpec` -> :func:`run_stability` (critical flow
+  velocity at constant spin: every crossing of the stability boundary).
+- ``POST /v1/sweeps``: one of the :data:`SweepSpec` kinds -> :func:`run_sweep`:
+  ``argand`` (eigenvalues against flow velocity), ``campbell`` (against spin),
+  ``spin_map`` (critical velocity against spin), ``beta_map`` (u_cr(beta), non-dimensional),
+  ``resonance_chart`` (Floquet chart of pulsating flow) and ``floquet`` (one periodic case).
+
+Same conventions as :mod:`pipeflow.spec`: pydantic models with units in every description,
+bounds on everything a request can spend, :meth:`canonical` (defaults filled in) for the
+cache key.  The run functions return JSON-ready dicts (every float finite) and take a
+``progress`` callback (fraction in [0, 1]) that may raise :class:`pipeflow.errors.Cancelled`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Callable
+from typing import Annotated, Any, Literal
+
+import rfc8785
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
+
+from pipeflow import __version__
+from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec
+from pipeflow.stability.critical import critical_velocities
+from pipeflow.stability.floquet import floquet, resonance_chart
+from pipeflow.stability.maps import beta_map, spin_map
+from pipeflow.stability.sweeps import sweep
+
+Progress = Callable[[float], None]
+
+MAX_MODES = 40
+#: the paper's section-5 pipe, for the schema examples
+PAPER_PIPE_JSON: Any = {"E": 7.8e9, "I": 1.21e-17, "L": 0.025, "M1": 1.884e-5, "M2": 1.6485e-5}
+MAX_SWEEP_POINTS = 2001
+MAX_MAP_SIDE = 200
+MAX_CHART_SIDE = 101
+MAX_CHART_MODES = 12
+MAX_FLOQUET_MODES = 20
+#: |v| [m/s] and |w0| [rad/s] bounds (far beyond any physical pipe; they keep numbers finite)
+MAX_SPEED = 1e6
+MAX_SPIN = 1e7
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    def canonical(self) -> dict[str, Any]:
+        """Normalised JSON form (every default filled in) that the cache key is computed from."""
+        return self.model_dump(mode="json")
+
+
+def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
+    lo, hi = value
+    if not lo < hi:
+        raise ValueError(f"{name} must be increasing: got [{lo}, {hi}] {unit}")
+    if max(abs(lo), abs(hi)) > bound:
+        raise ValueError(f"{name} must lie within +-{bound:g} {unit}")
+
+
+class ConstantRotation(_Strict):
+    omega0: ConstantProfile = Field(
+        default_factory=ConstantProfile, description="Constant spin w0 of the hub [rad/s]."
+    )
+
+
+class ConstantFlow(_Strict):
+    velocity: ConstantProfile = Field(
+        default_factory=ConstantProfile,
+        description="Constant flow velocity v [m/s]; v > 0 flows from the clamped end to the tip.",
+    )
+
+
+VelocityRange = Annotated[
+    tuple[float, float],
+    Field(description="[v_min, v_max] flow velocities [m/s], increasing; v < 0 is reverse flow."),
+]
+SpinRange = Annotated[
+    tuple[float, float], Field(description="[w_min, w_max] spins w0 [rad/s], increasing.")
+]
+Modes = Annotated[int, Field(ge=1, le=MAX_MODES, description="Galerkin (cantilever) modes n.")]
+
+
+class StabilitySpec(_Strict):
+    """Critical flow velocity of a pipe at constant spin over a velocity range."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        allow_inf_nan=False,
+        json_schema_extra={
+            "examples": [
+                {
+                    "pipe": PAPER_PIPE_JSON,
+                    "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
+                    "modes": 10,
+                    "velocity_range": [0.0, 60.0],
+                }
+            ]
+        },
+    )
+
+    pipe: PipeSpec
+    rotation: ConstantRotation = Field(default_factory=ConstantRotation)
+    modes: Modes = 10
+    velocity_range: VelocityRange
+    points: int = Field(
+        401,
+        ge=11,
+        le=MAX_SWEEP_POINTS,
+        description="Grid points from 0 to v_max on which branches are followed [-] (crossings "
+        "are then located by root-finding to 1e-10 relative).",
+    )
+
+    @model_validator(mode="after")
+    def _ranges(self) -> StabilitySpec:
+        _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
+        if abs(self.rotation.omega0.value) > MAX_SPIN:
+            raise ValueError(f"rotation.omega0.value must lie within +-{MAX_SPIN:g} rad/s")
+        return self
+
+
+class _TrackedSweep(_Strict):
+    pipe: PipeSpec
+    modes: Modes = 10
+    points: int = Field(201, ge=2, le=MAX_SWEEP_POINTS, description="Evenly spaced points [-].")
+    tracked_modes: int = Field(
+        4, ge=1, le=MAX_MODES, description="Lowest modes reported (<= modes) [-]."
+    )
+    min_confidence: float = Field(
+        0.9,
+        ge=0,
+        le=1,
+        description="Insert points where the eigenvector-overlap tracking confidence falls "
+        "below this [-]; 0 disables refinement.",
+    )
+    max_points: int | None = Field(
+        None,
+        ge=2,
+        le=4 * MAX_SWEEP_POINTS,
+        description="Cap on points after refinement [-] (default 4 x points).",
+    )
+
+    @model_validator(mode="after")
+    def _tracked(self) -> _TrackedSweep:
+        if self.tracked_modes > self.modes:
+            raise ValueError("tracked_modes cannot exceed modes")
+        if self.max_points is not None and self.max_points < self.points:
+            raise ValueError("max_points must be >= points")
+        return self
+
+
+class ArgandSweep(_TrackedSweep):
+    """Eigenvalues against flow velocity at constant spin (Argand diagram)."""
+
+    kind: Literal["argand"] = "argand"
+    rotation: ConstantRotation = Field(default_factory=ConstantRotation)
+    velocity_range: VelocityRange
+
+    @model_validator(mode="after")
+    def _ranges(self) -> ArgandSweep:
+        _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
+        return self
+
+
+class CampbellSweep(_TrackedSweep):
+    """Eigenvalues against spin at constant flow velocity (Campbell diagram)."""
+
+    kind: Literal["campbell"] = "campbell"
+    flow: ConstantFlow = Field(default_factory=ConstantFlow)
+    spin_range: SpinRange
+
+    @model_validator(mode="after")
+    def _ranges(self) -> CampbellSweep:
+        _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
+        return self
+
+
+class SpinMapSweep(_Strict):
+    """Growth-rate map over (spin, flow velocity) and the critical velocity at each spin."""
+
+    kind: Literal["spin_map"] = "spin_map"
+    pipe: PipeSpec
+    modes: Modes = 10
+    velocity_range: VelocityRange
+    spin_range: SpinRange
+    velocity_points: int = Field(100, ge=3, le=MAX_MAP_SIDE, description="Velocity samples [-].")
+    spin_points: int = Field(100, ge=1, le=MAX_MAP_SIDE, description="Spin samples [-].")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> SpinMapSweep:
+        _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
+        _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
+        return self
+
+
+class BetaMapSweep(_Strict):
+    """u_cr(beta) in Paidoussis' non-dimensional form, all crossings per beta (S-shapes)."""
+
+    kind: Literal["beta_map"] = "beta_map"
+    modes: Modes = 10
+    beta_range: tuple[float, float] = Field(
+        (0.05, 0.95), description="[beta_min, beta_max] mass ratios M2/(M1+M2) in (0, 1) [-]."
+    )
+    u_range: tuple[float, float] = Field(
+        (0.0, 20.0), description="[u_min, u_max] flow numbers v L sqrt(M2/EI) >= 0 [-]."
+    )
+    gamma: float = Field(0.0, ge=0, le=1e3, description="Spin number w0 L^2 sqrt((M1+M2)/EI) [-].")
+    beta_points: int = Field(50, ge=1, le=400, description="Mass-ratio samples [-].")
+    u_points: int = Field(201, ge=3, le=MAX_SWEEP_POINTS, description="Flow-number samples [-].")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> BetaMapSweep:
+        _check_range(self.beta_range, "beta_range", 1.0, "")
+        if not (self.beta_range[0] > 0 and self.beta_range[1] < 1):
+            raise ValueError("beta_range must lie inside (0, 1)")
+        _check_range(self.u_range, "u_range", 1e3, "")
+        if self.u_range[0] < 0:
+            raise ValueError("u_range must be >= 0 (reverse flow has no critical velocity)")
+        return self
+
+
+class ResonanceChartSweep(_Strict):
+    """Floquet chart of pulsating flow v = mean + a sin(Omega t) over (a, Omega)."""
+
+    kind: Literal["resonance_chart"] = "resonance_chart"
+    pipe: PipeSpec
+    modes: int = Field(4, ge=1, le=MAX_CHART_MODES, description="Galerkin modes n [-].")
+    rotation: ConstantRotation = Field(default_factory=ConstantRotation)
+    mean_velocity: float = Field(
+        ge=-MAX_SPEED, le=MAX_SPEED, description="Mean flow velocity [m/s]."
+    )
+    amplitude_range: tuple[float, float] = Field(
+        description="[a_min, a_max] pulsation amplitudes >= 0 [m/s]."
+    )
+    frequency_range: tuple[float, float] = Field(
+        description="[Omega_min, Omega_max] pulsation frequencies > 0 [rad/s]."
+    )
+    amplitude_points: int = Field(21, ge=1, le=MAX_CHART_SIDE, description="Amplitude samples.")
+    frequency_points: int = Field(41, ge=1, le=MAX_CHART_SIDE, description="Frequency samples.")
+    tolerance: float = Field(
+        1e-5, ge=1e-12, le=1e-2, description="Relative accuracy of each monodromy matrix [-]."
+    )
+
+    @model_validator(mode="after")
+    def _ranges(self) -> ResonanceChartSweep:
+        _check_range(self.amplitude_range, "amplitude_range", MAX_SPEED, "m/s")
+        _check_range(self.frequency_range, "frequency_range", 1e7, "rad/s")
+        if self.amplitude_range[0] < 0:
+            raise ValueError("amplitude_range must be >= 0 m/s")
+        if self.frequency_range[0] <= 0:
+            raise ValueError("frequency_range must be > 0 rad/s")
+        return self
+
+
+class PeriodicFlow(_Strict):
+    velocity: ConstantProfile | HarmonicProfile = Field(
+        discriminator="kind", description="Flow velocity v(t) [m/s]: constant or harmonic."
+    )
+
+
+class PeriodicRotation(_Strict):
+    omega0: ConstantProfile | HarmonicProfile = Field(
+        default_factory=ConstantProfile,
+        discriminator="kind",
+        description="Spin w0(t) [rad/s]: constant or harmonic (same frequency as the flow).",
+    )
+
+
+class FloquetSweep(_Strict):
+    """Floquet multipliers of one case with harmonic flow and/or spin (one period)."""
+
+    kind: Literal["floquet"] = "floquet"
+    pipe: PipeSpec
+    modes: int = Field(6, ge=1, le=MAX_FLOQUET_MODES, description="Galerkin modes n [-].")
+    flow: PeriodicFlow
+    rotation: PeriodicRotation = Field(default_factory=PeriodicRotation)
+    tolerance: float = Field(
+        1e-8, ge=1e-12, le=1e-2, description="Relative accuracy of the monodromy matrix [-]."
+    )
+
+    @model_validator(mode="after")
+    def _periodic(self) -> FloquetSweep:
+        profs = [self.flow.velocity, self.rotation.omega0]
+        harm = [p for p in profs if isinstance(p, HarmonicProfile) and p.frequency > 0]
+        if not harm:
+            raise ValueError(
+                "flow.velocity or rotation.omega0 must be harmonic with frequency > 0 rad/s"
+            )
+        moving = [p.frequency for p in harm if p.amplitude != 0]
+        if len(moving) == 2 and not math.isclose(moving[0], moving[1], rel_tol=1e-12):
+            raise ValueError("harmonic flow and spin must share one frequency")
+        return self
+
+
+SweepSpec = Annotated[
+    ArgandSweep | CampbellSweep | SpinMapSweep | BetaMapSweep | ResonanceChartSweep | FloquetSweep,
+    Field(discriminator="kind"),
+]
+SWEEP_ADAPTER: TypeAdapter[Any] = TypeAdapter(SweepSpec)
+
+
+def parse_sweep(data: Any) -> Any:
+    """Validate a ``/v1/sweeps`` body into its spec class (raises pydantic ValidationError)."""
+    return SWEEP_ADAPTER.validate_python(data)
+
+
+def cache_key(spec: _Strict, kind: str) -> str:
+    """SHA-256 of the RFC 8785 canonical JSON of the spec, salted with the version and kind
+    (the same construction as :func:`pipeflow.spec.cache_key`)."""
+    payload: Any = {"pipeflow": __version__, "kind": kind, "spec": spec.canonical()}
+    return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()
+
+
+def json_safe(data: Any) -> Any:
+    """Replace non-finite floats by None (JSON has no Inf/NaN); numpy scalars to Python."""
+    if isinstance(data, dict):
+        return {k: json_safe(v) for k, v in data.items()}
+    if isinstance(data, list | tuple):
+        return [json_safe(v) for v in data]
+    if hasattr(data, "item") and not isinstance(data, str):
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
+
+
+def run_stability(spec: StabilitySpec, progress: Progress | None = None) -> dict[str, Any]:
+    """Critical velocities for a :class:`StabilitySpec`: JSON-ready dict (SI units)."""
+    res = critical_velocities(
+        spec.pipe.to_pipe(),
+        omega0=spec.rotation.omega0.value,
+        velocity_range=spec.velocity_range,
+        modes=spec.modes,
+        points=spec.points,
+        progress=progress,
+    )
+    return {"kind": "stability", **json_safe(res.to_dict())}
+
+
+def run_sweep(spec: Any, progress: Progress | None = None) -> dict[str, Any]:
+    """Run any :data:`SweepSpec` kind: JSON-ready dict (SI units), ``kind`` echoed."""
+    out: dict[str, Any]
+    if isinstance(spec, ArgandSweep | CampbellSweep):
+        argand = isinstance(spec, ArgandSweep)
+        res = sweep(
+            spec.pipe.to_pipe(),
+            "velocity" if argand else "spin",
+            spec.velocity_range if isinstance(spec, ArgandSweep) else spec.spin_range,
+            fixed=(
+                spec.rotation.omega0.value
+                if isinstance(spec, ArgandSweep)
+                else spec.flow.velocity.value
+            ),
+            modes=spec.modes,
+            tracked=spec.tracked_modes,
+            points=spec.points,
+            min_confidence=spec.min_confidence,
+            max_points=spec.max_points,
+            progress=progress,
+        )
+        out = res.to_dict()
+    elif isinstance(spec, SpinMapSweep):
+        out = spin_map(
+            spec.pipe.to_pipe(),
+            spec.velocity_range,
+            spec.spin_range,
+            modes=spec.modes,
+            velocity_points=spec.velocity_points,
+            spin_points=spec.spin_points,
+            progress=progress,
+        ).to_dict()
+    elif isinstance(spec, BetaMapSweep):
+        out = beta_map(
+            spec.beta_range,
+            spec.u_range,
+            gamma=spec.gamma,
+            modes=spec.modes,
+            beta_points=spec.beta_points,
+            u_points=spec.u_points,
+            progress=progress,
+        ).to_dict()
+    elif isinstance(spec, ResonanceChartSweep):
+        out = resonance_chart(
+            spec.pipe.to_pipe(),
+            spec.mean_velocity,
+            spec.amplitude_range,
+            spec.frequency_range,
+            omega0=spec.rotation.omega0.value,
+            modes=spec.modes,
+            amplitude_points=spec.amplitude_points,
+            frequency_points=spec.frequency_points,
+            tolerance=spec.tolerance,
+            progress=progress,
+        ).to_dict()
+    elif isinstance(spec, FloquetSweep):
+        out = {
+            "kind": "floquet",
+            **floquet(
+                spec.pipe.to_pipe(),
+                spec.flow.velocity.to_profile(),
+                spec.rotation.omega0.to_profile(),
+                modes=spec.modes,
+                tolerance=spec.tolerance,
+                progress=progress,
+            ).to_dict(),
+        }
+    else:
+        raise TypeError(f"not a sweep spec: {type(spec).__name__}")
+    return dict(json_safe(out))
