@@ -16,7 +16,7 @@ from fastapi.openapi.utils import get_openapi
 from pipeflow import __version__
 from service import problems
 from service.middleware import BodyLimit
-from service.routes import health, jobs, results, simulations
+from service.routes import exports, health, jobs, results, simulations, viewer
 from service.runner import Runner
 from service.settings import Settings, get_settings
 from service.store import Store
@@ -55,7 +55,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
-    for module in (simulations, jobs, results, health):
+    for module in (simulations, jobs, results, exports, health, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:
@@ -75,9 +75,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
 
 def _problem_media_types(doc: dict[str, Any]) -> dict[str, Any]:
-    """Error responses are application/problem+json, not application/json."""
+    """Error responses are application/problem+json; every operation may answer 500."""
+    internal = {
+        "description": "Internal error (a bug, never bad input).",
+        "content": {
+            problems.PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}
+        },
+    }
     for path in doc.get("paths", {}).values():
         for operation in path.values():
+            operation.setdefault("responses", {}).setdefault("500", internal)
             for code, resp in operation.get("responses", {}).items():
                 content = resp.get("content")
                 is_error = code.isdigit() and int(code) >= 400

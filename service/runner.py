@@ -70,6 +70,7 @@ class Runner:
         self.capacity = settings.workers + settings.queue_size
         self.computations = 0  # runs handed to the pool (tests check single-flight with it)
         self.ready = False
+        self.watchdog_grace_s = WATCHDOG_GRACE_S
         self._flights: dict[str, Flight] = {}
         self._pool: ProcessPoolExecutor | None = None
         self._background: set[asyncio.Task[Any]] = set()
@@ -269,8 +270,8 @@ class Runner:
     async def _watchdog(self) -> None:
         """Fail computations that overrun the runtime limit without reporting progress."""
         timeout = self.settings.job_timeout_s
-        limit = timeout + max(WATCHDOG_GRACE_S, 0.1 * timeout)
         while True:
+            limit = timeout + max(self.watchdog_grace_s, 0.1 * timeout)
             await asyncio.sleep(1.0)
             if not self._flights:
                 continue

@@ -1,0 +1,111 @@
+"""Fixtures for the service tests: apps with temporary data directories."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from typing import Annotated, Any
+
+import pytest
+from fastapi import APIRouter, Query, Response
+from fastapi.responses import JSONResponse
+from fastapi.testclient import TestClient
+
+from pipeflow.spec import PAPER_EXAMPLE
+from service.compute import job_document, run_sync, submit_job
+from service.deps import RunnerDep, StoreDep
+from service.main import create_app
+from service.settings import Settings
+from tests.service.kinds_for_tests import SLEEP, SleepSpec
+
+#: a small, fast simulation (3 modes, 101 samples) for API tests
+SMALL: dict[str, Any] = {
+    "pipe": PAPER_EXAMPLE["pipe"],
+    "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
+    "flow": {"velocity": {"kind": "polynomial", "coefficients": [0.0, 0.4]}},
+    "modes": 3,
+    "time": {"t_end": 0.2, "samples": 101},
+}
+
+TERMINAL = ("succeeded", "failed", "cancelled")
+
+
+def test_router() -> APIRouter:
+    """Endpoints over the test kind, written the way a real kind's endpoints are."""
+    router = APIRouter(prefix="/test")
+
+    @router.post("/sleep")
+    async def sleep_now(
+        spec: SleepSpec,
+        runner: RunnerDep,
+        store: StoreDep,
+        refresh: Annotated[bool, Query()] = False,
+    ) -> Response:
+        return await run_sync(runner, store, SLEEP, spec, refresh)
+
+    @router.post("/sleep-jobs", status_code=202)
+    async def sleep_job(spec: SleepSpec, runner: RunnerDep, store: StoreDep) -> JSONResponse:
+        key, job = await submit_job(runner, store, SLEEP, spec, False)
+        doc = job_document(job)
+        doc = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in doc.items()}
+        return JSONResponse(doc, 202, {"Location": f"/v1/jobs/{key}"})
+
+    return router
+
+
+test_router.__test__ = False  # type: ignore[attr-defined]
+
+
+def make_client(tmp: Any, **overrides: Any) -> TestClient:
+    settings = Settings(data_dir=tmp, **{"workers": 1, **overrides})
+    app = create_app(settings)
+    app.include_router(test_router())
+    return TestClient(app, raise_server_exceptions=False)
+
+
+def wait_ready(client: TestClient, timeout: float = 60.0) -> None:
+    end = time.monotonic() + timeout
+    while client.get("/readyz").status_code != 200:
+        assert time.monotonic() < end, "workers did not start"
+        time.sleep(0.05)
+
+
+def wait_job(
+    client: TestClient,
+    key: str,
+    until: Callable[[dict[str, Any]], bool] | None = None,
+    timeout: float = 60.0,
+) -> dict[str, Any]:
+    """Poll GET /v1/jobs/{key} until ``until(job)`` (default: a terminal status)."""
+    until = until or (lambda job: job["status"] in TERMINAL)
+    end = time.monotonic() + timeout
+    while True:
+        job = client.get(f"/v1/jobs/{key}").json()
+        if until(job):
+            return job
+        assert time.monotonic() < end, f"job stuck: {job}"
+        time.sleep(0.05)
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+    """An app with 2 workers and room for 8 queued computations."""
+    with make_client(tmp_path_factory.mktemp("data"), workers=2, queue_size=8) as c:
+        wait_ready(c)
+        yield c
+
+
+@pytest.fixture(scope="module")
+def tight(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+    """One worker, no queue, a 2 s runtime limit, fast progress checks."""
+    with make_client(
+        tmp_path_factory.mktemp("tight"),
+        workers=1,
+        queue_size=0,
+        job_timeout_s=2.0,
+        progress_interval_s=0.02,
+        retry_after_s=3,
+    ) as c:
+        wait_ready(c)
+        c.app.state.runner.watchdog_grace_s = 0.5  # type: ignore[attr-defined]
+        yield c

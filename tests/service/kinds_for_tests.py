@@ -1,0 +1,36 @@
+"""Job kinds used only by the tests: cheap, controllable stand-ins for long simulations.
+
+Registered in :data:`service.kinds.KINDS` on import; the worker processes import this
+module by reference when they unpickle the functions.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from pipeflow.solvers.base import ProgressCallback
+from service.kinds import JobKind, register
+
+
+class SleepSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    seconds: float = Field(ge=0, le=120, description="How long to run [s].")
+    report: bool = Field(True, description="Call the progress callback while sleeping.")
+    tag: str = Field("", description="Makes otherwise equal specs distinct.")
+
+
+def sleep(spec: SleepSpec, progress: ProgressCallback) -> dict[str, Any]:
+    """Sleep ``spec.seconds``, reporting progress unless told not to."""
+    start = time.monotonic()
+    while (elapsed := time.monotonic() - start) < spec.seconds:
+        time.sleep(0.01)
+        if spec.report:
+            progress(elapsed / spec.seconds)
+    return {"slept": spec.seconds, "tag": spec.tag}
+
+
+SLEEP = register(JobKind("test-sleep", SleepSpec, sleep))

@@ -1,0 +1,200 @@
+"""API tests: POST /v1/simulations, results, health, and every error path."""
+
+from __future__ import annotations
+
+import copy
+import json
+from typing import Any
+
+from fastapi.testclient import TestClient
+
+from service.schemas import SimulationResponse
+from tests.service.conftest import SMALL
+
+
+def _small(**changes: Any) -> dict[str, Any]:
+    body = copy.deepcopy(SMALL)
+    body.update(changes)
+    return body
+
+
+def test_simulation_miss_then_hit(client: TestClient) -> None:
+    body = _small(initial={"u0": 0.002})
+    first = client.post("/v1/simulations", json=body)
+    assert first.status_code == 200, first.text
+    assert first.headers["x-cache"] == "MISS"
+    doc = first.json()
+    assert doc["cached"] is False
+    assert len(doc["key"]) == 64
+    assert first.headers["etag"] == f'"{doc["key"]}"'
+    assert len(doc["t"]) == len(doc["tip_displacement"]) == 101
+    assert [m["mode"] for m in doc["eigenvalues"]["modes"]] == [1, 2, 3]
+    assert set(doc["fundamental"]) == {"sigma", "omega"}
+    assert doc["method"] == "cma"
+    for field in ("dimensionless", "diagnostics"):
+        assert isinstance(doc[field], dict)
+
+    second = client.post("/v1/simulations", json=body)
+    assert second.status_code == 200
+    assert second.headers["x-cache"] == "HIT"
+    again = second.json()
+    assert again["cached"] is True
+    assert {**again, "cached": False} == doc
+
+
+def test_response_matches_documented_schema(client: TestClient) -> None:
+    """Every field the core returns is documented in SimulationResponse (and validates)."""
+    doc = client.post("/v1/simulations", json=_small(output={"modal": True})).json()
+    SimulationResponse.model_validate(doc)
+    assert set(doc) <= set(SimulationResponse.model_fields)
+    assert "modal" in doc
+
+
+def test_refresh_recomputes(client: TestClient) -> None:
+    body = _small(initial={"u0": 0.003})
+    runner = client.app.state.runner  # type: ignore[attr-defined]
+    assert client.post("/v1/simulations", json=body).headers["x-cache"] == "MISS"
+    before = runner.computations
+    fresh = client.post("/v1/simulations?refresh=true", json=body)
+    assert fresh.status_code == 200
+    assert fresh.headers["x-cache"] == "MISS" and fresh.json()["cached"] is False
+    assert runner.computations == before + 1
+    assert client.post("/v1/simulations", json=body).headers["x-cache"] == "HIT"
+
+
+def test_results_etag_and_304(client: TestClient) -> None:
+    doc = client.post("/v1/simulations", json=_small(initial={"u0": 0.004})).json()
+    key = doc["key"]
+    got = client.get(f"/v1/results/{key}")
+    assert got.status_code == 200
+    assert got.headers["etag"] == f'"{key}"'
+    assert got.json()["tip_displacement"] == doc["tip_displacement"]
+    assert got.json()["cached"] is True
+    for tag in (f'"{key}"', f'W/"{key}"', f'"other", "{key}"', "*"):
+        not_modified = client.get(f"/v1/results/{key}", headers={"If-None-Match": tag})
+        assert not_modified.status_code == 304, tag
+        assert not_modified.headers["etag"] == f'"{key}"'
+        assert not_modified.content == b""
+    stale = client.get(f"/v1/results/{key}", headers={"If-None-Match": '"something-else"'})
+    assert stale.status_code == 200
+
+
+def _problem(resp: Any, status: int) -> dict[str, Any]:
+    assert resp.status_code == status, resp.text
+    assert resp.headers["content-type"] == "application/problem+json"
+    doc: dict[str, Any] = resp.json()
+    assert doc["status"] == status and doc["title"]
+    return doc
+
+
+def test_unknown_result_404(client: TestClient) -> None:
+    doc = _problem(client.get("/v1/results/" + "0" * 64), 404)
+    assert doc["instance"] == "/v1/results/" + "0" * 64
+    assert client.get("/v1/results/" + "0" * 64, headers={"If-None-Match": "*"}).status_code == 404
+
+
+def test_malformed_key_422(client: TestClient) -> None:
+    doc = _problem(client.get("/v1/results/not-a-key"), 422)
+    assert doc["errors"][0]["field"] == "key"
+    assert doc["errors"][0]["location"] == "path"
+
+
+def test_unknown_route_and_method(client: TestClient) -> None:
+    _problem(client.get("/v1/nothing"), 404)
+    _problem(client.get("/v1/simulations"), 405)
+
+
+def _fields(doc: dict[str, Any]) -> list[str | None]:
+    return [e["field"] for e in doc["errors"]]
+
+
+def test_validation_points_at_field(client: TestClient) -> None:
+    cases: list[tuple[dict[str, Any], str]] = [
+        ({**SMALL, "pipe": {**SMALL["pipe"], "E": -1}}, "pipe.E"),
+        ({**SMALL, "pipe": {k: v for k, v in SMALL["pipe"].items() if k != "L"}}, "pipe.L"),
+        ({**SMALL, "modes": 41}, "modes"),
+        ({**SMALL, "time": {"samples": 10**9}}, "time.samples"),
+        ({**SMALL, "method": "euler"}, "method"),
+        ({**SMALL, "colour": "red"}, "colour"),
+        (
+            {**SMALL, "flow": {"velocity": {"kind": "polynomial", "coefficients": [0, "x"]}}},
+            "flow.velocity.coefficients.1",
+        ),
+        ({**SMALL, "flow": {"velocity": {"kind": "sawtooth"}}}, "flow.velocity"),
+        (
+            {**SMALL, "rotation": {"omega0": {"kind": "table", "t": [0, 1], "values": [1, 2, 3]}}},
+            "rotation.omega0.t",
+        ),
+        ({**SMALL, "pipe": {**SMALL["pipe"], "M1": 0, "M2": 0}}, "pipe.M1"),
+        ({**SMALL, "output": {"positions": [1.0]}}, "output.positions"),
+    ]
+    for body, field in cases:
+        doc = _problem(client.post("/v1/simulations", json=body), 422)
+        assert field in _fields(doc), (field, doc)
+        assert doc["errors"][0]["pointer"].startswith("#")
+
+
+def test_non_finite_inputs_rejected(client: TestClient) -> None:
+    template = json.dumps({**SMALL, "pipe": {**SMALL["pipe"], "E": 12345.0}})
+    for literal in ("NaN", "Infinity", "-Infinity", "1e999"):
+        raw = template.replace("12345.0", literal)
+        resp = client.post(
+            "/v1/simulations", content=raw, headers={"content-type": "application/json"}
+        )
+        doc = _problem(resp, 422)
+        assert _fields(doc) == ["pipe.E"], literal
+
+
+def test_bad_json_and_missing_body(client: TestClient) -> None:
+    doc = _problem(
+        client.post(
+            "/v1/simulations", content=b"{not json", headers={"content-type": "application/json"}
+        ),
+        422,
+    )
+    assert doc["errors"][0]["type"] == "json_invalid"
+    _problem(client.post("/v1/simulations"), 422)
+
+
+def test_library_refusal_is_422_with_field(client: TestClient) -> None:
+    """An RK4 step outside the stability region is refused by pipeflow with its field."""
+    body = _small(method="rk4", options={"step": 0.5})
+    doc = _problem(client.post("/v1/simulations", json=body), 422)
+    assert _fields(doc) == ["options.step"]
+    assert doc["largest_stable_step"] > 0
+
+
+def test_oversize_body_413(client: TestClient) -> None:
+    limit = client.app.state.settings.max_body_bytes  # type: ignore[attr-defined]
+    big = _small(output={"positions": [0.0] * 10}, padding="x" * (limit + 1))
+    _problem(client.post("/v1/simulations", json=big), 413)
+
+    def chunks() -> Any:  # no Content-Length: counted while streaming
+        for _ in range(limit // 10_000 + 2):
+            yield b" " * 10_000
+
+    doc = _problem(
+        client.post(
+            "/v1/simulations", content=chunks(), headers={"content-type": "application/json"}
+        ),
+        413,
+    )
+    assert "limit" in doc["detail"]
+
+
+def test_health_and_ready(client: TestClient) -> None:
+    health = client.get("/healthz")
+    assert health.status_code == 200 and health.json()["status"] == "ok"
+    ready = client.get("/readyz")
+    assert ready.status_code == 200
+    assert ready.json()["workers"] == 2 and ready.json()["capacity"] == 10
+
+
+def test_workers_pin_blas_threads(client: TestClient) -> None:
+    from service import worker
+
+    runner = client.app.state.runner  # type: ignore[attr-defined]
+    info = client.portal.call(runner.call, worker.ping)  # type: ignore[union-attr]
+    assert info["threads"]["OMP_NUM_THREADS"] == "1"
+    assert info["threads"]["OPENBLAS_NUM_THREADS"] == "1"
+    assert info["numpy_loaded"]
