@@ -1,0 +1,43 @@
+"""The committed OpenAPI document is app.openapi(); regenerate: python -m service.openapi_gen."""
+
+from __future__ import annotations
+
+import json
+
+from pipeflow.spec import PAPER_EXAMPLE
+from service import openapi_gen
+
+
+def test_committed_document_is_current() -> None:
+    committed = openapi_gen.DEFAULT_PATH.read_text()
+    assert committed == openapi_gen.render(openapi_gen.document()), (
+        "openapi/openapi.json is stale: run `python -m service.openapi_gen`"
+    )
+
+
+def test_operations_errors_and_example() -> None:
+    doc = json.loads(openapi_gen.DEFAULT_PATH.read_text())
+    ops = {
+        (method.upper(), path): op
+        for path, item in doc["paths"].items()
+        for method, op in item.items()
+    }
+    assert {op["operationId"] for op in ops.values()} == {
+        "runSimulation",
+        "submitJob",
+        "getJob",
+        "cancelJob",
+        "getResult",
+        "getHealth",
+        "getReadiness",
+    }
+    for op in ops.values():
+        for code, resp in op["responses"].items():
+            if int(code) >= 400:
+                assert list(resp["content"]) == ["application/problem+json"], (op, code)
+    sim = ops[("POST", "/v1/simulations")]
+    assert {"413", "422", "503", "500"} <= set(sim["responses"])
+    example = sim["requestBody"]["content"]["application/json"]["examples"]["paper"]["value"]
+    assert example == PAPER_EXAMPLE
+    assert "404" in ops[("GET", "/v1/results/{key}")]["responses"]
+    assert "304" in ops[("GET", "/v1/results/{key}")]["responses"]
