@@ -149,6 +149,9 @@ class Branches:
         Picked by the largest overlap of the left eigenvector of branch j at ``p[k]`` with
         the right eigenvectors at ``p``.
         """
+        # anchor at the nearer grid point, so that the grid values are reproduced exactly
+        if k + 1 < self.p.size and abs(p - self.p[k + 1]) < abs(p - self.p[k]):
+            k += 1
         w, V, _ = decompose(self.matrices(np.array([float(p)])))
         overlap = np.abs(self.W[k, j] @ V[0])
         if not np.all(np.isfinite(overlap)):

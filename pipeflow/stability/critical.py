@@ -238,8 +238,14 @@ def critical_velocities(
     unstable0 = br.xi[start].real > tol[start]
     count = sum(1 for j in range(m) if unstable0[j] and br.upper(j, start))
     crossings: list[Crossing] = []
+    swaps = 0
     for v, j, k, loss in sorted(found):
         xi = br.branch_at(j, k, v)
+        if abs(xi.real) > 1e-6 * max(abs(xi), 1e-9 * radius):
+            # sigma jumps instead of passing zero: the grid tracking swapped two branches
+            # there (confidence too low); the pipe's stability does not change at a swap
+            swaps += 1
+            continue
         if xi.imag < -1e-9 * max(abs(xi), 1e-9 * radius):
             continue  # the conjugate of a reported flutter crossing
         was = count > 0
@@ -278,6 +284,7 @@ def critical_velocities(
         "grid_points": int(br.p.size),
         "inserted_points": int(br.inserted.sum()),
         "min_tracking_confidence": float(np.min(br.confidence[start:])),
+        "tracking_swaps_ignored": swaps,
         "rtol": rtol,
     }
     if progress is not None:

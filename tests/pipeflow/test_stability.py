@@ -53,7 +53,7 @@ def test_beta_05_flutters_in_third_mode():
 def test_s_shaped_segment_loses_regains_loses():
     """Physics notes sec. 4 / Paidoussis (1998) sec. 3.5: near beta ~ 0.3 the u_cr(beta)
     curve is S-shaped: with increasing u the pipe loses, regains and loses stability.  In our
-    10-mode model the three-crossing window is beta in about (0.2933, 0.2973); at
+    10-mode model the three-crossing window is beta in about [0.2931, 0.2972]; at
     beta = 0.295 the crossings are u = 7.2619, 7.8518, 8.1911, all in the second mode.
     A coarse grid (41 points over u in [0, 12]) must still resolve them."""
     _, boundary = u_crossings(0.295, points=41)

@@ -1,0 +1,49 @@
+"""Stability maps: critical velocity against spin, and u_cr(beta)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from pipeflow.model import PAPER_PIPE
+from pipeflow.stability import critical_velocities
+from pipeflow.stability.core import nondimensional_pipe
+from pipeflow.stability.maps import beta_map, spin_map
+
+
+def test_spin_map_agrees_with_single_line_analysis():
+    """Each line of the (w0, v) map gives the same first loss as critical_velocities (both
+    to 1e-10 relative by root-finding; compared at 1e-8)."""
+    m = spin_map(PAPER_PIPE, (0.0, 50.0), (0.0, 400.0), modes=8, velocity_points=40, spin_points=3)
+    for w0, v in zip(m.spins, m.critical_velocity, strict=True):
+        one = critical_velocities(PAPER_PIPE, float(w0), (0.0, 50.0), 8, points=41)
+        assert v == pytest.approx(one.critical_velocity, rel=1e-8)
+    d = m.to_dict()
+    assert len(d["growth_rate"]) == 3 and len(d["growth_rate"][0]) == 40
+    assert d["stable_intervals"][0][0] == [0.0, pytest.approx(m.critical_velocity[0])]
+
+
+def test_beta_map_s_shape_and_literature_points():
+    """u_cr(beta), gamma = 0, 10 modes: beta = 0.2 -> 5.59 (Gregory & Paidoussis 1966,
+    ~5.6); beta = 0.295 has three crossings (loss, gain, loss: the S-shaped segment near
+    beta ~ 0.3 of Paidoussis 1998 sec. 3.5), beta = 0.3 one crossing after the jump (8.27)."""
+    b = beta_map((0.2, 0.3), (0.0, 12.0), modes=10, beta_points=5, u_points=61)
+    # betas 0.2, 0.225, 0.25, 0.275, 0.3
+    assert b.u_cr[0] == pytest.approx(5.5917, abs=1e-3)
+    assert b.u_cr[-1] == pytest.approx(8.2714, abs=1e-3)
+    single = beta_map((0.2949, 0.2951), (0.0, 12.0), beta_points=3, u_points=61)
+    mid = single.crossings[1]
+    assert [c.direction for c in mid] == ["loss", "gain", "loss"]
+    assert [round(c.velocity, 3) for c in mid] == [7.262, 7.852, 8.191]
+    d = single.to_dict()
+    assert d["multiple_crossings"] and all(len(c) == 2 for c in d["curve"])
+
+
+def test_beta_map_matches_dimensional_analysis():
+    """The non-dimensional map equals the dimensional analysis of a pipe with that beta:
+    u = v L sqrt(M2/EI) (physics notes sec. 1)."""
+    b = beta_map((0.5, 0.5 + 1e-9), (0.0, 12.0), modes=8, beta_points=1, u_points=61)
+    pipe = nondimensional_pipe(0.5)
+    one = critical_velocities(pipe, 0.0, (0.0, 12.0 / math.sqrt(0.5)), 8, points=61)
+    assert b.u_cr[0] == pytest.approx(one.dimensionless()["u_cr"], rel=1e-6)
