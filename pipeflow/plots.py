@@ -19,12 +19,11 @@ from __future__ import annotations
 import io
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
-import matplotlib
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not to list plot names
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 Format = Literal["png", "svg"]
 MEDIA_TYPES: dict[str, str] = {"png": "image/png", "svg": "image/svg+xml"}
@@ -157,6 +156,9 @@ def figure(
     """
     if name not in PLOTS:
         raise PlotError(f"unknown plot {name!r}; choose one of {', '.join(PLOTS)}")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     kind = PLOTS[name]
     for _, result in series:
         if not kind.applies(result):
@@ -180,6 +182,8 @@ def to_bytes(fig: Figure, fmt: str = "png", dpi: int = 100) -> bytes:
     """Encode ``fig`` as PNG or SVG bytes, with no timestamp (same figure, same bytes)."""
     if fmt not in MEDIA_TYPES:
         raise PlotError(f"unknown image format {fmt!r}; choose png or svg", field="format")
+    import matplotlib
+
     buf = io.BytesIO()
     meta: dict[str, Any] = {"Software": None} if fmt == "png" else {"Date": None}
     with matplotlib.rc_context({"svg.hashsalt": "pipeflow", "svg.fonttype": "none"}):

@@ -22,6 +22,7 @@ import rfc8785
 from pydantic import BaseModel
 
 from pipeflow import __version__
+from pipeflow.plots import available_plots
 from pipeflow.simulation import simulate
 from pipeflow.solvers.base import ProgressCallback
 from pipeflow.spec import SimulationSpec, cache_key
@@ -54,8 +55,11 @@ def register(kind: JobKind) -> JobKind:
 
 
 def run_simulation(spec: SimulationSpec, progress: ProgressCallback) -> dict[str, Any]:
-    """One simulation as JSON (see :meth:`pipeflow.simulation.Result.to_dict`)."""
-    return simulate(spec.to_simulation(), progress=progress).to_dict()
+    """One simulation as JSON (see :meth:`pipeflow.simulation.Result.to_dict`), with the
+    names of its figures (``plots``, see ``GET /v1/results/{key}/plots/{name}.png``)."""
+    result = simulate(spec.to_simulation(), progress=progress).to_dict()
+    result["plots"] = available_plots(result)
+    return result
 
 
 SIMULATION = register(JobKind("simulation", SimulationSpec, run_simulation))

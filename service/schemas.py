@@ -77,6 +77,10 @@ class SimulationResponse(BaseModel):
     diagnostics: dict[str, Any] = Field(description="Solver diagnostics (costs, conditioning).")
     warnings: list[str] = Field(description="What the caller should know about this result.")
     modal: Modal | None = Field(None, description="Present when output.modal is true.")
+    plots: list[str] = Field(
+        default_factory=list,
+        description="Figures of this result: GET /v1/results/{key}/plots/{name}.png or .svg.",
+    )
 
 
 class JobStatus(BaseModel):

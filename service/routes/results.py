@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-from typing import Annotated
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, Header, Path, Response
+from fastapi import APIRouter, Header, Path, Query, Response
 
 from service.compute import result_response
 from service.deps import RunnerDep, StoreDep
 from service.problems import ProblemError, responses
+from service.routes.exports import TABLE_DESCRIPTION, Table, csv_response, wants_csv
 from service.routes.simulations import CACHE_HEADERS
 from service.schemas import KEY_PATTERN, SimulationResponse
 
@@ -27,16 +28,32 @@ def _matches(if_none_match: str, key: str) -> bool:
     operation_id="getResult",
     summary="A stored result",
     response_model=SimulationResponse,
-    responses={200: {"headers": CACHE_HEADERS}, **responses(304, 404, 422)},
+    responses={
+        200: {"headers": CACHE_HEADERS, "content": {"text/csv": {}}},
+        **responses(304, 404, 422),
+    },
 )
 async def get_result(
     key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
     store: StoreDep,
     runner: RunnerDep,
     if_none_match: Annotated[str | None, Header()] = None,
+    accept: Annotated[str | None, Header()] = None,
+    format: Annotated[
+        Literal["json", "csv"] | None,
+        Query(description="json or csv; overrides Accept (for clients that cannot set it)."),
+    ] = None,
+    table: Annotated[Table, Query(description=TABLE_DESCRIPTION)] = "history",
 ) -> Response:
     """The result stored under ``key`` (as POST /v1/simulations returned it), with
-    ``ETag: "<key>"``; ``If-None-Match`` with that tag is answered 304."""
+    ``ETag: "<key>"``; ``If-None-Match`` with that tag is answered 304.  With
+    ``Accept: text/csv`` or ``?format=csv``: one CSV ``table`` whose header row names each
+    column with its unit, e.g. ``t [s],tip_displacement [m]``."""
+    if wants_csv(format, accept):
+        body = await asyncio.to_thread(store.get_result, key)
+        if body is None:
+            raise ProblemError(404, f"no result {key}", slug="unknown-key")
+        return csv_response(key, body, table)
     if if_none_match is not None and _matches(if_none_match, key):
         if await asyncio.to_thread(store.has_result, key):
             return Response(status_code=304, headers={"ETag": f'"{key}"'})

@@ -28,6 +28,7 @@ def test_operations_errors_and_example() -> None:
         "getJob",
         "cancelJob",
         "getResult",
+        "getResultPlot",
         "getHealth",
         "getReadiness",
     }

@@ -1,0 +1,21 @@
+"""Python client of the pipeflow HTTP service (httpx).
+
+A separate top-level package, not ``pipeflow.client``: the project's rule is that
+``pipeflow/`` imports no web library, so the numerical library stays usable (and
+importable) without any HTTP stack, and a grep for ``httpx`` under ``pipeflow/`` stays
+empty.  The client depends on ``pipeflow`` only for its exception base class and spec model.
+
+Example::
+
+    from pipeflow.spec import PAPER_EXAMPLE
+    from pipeflow_client import Client
+
+    with Client("http://localhost:8000") as c:
+        r = c.simulate(PAPER_EXAMPLE)          # numpy arrays, SI units
+        print(r.key, r.tip_displacement[:3])   # u(L, t) [m]
+        png = c.plot(r.key, "frequency")       # PNG bytes
+"""
+
+from pipeflow_client.client import Client, JobFailed, ServiceError, SimulationResult
+
+__all__ = ["Client", "JobFailed", "ServiceError", "SimulationResult"]

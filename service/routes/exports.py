@@ -1,0 +1,149 @@
+"""Stored results as pictures and tables: plots (PNG/SVG) and CSV.
+
+- ``GET /v1/results/{key}/plots/{name}.{fmt}``: a figure of the stored result, drawn by
+  :mod:`pipeflow.plots` (the names a result supports are listed in its ``plots`` field).
+- CSV of ``GET /v1/results/{key}`` (``Accept: text/csv`` or ``?format=csv``): the route in
+  :mod:`service.routes.results` calls :func:`csv_response` from here, so one module owns
+  the content negotiation and the CSV tables of :mod:`pipeflow.export`.
+
+Drawing happens in a thread (not on the event loop) under a lock: matplotlib's figure
+objects are independent, but its rc settings used while saving are process-global.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Header, Path, Response
+
+from pipeflow import plots
+from pipeflow.export import CSV_MEDIA_TYPE, TABLES, ExportError, available_tables, to_csv
+from service.deps import StoreDep
+from service.problems import ProblemError, responses
+from service.schemas import KEY_PATTERN
+
+router = APIRouter(prefix="/v1/results", tags=["results"])
+
+_draw_lock = threading.Lock()
+
+#: stored results never change under a key (the key hashes the inputs and the version)
+IMMUTABLE = "public, max-age=86400, immutable"
+
+Table = Literal["history", "eigenvalues", "cma_exponents"]
+TABLE_DESCRIPTION = "CSV table: " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
+
+
+def with_plot_names(result: dict[str, Any]) -> dict[str, Any]:
+    """``result`` plus ``"plots"``: the names of the figures it supports."""
+    return {**result, "plots": plots.available_plots(result)}
+
+
+def wants_csv(fmt: str | None, accept: str | None) -> bool:
+    """CSV when ``?format=csv``, or when ``Accept`` prefers text/csv over JSON."""
+    if fmt is not None:
+        return fmt == "csv"
+    if not accept:
+        return False
+    ranked = []
+    for i, part in enumerate(accept.split(",")):
+        media, *params = (p.strip() for p in part.split(";"))
+        q = 1.0
+        for p in params:
+            if p.startswith("q="):
+                try:
+                    q = float(p[2:])
+                except ValueError:
+                    q = 0.0
+        ranked.append((q, -i, media.lower()))
+    for q, _, media in sorted(ranked, reverse=True):
+        if q <= 0:
+            continue
+        if media == CSV_MEDIA_TYPE:
+            return True
+        if media in ("application/json", "application/*", "*/*", "application/problem+json"):
+            return False
+    return False
+
+
+def csv_response(key: str, body: bytes, table: str) -> Response:
+    """The CSV of table ``table`` of the stored result ``body`` (JSON bytes)."""
+    result = json.loads(body)
+    try:
+        text = to_csv(result, table)
+    except ExportError as exc:
+        tables = ", ".join(available_tables(result)) or "none"
+        raise ProblemError(
+            404 if table in TABLES else 422,
+            f"{exc.message} (this result has: {tables})",
+            slug="no-such-table",
+            errors=[{"field": "table", "location": "query", "message": exc.message}],
+        ) from None
+    return Response(
+        text,
+        media_type=f"{CSV_MEDIA_TYPE}; charset=utf-8; header=present",
+        headers={
+            "ETag": f'"{key}-{table}.csv"',
+            "Content-Disposition": f'inline; filename="{key[:12]}-{table}.csv"',
+            "Cache-Control": IMMUTABLE,
+            "Vary": "Accept",
+        },
+    )
+
+
+def _render(body: bytes, name: str, fmt: str) -> bytes:
+    result = json.loads(body)
+    if name not in plots.available_plots(result):
+        raise ProblemError(
+            404,
+            f"no plot {name!r} for this result; it has: "
+            + (", ".join(plots.available_plots(result)) or "none"),
+            slug="no-such-plot",
+            errors=[{"field": "name", "location": "path", "message": f"unknown plot {name!r}"}],
+        )
+    with _draw_lock:
+        return plots.render(result, name, fmt)
+
+
+@router.get(
+    "/{key}/plots/{name}.{fmt}",
+    operation_id="getResultPlot",
+    summary="A figure of a stored result (PNG or SVG)",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {"image/png": {}, "image/svg+xml": {}},
+            "description": "The figure; axis labels carry SI units.",
+        },
+        **responses(304, 404, 422),
+    },
+)
+async def get_result_plot(
+    key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
+    name: Annotated[
+        str,
+        Path(
+            pattern=r"^[a-z_]+$",
+            description="Plot name, one of the result's `plots`: "
+            + "; ".join(f"'{k}': {v.title}" for k, v in plots.PLOTS.items()),
+        ),
+    ],
+    fmt: Annotated[Literal["png", "svg"], Path(description="Image format.")],
+    store: StoreDep,
+    if_none_match: Annotated[str | None, Header()] = None,
+) -> Response:
+    """The figure ``name`` of the result stored under ``key``: tip displacement u(L, t) [m],
+    damping sigma [1/s] and fundamental frequency omega [rad/s] over t [s] (the paper's three
+    kinds of figure), eigenvalue paths (argand) and station displacements."""
+    etag = f'"{key}-{name}.{fmt}"'
+    headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
+    if if_none_match is not None and etag in (t.strip() for t in if_none_match.split(",")):
+        if await asyncio.to_thread(store.has_result, key):
+            return Response(status_code=304, headers=headers)
+    body = await asyncio.to_thread(store.get_result, key)
+    if body is None:
+        raise ProblemError(404, f"no result {key}", slug="unknown-key")
+    image = await asyncio.to_thread(_render, body, name, fmt)
+    return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)

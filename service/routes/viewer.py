@@ -1,0 +1,56 @@
+"""The browser viewer at ``/`` and its static assets under ``/static/``.
+
+A single page (``service/static/index.html``) with a form pre-filled with the paper's
+example, a run button calling ``POST /v1/simulations``, and uPlot charts.  The chart
+library is vendored (``service/static/uPlot.iife.min.js``, MIT, from the npm package
+``uplot``), so the viewer works without internet access.  The assets are a fixed
+allow-list read from the package directory: no path from the request reaches the file
+system.  Neither route is part of the API, so both are left out of the OpenAPI document.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from fastapi import APIRouter, Response
+
+from service.problems import ProblemError
+
+STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
+
+#: file name -> media type of every asset served
+ASSETS: dict[str, str] = {
+    "viewer.js": "text/javascript; charset=utf-8",
+    "viewer.css": "text/css; charset=utf-8",
+    "uPlot.iife.min.js": "text/javascript; charset=utf-8",
+    "uPlot.min.css": "text/css; charset=utf-8",
+    "uPlot.LICENSE": "text/plain; charset=utf-8",
+}
+
+router = APIRouter(include_in_schema=False)
+
+
+@lru_cache(maxsize=len(ASSETS) + 1)
+def _read(name: str) -> bytes:
+    return (STATIC_DIR / name).read_bytes()
+
+
+@router.get("/")
+async def viewer_page() -> Response:
+    """The viewer page."""
+    return Response(
+        _read("index.html"),
+        media_type="text/html; charset=utf-8",
+        headers={"Cache-Control": "no-cache"},
+    )
+
+
+@router.get("/static/{name}")
+async def viewer_asset(name: str) -> Response:
+    """One of the viewer's assets (allow-list :data:`ASSETS`)."""
+    if name not in ASSETS:
+        raise ProblemError(404, f"no static file {name!r}", slug="not-found")
+    return Response(
+        _read(name), media_type=ASSETS[name], headers={"Cache-Control": "public, max-age=3600"}
+    )

@@ -1,0 +1,121 @@
+"""CSV of stored results (Accept: text/csv, ?format=csv) and plot endpoints (PNG/SVG)."""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from service.routes.exports import wants_csv
+from tests.service.conftest import SMALL, make_client, wait_ready
+
+
+@pytest.fixture(scope="module")
+def tc(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
+    with make_client(tmp_path_factory.mktemp("export")) as c:
+        wait_ready(c)
+        yield c
+
+
+@pytest.fixture(scope="module")
+def stored(tc: Any) -> dict[str, Any]:
+    spec = dict(SMALL, output={"positions": [0.0125], "eigen_modes": 2})
+    response = tc.post("/v1/simulations", json=spec)
+    assert response.status_code == 200
+    result: dict[str, Any] = response.json()
+    return result
+
+
+def _rows(text: str) -> list[list[str]]:
+    return list(csv.reader(io.StringIO(text)))
+
+
+def test_result_lists_its_plots(stored: dict[str, Any]) -> None:
+    assert stored["plots"] == [
+        "tip_displacement",
+        "damping",
+        "frequency",
+        "argand",
+        "displacements",
+    ]
+
+
+def test_csv_by_accept_header(tc: Any, stored: dict[str, Any]) -> None:
+    r = tc.get(f"/v1/results/{stored['key']}", headers={"Accept": "text/csv"})
+    assert r.status_code == 200
+    assert r.headers["content-type"].startswith("text/csv")
+    assert "Accept" in r.headers["vary"]
+    rows = _rows(r.text)
+    assert rows[0] == ["t [s]", "tip_displacement [m]", "u(x=0.0125) [m]"]
+    assert [float(x[1]) for x in rows[1:]] == stored["tip_displacement"]
+
+
+def test_csv_by_query_for_clients_without_headers(tc: Any, stored: dict[str, Any]) -> None:
+    r = tc.get(f"/v1/results/{stored['key']}?format=csv&table=eigenvalues")
+    rows = _rows(r.text)
+    assert rows[0][:3] == ["t [s]", "sigma_1 [1/s]", "omega_1 [rad/s]"]
+    assert [float(x[2]) for x in rows[1:]] == stored["eigenvalues"]["modes"][0]["omega"]
+    # ?format=json wins over the header; a browser's Accept gets JSON
+    r = tc.get(f"/v1/results/{stored['key']}?format=json", headers={"Accept": "text/csv"})
+    assert r.headers["content-type"].startswith("application/json")
+    browser = "text/html,application/xhtml+xml,application/xml;q=0.9,*/*;q=0.8"
+    r = tc.get(f"/v1/results/{stored['key']}", headers={"Accept": browser})
+    assert r.json()["key"] == stored["key"]
+
+
+def test_csv_errors_name_the_field(tc: Any, stored: dict[str, Any]) -> None:
+    r = tc.get(f"/v1/results/{stored['key']}?format=csv&table=bode")
+    assert r.status_code == 422
+    assert r.headers["content-type"] == "application/problem+json"
+    assert r.json()["errors"][0]["field"] == "table"
+    r = tc.get(f"/v1/results/{'0' * 64}?format=csv")
+    assert r.status_code == 404
+
+
+@pytest.mark.parametrize(
+    ("accept", "csv_wanted"),
+    [
+        ("text/csv", True),
+        ("application/json", False),
+        ("application/json;q=0.5, text/csv", True),
+        ("text/csv;q=0.2, application/json", False),
+        ("text/csv;q=0", False),
+        ("*/*", False),
+        (None, False),
+    ],
+)
+def test_accept_negotiation(accept: str | None, csv_wanted: bool) -> None:
+    assert wants_csv(None, accept) is csv_wanted
+
+
+@pytest.mark.parametrize(
+    ("name", "fmt", "media", "magic"),
+    [
+        ("tip_displacement", "png", "image/png", b"\x89PNG"),
+        ("damping", "svg", "image/svg+xml", b"<?xml"),
+        ("frequency", "png", "image/png", b"\x89PNG"),
+        ("displacements", "svg", "image/svg+xml", b"<?xml"),
+    ],
+)
+def test_plot_endpoints(
+    tc: Any, stored: dict[str, Any], name: str, fmt: str, media: str, magic: bytes
+) -> None:
+    url = f"/v1/results/{stored['key']}/plots/{name}.{fmt}"
+    r = tc.get(url)
+    assert r.status_code == 200
+    assert r.headers["content-type"] == media
+    assert r.content.startswith(magic)
+    etag = r.headers["etag"]
+    assert tc.get(url, headers={"If-None-Match": etag}).status_code == 304
+
+
+def test_plot_errors(tc: Any, stored: dict[str, Any]) -> None:
+    r = tc.get(f"/v1/results/{stored['key']}/plots/bode.png")
+    assert r.status_code == 404
+    assert r.json()["errors"][0]["field"] == "name"
+    assert "tip_displacement" in r.json()["detail"]
+    assert tc.get(f"/v1/results/{stored['key']}/plots/damping.gif").status_code == 422
+    assert tc.get(f"/v1/results/{'0' * 64}/plots/damping.png").status_code == 404
