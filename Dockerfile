@@ -1,0 +1,30 @@
+# syntax=docker/dockerfile:1
+# pipeflow REST service: docker build -t pipeflow . && docker run -p 8000:8000 -v pipeflow-data:/data pipeflow
+
+# --- build: install the package and its dependencies into a virtualenv ------------------
+FROM python:3.11-slim AS build
+ENV PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    PIP_NO_CACHE_DIR=1
+RUN python -m venv /opt/venv
+WORKDIR /src
+COPY . .
+RUN /opt/venv/bin/pip install --no-cache-dir .
+
+# --- runtime: the virtualenv only, as a non-root user ------------------------------------
+FROM python:3.11-slim AS runtime
+ENV PATH=/opt/venv/bin:$PATH \
+    PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    OMP_NUM_THREADS=1 \
+    OPENBLAS_NUM_THREADS=1 \
+    MKL_NUM_THREADS=1 \
+    PIPEFLOW_DATA_DIR=/data
+COPY --from=build /opt/venv /opt/venv
+RUN mkdir -p /data && chown 10001:10001 /data
+VOLUME ["/data"]
+WORKDIR /tmp
+USER 10001:10001
+EXPOSE 8000
+HEALTHCHECK --interval=30s --timeout=5s --start-period=30s --retries=3 \
+    CMD ["python", "-c", "import sys, urllib.request; sys.exit(urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=4).status != 200)"]
+CMD ["uvicorn", "service.main:app", "--host", "0.0.0.0", "--port", "8000"]
