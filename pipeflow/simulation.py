@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow.diagnostics import add_error_estimate
 from pipeflow.eigen import Traces, track
 from pipeflow.errors import InvalidInput
 from pipeflow.model import Loading, Pipe, PipeModel, build_model
@@ -185,6 +186,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     z0 = model.to_balanced(d0, v0)
     problem = Problem(model, loading, z0, t, sim.options, progress)
     out = SOLVERS[sim.method].solve(problem)
+    add_error_estimate(sim.method, problem, out)  # how far to trust it (pipeflow.diagnostics)
 
     Z = out.z
     status = "ok"

@@ -19,12 +19,15 @@ is sequential, one matrix-vector product per output interval.  Steps land on the
 times: interval k gets m_k equal sub-steps, and their exponentials are multiplied together
 (batched, pairwise) before they touch the state.
 
-Step selection (``Options.tolerance``, relative) uses step doubling on probe intervals
-spread over the run: the local error of a step H is measured as
-|exp(Omega_H) - exp(Omega_{H/2}) exp(Omega_{H/2})| (operator 2-norm, relative to the
-propagator's norm) on each probe; with local error C H^5 the global relative error of a
-run of length T with step h is about T C h^4, and h is chosen to make that a fraction of
-the target, then verified by probing again at the chosen step.
+Error estimate and step selection (``Options.tolerance``, relative): the run is repeated
+with twice the step on every other output time, and the estimate is
+max_k |Z_h(t_k) - Z_2h(t_k)| / max_k |Z_h(t_k)| / 4.  For order 4 the ratio
+err(2h)/err(h) is 16 and the estimate is ~4x conservative; while h |xi_max| > pi (the
+fastest retained mode is not resolved, as for the paper's 10 modes at 2001 samples) the
+observed ratio is 5-15 and the estimate is within a factor of ~2.  If the estimate exceeds
+the tolerance, the step is shrunk by (estimate / (tolerance/2))^(1/4) and the run repeated
+(the previous run then serves as the twice-the-step comparison when the step halves).
+The first attempt uses one step per output interval, or at least 256 steps over the run.
 """
 
 from __future__ import annotations

@@ -1,0 +1,120 @@
+"""How far to trust a result: an error estimate for every method, added to its diagnostics.
+
+The paper's CMA is exact only when the state matrices S(t) commute (constant coefficients);
+for v = a t, a t^2 or a varying spin it is the first Magnus term and carries an error the
+solver itself cannot see (physics notes, section 2).  RK4's error depends on its step.
+:func:`add_error_estimate` measures both against an independent, accurate solution: a
+``magnus`` run at a looser tolerance (:data:`CHECK_TOLERANCE`) on at most
+:data:`CHECK_SAMPLES` of the output times, which costs a fraction of the CMA run itself.
+Methods that control their own error (``magnus``, ``reference``) report it themselves.
+
+Every estimate is a relative error of the balanced state (modal displacements and
+velocities over the reference frequencies, in metres), max over time of the difference
+divided by max over time of the solution [-].  Above :data:`WARN_THRESHOLD` a warning says
+so, and which method to use instead.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pipeflow.errors import PipeflowError
+from pipeflow.solvers import SOLVERS, Problem, SolverOutput
+from pipeflow.solvers.magnus import relative_difference
+
+#: relative error above which a result carries a warning [-]
+WARN_THRESHOLD = 1e-4
+#: accuracy target of the magnus run used as the yardstick [-]
+CHECK_TOLERANCE = 1e-6
+#: at most this many output times are checked (evenly spread, first and last included)
+CHECK_SAMPLES = 257
+#: methods whose error is measured here (the others estimate their own)
+CHECKED_METHODS = ("cma", "rk4")
+
+
+def check_indices(n_times: int, samples: int = CHECK_SAMPLES) -> NDArray[np.int64]:
+    """Indices of at most ``samples`` output times, evenly spread, including both ends."""
+    if n_times <= samples:
+        return np.arange(n_times)
+    return np.unique(np.linspace(0, n_times - 1, samples).round().astype(np.int64))
+
+
+def add_error_estimate(
+    method: str, problem: Problem, out: SolverOutput, threshold: float = WARN_THRESHOLD
+) -> None:
+    """Add ``estimated_relative_error`` (and how it was obtained) to ``out``; warn above
+    ``threshold``.  Mutates ``out.diagnostics`` and ``out.warnings``."""
+    diag = out.diagnostics
+    if method not in CHECKED_METHODS:
+        if "estimated_relative_error" in diag:
+            _warn(method, float(diag["estimated_relative_error"]), threshold, out)
+        return
+    t0 = time.perf_counter()
+    if method == "cma" and problem.loading.is_time_invariant:
+        # exact up to rounding, amplified by the eigenvector condition number
+        cond = float(diag.get("eigenvector_condition_max", 1.0))
+        diag["estimated_relative_error"] = float(np.finfo(float).eps * max(cond, 1.0))
+        diag["error_estimate_method"] = (
+            "exact for constant coefficients: rounding only (eps x eigenvector condition)"
+        )
+        return
+    finite = np.all(np.isfinite(out.z), axis=1)
+    last = int(np.argmin(finite)) if not finite.all() else out.z.shape[0]
+    if last < 2:
+        diag["error_estimate_method"] = "unavailable: the response overflowed at once"
+        return
+    idx = check_indices(last)
+    sub = Problem(
+        problem.model,
+        problem.loading,
+        problem.z0,
+        problem.t[idx],
+        replace(problem.options, step=None, tolerance=CHECK_TOLERANCE),
+    )
+    try:
+        check = SOLVERS["magnus"].solve(sub)
+    except PipeflowError as exc:
+        diag["error_estimate_method"] = f"unavailable: {exc.message}"
+        return
+    estimate = relative_difference(check.z, out.z[idx], problem.model.size)
+    resolution = float(check.diagnostics.get("estimated_relative_error", 0.0))
+    diag["estimated_relative_error"] = estimate
+    diag["error_estimate_method"] = (
+        f"comparison with a magnus run (tolerance {CHECK_TOLERANCE:g}) at {idx.size} of the "
+        "output times"
+    )
+    diag["error_estimate_resolution"] = resolution
+    diag["error_estimate_seconds"] = time.perf_counter() - t0
+    _warn(method, estimate, threshold, out)
+
+
+def _warn(method: str, estimate: float, threshold: float, out: SolverOutput) -> None:
+    if not (estimate > threshold or math.isnan(estimate)):
+        return
+    advice: dict[str, str] = {
+        "cma": "CMA is exact only for constant flow and spin; use method 'magnus'",
+        "rk4": "use a smaller options.step or method 'magnus'",
+        "magnus": "use a smaller options.tolerance or options.step",
+    }
+    out.warnings.append(
+        f"estimated relative error of this {method} result is {estimate:.2g}, above "
+        f"{threshold:g}: {advice.get(method, 'use a more accurate method')}"
+    )
+
+
+def summary(diagnostics: dict[str, Any]) -> dict[str, Any]:
+    """The trust-related entries of a diagnostics dictionary (for tables and comparisons)."""
+    keys = (
+        "estimated_relative_error",
+        "error_estimate_method",
+        "eigenvector_condition_max",
+        "stability_margin",
+        "steps",
+    )
+    return {k: diagnostics[k] for k in keys if k in diagnostics}
