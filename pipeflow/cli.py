@@ -29,8 +29,21 @@ the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s
   pipeflow run spec.json --format csv --table eigenvalues        # sigma [1/s], omega [rad/s]
   pipeflow plot result.json --name tip_displacement --out tip.png
   pipeflow plot spec.json --name frequency --out freq.svg        # runs the spec, then plots
+  pipeflow stability stab.json                  # critical flow velocity, sweeps, maps
   pipeflow serve --port 8000                    # the HTTP service and viewer at /
   pipeflow run spec.json --server http://localhost:8000          # run on a server
+"""
+
+
+STABILITY_HELP = """\
+examples (the paper's pipe, 10 modes):
+
+  echo '{"pipe": {"E": 7.8e9, "I": 1.21e-17, "L": 0.025, "M1": 1.884e-5, "M2": 1.6485e-5},
+         "rotation": {"omega0": {"kind": "constant", "value": 100}},
+         "velocity_range": [0, 60]}' | pipeflow stability -       # critical velocity [m/s]
+  # argand.json: {"kind": "argand", "pipe": {...}, "velocity_range": [0, 60]}
+  pipeflow stability argand.json -o argand_result.json
+  pipeflow plot argand_result.json --name argand --out argand.png
 """
 
 
@@ -90,8 +103,23 @@ def _unwrap(data: Any) -> Any:
     return data
 
 
+SWEEP_KINDS = ("argand", "campbell", "spin_map", "beta_map", "resonance_chart", "floquet")
+
+
 def _is_result(data: Any) -> bool:
-    return isinstance(data, dict) and "t" in data and "tip_displacement" in data
+    if not isinstance(data, dict):
+        return False
+    if "t" in data and "tip_displacement" in data:
+        return True
+    # stability results echo their kind and carry no request-only fields
+    return data.get("kind") in (*SWEEP_KINDS, "stability") and "diagnostics" in data
+
+
+def _is_stability_spec(data: Any) -> bool:
+    """A /v1/sweeps body (has a sweep ``kind``) or a /v1/stability body (velocity_range)."""
+    return isinstance(data, dict) and (
+        data.get("kind") in SWEEP_KINDS or ("velocity_range" in data and "time" not in data)
+    )
 
 
 def _progress(args: argparse.Namespace, label: str) -> ProgressBar:
@@ -120,10 +148,34 @@ def _run_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]
             bar.close()
 
 
+def _stability_local(spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
+    from pipeflow.stability_spec import StabilitySpec, parse_sweep, run_stability, run_sweep
+
+    try:
+        if "kind" in spec_data:
+            return run_sweep(parse_sweep(spec_data), progress=bar)
+        return run_stability(StabilitySpec.model_validate(spec_data), progress=bar)
+    finally:
+        bar.close()
+
+
+def _stability_remote(spec_data: Any, server: str) -> dict[str, Any]:
+    from pipeflow_client import Client  # imported here: the library has no web imports
+
+    with Client(server) as client:
+        if "kind" in spec_data:
+            return dict(client.sweep(spec_data))
+        return dict(client.stability(spec_data))
+
+
 def _result_for(args: argparse.Namespace, data: Any) -> dict[str, Any]:
     data = _unwrap(data)
     if _is_result(data):
         return data
+    if _is_stability_spec(data):
+        if getattr(args, "server", None):
+            return _stability_remote(data, args.server)
+        return _stability_local(data, _progress(args, "analysing"))
     bar = _progress(args, "simulating")
     if getattr(args, "server", None):
         return _run_remote(data, args.server, bar)
@@ -170,10 +222,38 @@ def cmd_plot(args: argparse.Namespace) -> int:
     fmt = args.format or Path(args.out).suffix.lstrip(".").lower()
     if fmt not in ("png", "svg"):
         raise PlotError("give --out a .png or .svg file name, or --format", field="--out")
+    from pipeflow.plots import available_plots
+
     result = _result_for(args, _read_json(args.input))
-    _write(args.out, render(result, args.name, fmt, title=args.title))
+    names = available_plots(result)
+    name = args.name or (names[0] if names else "tip_displacement")
+    if name not in names:
+        raise PlotError(
+            f"this result has no {name!r} plot; it has: {', '.join(names) or 'none'}",
+            field="--name",
+        )
+    _write(args.out, render(result, name, fmt, title=args.title))
     if args.out not in (None, "-"):
         print(f"wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+def cmd_stability(args: argparse.Namespace) -> int:
+    data = _unwrap(_read_json(args.spec))
+    if not _is_stability_spec(data):
+        raise PipeflowError(
+            "not a stability spec: give 'velocity_range' (critical velocity) or a sweep "
+            f"'kind' ({', '.join(SWEEP_KINDS)}); see 'pipeflow stability --help'",
+            field="kind",
+        )
+    result = _result_for(args, data)
+    _write(args.output, json.dumps(result, indent=None if args.compact else 1) + "\n")
+    if result.get("kind") == "stability":
+        v = result.get("critical_velocity")
+        where = "none in the range" if v is None else f"{v:.6g} m/s"
+        print(f"critical flow velocity: {where}", file=sys.stderr)
+    for w in result.get("warnings", []):
+        print(f"warning: {w}", file=sys.stderr)
     return 0
 
 
@@ -252,13 +332,35 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("input", help="result or spec JSON file ('-': stdin)")
-    sp.add_argument("--name", choices=tuple(PLOTS), default="tip_displacement", help="which plot")
+    sp.add_argument(
+        "--name", choices=tuple(PLOTS), help="which plot (default: the first the result has)"
+    )
     sp.add_argument("--out", required=True, help="output file, .png or .svg ('-': stdout)")
     sp.add_argument("--format", choices=("png", "svg"), help="image format (default: from --out)")
     sp.add_argument("--title", help="figure title (default: the plot's name)")
     sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
     progress_flags(sp)
     sp.set_defaults(func=cmd_plot)
+
+    sp = sub.add_parser(
+        "stability",
+        help="critical flow velocity, Argand/Campbell sweeps and stability maps (JSON)",
+        description=(
+            "Run a stability analysis locally (or with --server) and write its JSON. SPEC is "
+            "a /v1/stability body (pipe, rotation, modes, velocity_range [m/s]: critical "
+            "velocities) or a /v1/sweeps body with a 'kind': " + ", ".join(SWEEP_KINDS) + ". "
+            "Draw it with 'pipeflow plot RESULT --name argand|sweep_frequency|sweep_damping|"
+            "spin_map|beta_map'."
+        ),
+        epilog=STABILITY_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument("spec", help="stability or sweep spec JSON file ('-': stdin)")
+    sp.add_argument("-o", "--output", help="write to this file instead of stdout")
+    sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
+    sp.add_argument("--compact", action="store_true", help="JSON on one line")
+    progress_flags(sp)
+    sp.set_defaults(func=cmd_stability)
 
     sp = sub.add_parser(
         "serve",

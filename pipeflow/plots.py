@@ -59,6 +59,15 @@ def _has_eigen(r: dict[str, Any]) -> bool:
     return bool(isinstance(r.get("eigenvalues"), dict) and r["eigenvalues"].get("modes"))
 
 
+def _is_sweep(r: dict[str, Any]) -> bool:
+    """An Argand (against flow velocity) or Campbell (against spin) sweep result."""
+    return r.get("kind") in ("argand", "campbell") and bool(r.get("modes"))
+
+
+def _branches(r: dict[str, Any]) -> list[dict[str, Any]]:
+    return list(r["modes"] if _is_sweep(r) else r["eigenvalues"]["modes"])
+
+
 def _draw_tip(ax: Axes, r: dict[str, Any], label: str | None) -> None:
     ax.plot(r["t"], r["tip_displacement"], lw=1.0, label=label)
 
@@ -76,7 +85,7 @@ def _draw_frequency(ax: Axes, r: dict[str, Any], label: str | None) -> None:
 
 
 def _draw_argand(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    for mode in r["eigenvalues"]["modes"]:
+    for mode in _branches(r):
         name = f"mode {mode['mode']}" if label is None else f"{label}, mode {mode['mode']}"
         (line,) = ax.plot(mode["sigma"], mode["omega"], lw=1.2, label=name)
         # mark the start of each branch: the direction of travel is the information here
@@ -88,6 +97,46 @@ def _draw_stations(ax: Axes, r: dict[str, Any], label: str | None) -> None:
     for st in r.get("displacements", []):
         name = f"x = {st['x']:g} m" if label is None else f"{label}, x = {st['x']:g} m"
         ax.plot(r["t"], st["u"], lw=1.0, label=name)
+
+
+def _parameter_label(r: dict[str, Any]) -> str:
+    par = r["parameter"]
+    what = {"velocity": "flow velocity v", "spin": "spin ω0"}.get(par["name"], par["name"])
+    return f"{what} [{par['unit']}]"
+
+
+def _draw_sweep(part: str) -> Callable[[Axes, dict[str, Any], str | None], None]:
+    def draw(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+        x = r["parameter"]["values"]
+        for mode in r["modes"]:
+            name = f"mode {mode['mode']}" if label is None else f"{label}, mode {mode['mode']}"
+            # null marks a point where a branch is undefined: matplotlib leaves a gap for NaN
+            y = [float("nan") if v is None else v for v in mode[part]]
+            ax.plot(x, y, lw=1.2, label=name)
+        if part == "sigma":
+            ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
+        ax.set_xlabel(_parameter_label(r))
+
+    return draw
+
+
+def _draw_spin_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    import numpy as np
+
+    g = np.array([[np.nan if v is None else v for v in row] for row in r["growth_rate"]])
+    lim = float(np.nanmax(np.abs(g))) if np.isfinite(g).any() else 1.0
+    mesh = ax.pcolormesh(
+        r["velocities"], r["spins"], g, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="nearest"
+    )
+    ax.figure.colorbar(mesh, ax=ax, label="largest growth rate max σ [1/s]")
+    vcr = [np.nan if v is None else v for v in r["critical_velocity"]]
+    ax.plot(vcr, r["spins"], "k-", lw=1.5, label=label or "critical velocity")
+
+
+def _draw_beta_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    beta = [p[0] for p in r["curve"]]
+    u = [float("nan") if p[1] is None else p[1] for p in r["curve"]]
+    ax.plot(beta, u, "-o", ms=2.5, lw=1.2, label=label or f"γ = {r.get('gamma', 0):g}")
 
 
 #: every plot kind, by the name used in URLs and on the command line
@@ -120,11 +169,43 @@ PLOTS: dict[str, PlotKind] = {
         ),
         PlotKind(
             "argand",
-            "Eigenvalue paths in the complex plane (o: t = 0)",
+            "Eigenvalue paths in the complex plane (o: start)",
             "damping σ [1/s]",
             "frequency ω [rad/s]",
             _draw_argand,
-            _has_eigen,
+            lambda r: _has_eigen(r) or _is_sweep(r),
+        ),
+        PlotKind(
+            "sweep_frequency",
+            "Frequencies of the tracked branches",
+            "swept parameter",
+            "frequency ω [rad/s]",
+            _draw_sweep("omega"),
+            _is_sweep,
+        ),
+        PlotKind(
+            "sweep_damping",
+            "Damping of the tracked branches (σ > 0: unstable)",
+            "swept parameter",
+            "damping σ [1/s]",
+            _draw_sweep("sigma"),
+            _is_sweep,
+        ),
+        PlotKind(
+            "spin_map",
+            "Stability map: growth rate over flow velocity and spin",
+            "flow velocity v [m/s]",
+            "spin ω0 [rad/s]",
+            _draw_spin_map,
+            lambda r: r.get("kind") == "spin_map" and bool(r.get("growth_rate")),
+        ),
+        PlotKind(
+            "beta_map",
+            "Critical flow number against mass ratio",
+            "mass ratio β = M2/(M1+M2) [-]",
+            "critical flow number u_cr [-]",
+            _draw_beta_map,
+            lambda r: r.get("kind") == "beta_map" and bool(r.get("curve")),
         ),
         PlotKind(
             "displacements",
@@ -166,14 +247,16 @@ def figure(
     fig = Figure(figsize=size, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    for label, result in series:
-        kind.draw(ax, result, label)
-    ax.set_title(title if title is not None else kind.title, fontsize=10)
     ax.set_xlabel(kind.xlabel)
     ax.set_ylabel(kind.ylabel)
+    for label, result in series:
+        kind.draw(ax, result, label)  # may refine the labels (e.g. the swept parameter)
+    ax.set_title(title if title is not None else kind.title, fontsize=10)
     ax.grid(True, lw=0.4, alpha=0.5)
-    ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
-    if any(label is not None for label, _ in series) or name in ("argand", "displacements"):
+    if name not in ("spin_map",):
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
+    multi = ("argand", "displacements", "sweep_frequency", "sweep_damping")
+    if any(label is not None for label, _ in series) or name in multi:
         ax.legend(fontsize=8)
     return fig
 

@@ -258,6 +258,18 @@ class Client:
         """PNG or SVG bytes of plot ``name`` of the stored result ``key``."""
         return self._request("GET", f"/v1/results/{key}/plots/{name}.{fmt}").content
 
+    # ---- stability -----------------------------------------------------------------------
+
+    def stability(self, spec: Any) -> dict[str, Any]:
+        """Critical flow velocities [m/s] at constant spin (``POST /v1/stability``)."""
+        doc: dict[str, Any] = self._json("POST", "/v1/stability", json=_spec_json(spec))
+        return doc
+
+    def sweep(self, spec: Any) -> dict[str, Any]:
+        """An Argand/Campbell sweep or a stability map (``POST /v1/sweeps``, spec ``kind``)."""
+        doc: dict[str, Any] = self._json("POST", "/v1/sweeps", json=_spec_json(spec))
+        return doc
+
     # ---- other computations --------------------------------------------------------------
 
     def post(self, path: str, body: Any, **params: Any) -> Any:

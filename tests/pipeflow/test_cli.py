@@ -7,6 +7,7 @@ import json
 import shutil
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -95,3 +96,46 @@ def test_console_script_help_shows_the_papers_example() -> None:
     out = subprocess.run([exe, "run", "--help"], capture_output=True, text=True, check=True)
     assert "v = 0.4 t m/s, w0 = 100 rad/s" in out.stdout
     assert "--format {json,csv}" in out.stdout
+
+
+PIPE = PAPER_EXAMPLE["pipe"]
+
+
+def test_stability_critical_velocity_and_sweep_plot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    spec = tmp_path / "stab.json"
+    spec.write_text(json.dumps({"pipe": PIPE, "modes": 4, "velocity_range": [0, 60], "points": 41}))
+    out = tmp_path / "stab_result.json"
+    assert main(["stability", str(spec), "-o", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    assert result["kind"] == "stability" and result["critical_velocity"] > 0
+    assert "critical flow velocity:" in capsys.readouterr().err
+
+    sweep = tmp_path / "argand.json"
+    sweep.write_text(
+        json.dumps({"kind": "argand", "pipe": PIPE, "modes": 4, "velocity_range": [0, 40]})
+    )
+    out = tmp_path / "argand_result.json"
+    assert main(["stability", str(sweep), "-o", str(out), "--quiet"]) == 0
+    png = tmp_path / "argand.png"
+    assert main(["plot", str(out), "--out", str(png)]) == 0  # default: the first plot it has
+    assert png.read_bytes().startswith(b"\x89PNG")
+    assert main(["plot", str(out), "--name", "damping", "--out", str(png)]) == 2
+    assert "has no 'damping' plot" in capsys.readouterr().err
+
+
+def test_stability_refuses_a_simulation_spec(
+    small_spec: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["stability", str(small_spec)]) == 2
+    assert "not a stability spec" in capsys.readouterr().err
+
+
+def test_serve_runs_uvicorn_on_the_app(monkeypatch: pytest.MonkeyPatch) -> None:
+    import uvicorn
+
+    calls: list[tuple[Any, dict[str, Any]]] = []
+    monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append((app, kw)))
+    assert main(["serve", "--port", "8123"]) == 0
+    assert calls == [("service.main:app", {"host": "127.0.0.1", "port": 8123, "workers": 1})]

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from pipeflow.model import PAPER_PIPE
-from pipeflow.plots import PLOTS, PlotError, available_plots, figure, render, to_bytes
+from pipeflow.plots import PlotError, available_plots, figure, render, to_bytes
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 
@@ -44,7 +44,13 @@ def _svg_text(data: bytes) -> str:
 
 
 def test_available_plots(result: dict[str, Any]) -> None:
-    assert available_plots(result) == list(PLOTS)
+    assert available_plots(result) == [
+        "tip_displacement",
+        "damping",
+        "frequency",
+        "argand",
+        "displacements",
+    ]
     no_stations = dict(result, displacements=[])
     assert "displacements" not in available_plots(no_stations)
     assert available_plots({"t": [0.0], "tip_displacement": [0.0]}) == ["tip_displacement"]
@@ -113,3 +119,51 @@ def test_paper_figures_example_script(tmp_path: Path) -> None:
     files = sorted(p.name for p in tmp_path.iterdir())
     assert files == ["fig06_damping.png", "fig27_damping.png"]
     assert (tmp_path / files[0]).read_bytes().startswith(PNG_MAGIC)
+
+
+def test_stability_plots() -> None:
+    """Argand/Campbell sweeps and the stability maps of pipeflow.stability_spec draw."""
+    from pipeflow.stability_spec import PAPER_PIPE_JSON, parse_sweep, run_sweep
+
+    cases = {
+        "argand": (
+            {"kind": "argand", "pipe": PAPER_PIPE_JSON, "modes": 4, "velocity_range": [0, 40]},
+            ["argand", "sweep_frequency", "sweep_damping"],
+            "flow velocity v [m/s]",
+        ),
+        "campbell": (
+            {"kind": "campbell", "pipe": PAPER_PIPE_JSON, "modes": 4, "spin_range": [0, 300]},
+            ["argand", "sweep_frequency", "sweep_damping"],
+            "spin ω0 [rad/s]",
+        ),
+        "spin_map": (
+            {
+                "kind": "spin_map",
+                "pipe": PAPER_PIPE_JSON,
+                "modes": 4,
+                "velocity_range": [0, 60],
+                "spin_range": [0, 300],
+                "velocity_points": 21,
+                "spin_points": 4,
+            },
+            ["spin_map"],
+            "flow velocity v [m/s]",
+        ),
+        "beta_map": (
+            {
+                "kind": "beta_map",
+                "modes": 4,
+                "beta_range": [0.1, 0.5],
+                "u_range": [0, 15],
+                "beta_points": 5,
+                "u_points": 21,
+            },
+            ["beta_map"],
+            "mass ratio β = M2/(M1+M2) [-]",
+        ),
+    }
+    for data, names, xlabel in cases.values():
+        result = run_sweep(parse_sweep(data))
+        assert available_plots(result) == names
+        text = _svg_text(render(result, names[-1], "svg"))
+        assert xlabel in text
