@@ -7,6 +7,7 @@ Routes stay thin: they validate the body (FastAPI + the kind's spec model) and c
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from datetime import UTC, datetime
 from typing import Any
 
@@ -17,6 +18,9 @@ from service.kinds import JobKind
 from service.problems import ProblemError
 from service.runner import ComputationCancelled, ComputationFailed, QueueFull, Runner
 from service.store import Job, Store
+
+#: how long a resubmission waits for the cancelled run of the same job to stop [s]
+STOP_WAIT_S = 10.0
 
 
 def envelope(key: str, cached: bool, body: bytes) -> bytes:
@@ -78,7 +82,14 @@ async def submit_job(
         await asyncio.to_thread(store.mark_succeeded, key, kind.name, canonical)
     else:
         try:
-            await runner.submit(kind, key, canonical, force=refresh)
+            task = await runner.submit(kind, key, canonical, force=refresh)
+            job = await asyncio.to_thread(store.get_job, key)
+            if job is not None and job.status == "cancelled" and not task.done():
+                # resubmitted while its cancelled run is still stopping: let it stop, rerun
+                with contextlib.suppress(Exception, asyncio.CancelledError):
+                    await asyncio.wait_for(asyncio.shield(task), STOP_WAIT_S)
+                await asyncio.sleep(0)
+                await runner.submit(kind, key, canonical, force=refresh)
         except QueueFull as exc:
             raise _saturated(runner, exc) from None
     job = await asyncio.to_thread(store.get_job, key)

@@ -95,6 +95,17 @@ def _wait_idle(c: TestClient) -> None:
         time.sleep(0.05)
 
 
+def test_resubmit_while_cancelled_run_stops(tight: TestClient) -> None:
+    key = _sleep_job(tight, seconds=30, tag="resubmit")
+    wait_job(tight, key, lambda j: j["status"] == "running")
+    assert tight.delete(f"/v1/jobs/{key}").json()["status"] == "cancelled"
+    again = tight.post("/test/sleep-jobs", json={"seconds": 30, "tag": "resubmit"})
+    assert again.status_code == 202
+    assert again.json()["status"] in ("queued", "running")
+    assert tight.delete(f"/v1/jobs/{key}").json()["status"] == "cancelled"
+    _wait_idle(tight)
+
+
 def test_cancel_finished_job_409(tight: TestClient) -> None:
     key = _sleep_job(tight, seconds=0.01, tag="done")
     assert wait_job(tight, key)["status"] == "succeeded"
