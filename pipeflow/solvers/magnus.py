@@ -100,12 +100,16 @@ _PS_DIAG = np.array([_FACT[4 * i] for i in range(5)])
 
 
 def _expm_block(X: FloatArray) -> FloatArray:
-    norm = float(np.max(np.sum(np.abs(X), axis=-2))) if X.size else 0.0
-    if not math.isfinite(norm):
+    norms = np.sum(np.abs(X), axis=-2).max(axis=-1)
+    if not np.all(np.isfinite(norms)):
         return np.full_like(X, np.nan)
-    s = max(0, math.ceil(math.log2(norm / TAYLOR_THETA))) if norm > TAYLOR_THETA else 0
+    # per-matrix scaling: over-scaling a small matrix would only amplify rounding
+    with np.errstate(divide="ignore"):
+        scal = np.ceil(np.log2(np.maximum(norms, 1e-300) / TAYLOR_THETA))
+    scal = np.maximum(scal, 0).astype(np.int64)
+    s = int(scal.max())
     K, n, _ = X.shape
-    Y = X * (0.5**s)
+    Y = X * (0.5**scal)[:, None, None]
     # Paterson-Stockmeyer, p = 4: T_18(Y) = B_0 + Y^4 (B_1 + Y^4 (B_2 + Y^4 (B_3 + Y^4 B_4)))
     # with B_i = sum_k c_{4i+k} Y^k (k < 4), all five formed by one product of coefficients
     P2 = Y @ Y
@@ -119,8 +123,13 @@ def _expm_block(X: FloatArray) -> FloatArray:
     for i in (3, 2, 1, 0):
         R = R @ P4
         R += B[i]
-    for _ in range(s):
-        R = R @ R
+    if np.all(scal == s):
+        for _ in range(s):
+            R = R @ R
+        return R
+    for j in range(s):
+        sel = scal > j
+        R[sel] = R[sel] @ R[sel]
     return R
 
 
