@@ -1,0 +1,35 @@
+"""Smoke test: the benchmark script imports and runs one tiny case (no timing asserted)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pipeflow.model import PAPER_PIPE, build_model
+from pipeflow.profiles import Constant, polynomial
+
+
+def _load():  # type: ignore[no-untyped-def]
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "run.py"
+    spec = importlib.util.spec_from_file_location("pipeflow_benchmarks_run", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_benchmark_runs_one_tiny_case() -> None:
+    bench = _load()
+    s = bench.Setup(modes=2, t_end=0.02, samples=21, repeats=1, ivp_timeout=10.0, rtols=(1e-9,))
+    model = build_model(PAPER_PIPE, 2)
+    t = np.linspace(0.0, s.t_end, s.samples)
+    for flow in (Constant(0.4), polynomial(0, 0.4)):
+        rows = bench.run_case(model, flow, t, s)
+        names = {r["name"] for r in rows}
+        assert {"pipeflow cma", "pipeflow magnus", "solve_ivp DOP853"} <= names
+        magnus = next(r for r in rows if r["name"] == "pipeflow magnus")
+        assert magnus["err"] < 1e-8
