@@ -139,6 +139,38 @@ def _draw_beta_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
     ax.plot(beta, u, "-o", ms=2.5, lw=1.2, label=label or f"γ = {r.get('gamma', 0):g}")
 
 
+def _draw_resonance_chart(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    import numpy as np
+
+    g = np.array([[np.nan if v is None else v for v in row] for row in r["growth_rate"]])
+    lim = float(np.nanmax(np.abs(g))) if np.isfinite(g).any() else 1.0
+    lim = lim or 1.0
+    freq, amp = r["frequencies"], r["amplitudes"]
+    mesh = ax.pcolormesh(freq, amp, g, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="nearest")
+    ax.figure.colorbar(mesh, ax=ax, label="growth rate log(max |λ|)/T [1/s]")
+    unstable = np.asarray(r["unstable"], dtype=float)
+    if unstable.ndim == 2 and min(unstable.shape) > 1 and 0 < unstable.sum() < unstable.size:
+        ax.contour(freq, amp, unstable, levels=[0.5], colors="k", linewidths=1.2)
+    # principal parametric resonances Omega = 2 omega_j of the frozen mean-flow frequencies
+    lo, hi = min(freq), max(freq)
+    for j, w in enumerate(r.get("natural_frequencies", []), start=1):
+        if lo <= 2 * w <= hi:
+            ax.axvline(2 * w, color="0.3", lw=0.8, ls="--", label=f"Ω = 2ω{j}")
+    if any(lo <= 2 * w <= hi for w in r.get("natural_frequencies", [])):
+        ax.legend(fontsize=8)
+
+
+def _draw_multipliers(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    import numpy as np
+
+    theta = np.linspace(0.0, 2 * np.pi, 361)
+    ax.plot(np.cos(theta), np.sin(theta), color="0.6", lw=0.8, zorder=0)
+    m = r["multipliers"]
+    ax.plot(m["real"], m["imag"], "x", ms=6, label=label or f"verdict: {r.get('verdict', '')}")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=8)
+
+
 #: every plot kind, by the name used in URLs and on the command line
 PLOTS: dict[str, PlotKind] = {
     k.name: k
@@ -208,6 +240,22 @@ PLOTS: dict[str, PlotKind] = {
             lambda r: r.get("kind") == "beta_map" and bool(r.get("curve")),
         ),
         PlotKind(
+            "resonance_chart",
+            "Parametric resonance chart of pulsating flow (black: unstable boundary)",
+            "pulsation frequency Ω [rad/s]",
+            "pulsation amplitude a [m/s]",
+            _draw_resonance_chart,
+            lambda r: r.get("kind") == "resonance_chart" and bool(r.get("growth_rate")),
+        ),
+        PlotKind(
+            "floquet_multipliers",
+            "Floquet multipliers λ and the unit circle (|λ| > 1: unstable)",
+            "Re λ [-]",
+            "Im λ [-]",
+            _draw_multipliers,
+            lambda r: isinstance(r.get("multipliers"), dict) and bool(r["multipliers"].get("real")),
+        ),
+        PlotKind(
             "displacements",
             "Displacement at the requested stations",
             "time t [s]",
@@ -253,7 +301,7 @@ def figure(
         kind.draw(ax, result, label)  # may refine the labels (e.g. the swept parameter)
     ax.set_title(title if title is not None else kind.title, fontsize=10)
     ax.grid(True, lw=0.4, alpha=0.5)
-    if name not in ("spin_map",):
+    if name not in ("spin_map", "resonance_chart", "floquet_multipliers"):
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
     multi = ("argand", "displacements", "sweep_frequency", "sweep_damping")
     if any(label is not None for label, _ in series) or name in multi:

@@ -260,15 +260,55 @@ class Client:
 
     # ---- stability -----------------------------------------------------------------------
 
-    def stability(self, spec: Any) -> dict[str, Any]:
-        """Critical flow velocities [m/s] at constant spin (``POST /v1/stability``)."""
-        doc: dict[str, Any] = self._json("POST", "/v1/stability", json=_spec_json(spec))
+    def stability(
+        self, spec: Any, *, refresh: bool = False, progress: Progress | None = None
+    ) -> dict[str, Any]:
+        """Critical flow velocities [m/s] at constant spin: ``critical_velocity``,
+        ``crossings``, ``dimensionless`` (spec: dict or
+        :class:`~pipeflow.stability_spec.StabilitySpec`).
+
+        One ``POST /v1/stability``; with ``progress`` it runs as a job instead
+        (``POST /v1/stability/jobs``) and ``progress(fraction)`` is called while waiting.
+        """
+        if progress is None:
+            doc: dict[str, Any] = self._json(
+                "POST", "/v1/stability", json=_spec_json(spec), params=_refresh(refresh)
+            )
+            return doc
+        job = self.submit_stability(spec, refresh=refresh)
+        return self.wait_raw(job["key"], progress=progress)
+
+    def submit_stability(self, spec: Any, *, refresh: bool = False) -> dict[str, Any]:
+        """Submit a critical-velocity analysis as a job; returns the job document."""
+        doc: dict[str, Any] = self._json(
+            "POST", "/v1/stability/jobs", json=_spec_json(spec), params=_refresh(refresh)
+        )
         return doc
 
-    def sweep(self, spec: Any) -> dict[str, Any]:
-        """An Argand/Campbell sweep or a stability map (``POST /v1/sweeps``, spec ``kind``)."""
-        doc: dict[str, Any] = self._json("POST", "/v1/sweeps", json=_spec_json(spec))
+    def submit_sweep(self, spec: Any, *, refresh: bool = False) -> dict[str, Any]:
+        """Submit a sweep, map or Floquet analysis (``POST /v1/sweeps``, spec ``kind``) as a
+        job; returns the job document (``key``, ``kind``, ``status``, ``progress``)."""
+        body = _spec_json(spec)
+        if isinstance(body, dict) and "kind" not in body and hasattr(spec, "kind"):
+            body = {"kind": spec.kind, **body}  # a model's default tag is not "set"
+        doc: dict[str, Any] = self._json("POST", "/v1/sweeps", json=body, params=_refresh(refresh))
         return doc
+
+    def sweep(
+        self,
+        spec: Any,
+        *,
+        refresh: bool = False,
+        progress: Progress | None = None,
+        poll: float = 0.2,
+        timeout: float | None = None,
+    ) -> dict[str, Any]:
+        """An Argand/Campbell sweep, stability map, resonance chart or Floquet analysis
+        (spec ``kind``; dict or a :mod:`pipeflow.stability_spec` model): submitted as a job,
+        waited for (``progress(fraction)`` while running, see :meth:`wait_raw`), and returned
+        as the result JSON (SI units, ``plots`` for :meth:`plot`)."""
+        job = self.submit_sweep(spec, refresh=refresh)
+        return self.wait_raw(job["key"], progress=progress, poll=poll, timeout=timeout)
 
     # ---- other computations --------------------------------------------------------------
 

@@ -26,6 +26,17 @@ from pipeflow.plots import available_plots
 from pipeflow.simulation import simulate
 from pipeflow.solvers.base import ProgressCallback
 from pipeflow.spec import SimulationSpec, cache_key
+from pipeflow.stability_spec import (
+    ArgandSweep,
+    BetaMapSweep,
+    CampbellSweep,
+    FloquetSweep,
+    ResonanceChartSweep,
+    SpinMapSweep,
+    StabilitySpec,
+    run_stability,
+    run_sweep,
+)
 
 
 @dataclass(frozen=True)
@@ -63,3 +74,34 @@ def run_simulation(spec: SimulationSpec, progress: ProgressCallback) -> dict[str
 
 
 SIMULATION = register(JobKind("simulation", SimulationSpec, run_simulation))
+
+
+def run_stability_analysis(spec: StabilitySpec, progress: ProgressCallback) -> dict[str, Any]:
+    """Critical flow velocities (:func:`pipeflow.stability_spec.run_stability`) with ``plots``."""
+    result = run_stability(spec, progress)
+    result["plots"] = available_plots(result)
+    return result
+
+
+def run_sweep_analysis(spec: Any, progress: ProgressCallback) -> dict[str, Any]:
+    """A sweep or map (:func:`pipeflow.stability_spec.run_sweep`, any kind) with ``plots``."""
+    result = run_sweep(spec, progress)
+    result["plots"] = available_plots(result)
+    return result
+
+
+STABILITY = register(JobKind("stability", StabilitySpec, run_stability_analysis))
+#: one job kind per sweep kind, named as the spec's ``kind`` (so the key is
+#: :func:`pipeflow.stability_spec.cache_key` ``(spec, spec.kind)``)
+SWEEPS: dict[str, JobKind] = {
+    name: register(JobKind(name, model, run_sweep_analysis))
+    for model in (
+        ArgandSweep,
+        CampbellSweep,
+        SpinMapSweep,
+        BetaMapSweep,
+        ResonanceChartSweep,
+        FloquetSweep,
+    )
+    for name in (str(model.model_fields["kind"].default),)
+}

@@ -241,6 +241,10 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
                 path = _field_from_message(body, path, str(err.get("msg", "")))
             if err.get("type") == "json_invalid":
                 path = []
+            if not path and err.get("type") in ("union_tag_invalid", "union_tag_not_found"):
+                # the body itself is a tagged union (/v1/sweeps): name its tag, e.g. 'kind'
+                tag = str((err.get("ctx") or {}).get("discriminator", "")).strip("'\"")
+                path = [tag] if tag.isidentifier() else path
         else:
             path = list(rest)
         field = ".".join(str(p) for p in path) or None

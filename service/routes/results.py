@@ -13,8 +13,27 @@ from service.problems import ProblemError, responses
 from service.routes.exports import TABLE_DESCRIPTION, Table, csv_response, wants_csv
 from service.routes.simulations import CACHE_HEADERS
 from service.schemas import KEY_PATTERN, SimulationResponse
+from service.stability_schemas import (
+    BetaMapResponse,
+    FloquetResponse,
+    ResonanceChartResponse,
+    SpinMapResponse,
+    StabilityResponse,
+    SweepResponse,
+)
 
 router = APIRouter(prefix="/v1/results", tags=["results"])
+
+#: what a stored result can be: one model per job kind (stability kinds carry ``kind``)
+ResultDocument = (
+    SimulationResponse
+    | StabilityResponse
+    | SweepResponse
+    | SpinMapResponse
+    | BetaMapResponse
+    | ResonanceChartResponse
+    | FloquetResponse
+)
 
 
 def _matches(if_none_match: str, key: str) -> bool:
@@ -27,7 +46,7 @@ def _matches(if_none_match: str, key: str) -> bool:
     "/{key}",
     operation_id="getResult",
     summary="A stored result",
-    response_model=SimulationResponse,
+    response_model=ResultDocument,
     responses={
         200: {"headers": CACHE_HEADERS, "content": {"text/csv": {}}},
         **responses(304, 404, 422),
@@ -45,7 +64,8 @@ async def get_result(
     ] = None,
     table: Annotated[Table, Query(description=TABLE_DESCRIPTION)] = "history",
 ) -> Response:
-    """The result stored under ``key`` (as POST /v1/simulations returned it), with
+    """The result stored under ``key`` (as POST /v1/simulations or /v1/stability returned
+    it, or the result of a job), with
     ``ETag: "<key>"``; ``If-None-Match`` with that tag is answered 304.  With
     ``Accept: text/csv`` or ``?format=csv``: one CSV ``table`` whose header row names each
     column with its unit, e.g. ``t [s],tip_displacement [m]``."""

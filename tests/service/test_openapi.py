@@ -25,6 +25,9 @@ def test_operations_errors_and_example() -> None:
     assert {op["operationId"] for op in ops.values()} == {
         "runSimulation",
         "submitJob",
+        "runStability",
+        "submitStabilityJob",
+        "submitSweep",
         "getJob",
         "cancelJob",
         "getResult",
