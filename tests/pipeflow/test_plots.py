@@ -161,6 +161,32 @@ def test_stability_plots() -> None:
             ["beta_map"],
             "mass ratio β = M2/(M1+M2) [-]",
         ),
+        "resonance_chart": (
+            {
+                "kind": "resonance_chart",
+                "pipe": {"E": 1.0, "I": 1.0, "L": 1.0, "M1": 0.8, "M2": 0.2},  # beta = 0.2
+                "modes": 3,
+                "mean_velocity": 8.944,  # u = 4: omega_2 = 17.13 rad/s, lightly damped
+                "amplitude_range": [0, 7.2],
+                "frequency_range": [25, 43],
+                "amplitude_points": 4,
+                "frequency_points": 7,
+            },
+            ["resonance_chart"],
+            "pulsation amplitude a [m/s]",
+        ),
+        "floquet": (
+            {
+                "kind": "floquet",
+                "pipe": PAPER_PIPE_JSON,
+                "modes": 2,
+                "flow": {
+                    "velocity": {"kind": "harmonic", "mean": 10, "amplitude": 5, "frequency": 1e3}
+                },
+            },
+            ["floquet_multipliers"],
+            "Re λ [-]",
+        ),
     }
     for data, names, xlabel in cases.values():
         result = run_sweep(parse_sweep(data))
