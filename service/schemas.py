@@ -87,7 +87,10 @@ class JobStatus(BaseModel):
     """The state of a job; its id is the parameter hash."""
 
     key: str = Field(description="Job id = parameter hash (SHA-256 hex).")
-    kind: str = Field(description="What is computed, e.g. 'simulation'.")
+    kind: str = Field(
+        description="What is computed (the job kind): 'simulation', 'stability', or the sweep's "
+        "kind ('argand', 'campbell', 'spin_map', 'beta_map', 'resonance_chart', 'floquet')."
+    )
     status: Literal["queued", "running", "succeeded", "failed", "cancelled"]
     progress: float = Field(ge=0, le=1, description="Fraction done [-].")
     created: datetime = Field(description="When the job was (last) accepted (UTC).")
