@@ -24,10 +24,11 @@ import rfc8785
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
 
 from pipeflow import __version__
+from pipeflow.errors import BudgetExceeded
 from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec
 from pipeflow.stability.critical import critical_velocities
-from pipeflow.stability.floquet import floquet, resonance_chart
-from pipeflow.stability.maps import beta_map, spin_map
+from pipeflow.stability.floquet import check_chart_work, floquet, resonance_chart
+from pipeflow.stability.maps import beta_map, check_map_work, spin_map
 from pipeflow.stability.sweeps import sweep
 
 Progress = Callable[[float], None]
@@ -193,6 +194,9 @@ class SpinMapSweep(_Strict):
     def _ranges(self) -> SpinMapSweep:
         _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
         _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
+        _within_budget(
+            check_map_work, self.velocity_points * self.spin_points, self.modes, "spin_points"
+        )
         return self
 
 
@@ -219,6 +223,7 @@ class BetaMapSweep(_Strict):
         _check_range(self.u_range, "u_range", 1e3, "")
         if self.u_range[0] < 0:
             raise ValueError("u_range must be >= 0 (reverse flow has no critical velocity)")
+        _within_budget(check_map_work, self.beta_points * self.u_points, self.modes, "u_points")
         return self
 
 
@@ -252,6 +257,14 @@ class ResonanceChartSweep(_Strict):
             raise ValueError("amplitude_range must be >= 0 m/s")
         if self.frequency_range[0] <= 0:
             raise ValueError("frequency_range must be > 0 rad/s")
+        _within_budget(
+            check_chart_work,
+            self.pipe.to_pipe(),
+            self.modes,
+            self.amplitude_points,
+            self.frequency_points,
+            self.frequency_range[0],
+        )
         return self
 
 
@@ -305,6 +318,15 @@ SWEEP_ADAPTER: TypeAdapter[Any] = TypeAdapter(SweepSpec)
 def parse_sweep(data: Any) -> Any:
     """Validate a ``/v1/sweeps`` body into its spec class (raises pydantic ValidationError)."""
     return SWEEP_ADAPTER.validate_python(data)
+
+
+def _within_budget(check: Callable[..., None], *args: Any) -> None:
+    """Run a library budget check at validation time, so an over-budget request is a 422
+    naming the field at submission rather than a job that fails later."""
+    try:
+        check(*args)
+    except BudgetExceeded as exc:
+        raise ValueError(f"{exc.field}: {exc.message}") from None
 
 
 def cache_key(spec: _Strict, kind: str) -> str:

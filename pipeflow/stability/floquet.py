@@ -139,6 +139,25 @@ def _converged_monodromy(
         prev = cur
 
 
+def check_chart_work(
+    pipe: Pipe, modes: int, amplitude_points: int, frequency_points: int, lowest_frequency: float
+) -> None:
+    """Raise :class:`BudgetExceeded` when a resonance chart would cost too much.
+
+    The cost is points x Magnus steps over the longest period (lowest frequency [rad/s])
+    x (2 modes)^3; cheap to evaluate, so request validation can refuse early.
+    """
+    model = build_model(pipe, modes)
+    steps = _initial_steps(model, 2 * math.pi / lowest_frequency)
+    work = amplitude_points * frequency_points * steps * model.size**3
+    if work > MAX_CHART_WORK:
+        raise BudgetExceeded(
+            f"the chart would cost about {work:.3g} units > {MAX_CHART_WORK:.3g}; use fewer "
+            "points or modes, or a higher lowest frequency",
+            field="frequency_points",
+        )
+
+
 def _initial_steps(model: PipeModel, period: float) -> int:
     # a handful of steps per period of the fastest retained mode keeps h |S| of order 1
     rho = float(np.max(model.omega_ref))
@@ -434,17 +453,10 @@ def resonance_chart(
         )
     if amplitude_points < 1 or frequency_points < 1:
         raise InvalidInput("need >= 1 point on each axis", field="amplitude_points")
+    check_chart_work(pipe, modes, amplitude_points, frequency_points, frequency_range[0])
     model = build_model(pipe, modes)
     amps = np.linspace(*amplitude_range, amplitude_points)
     freqs = np.linspace(*frequency_range, frequency_points)
-    m = model.size
-    work = amps.size * freqs.size * _initial_steps(model, 2 * math.pi / freqs[0]) * m**3
-    if work > MAX_CHART_WORK:
-        raise BudgetExceeded(
-            f"the chart would cost about {work:.3g} units > {MAX_CHART_WORK:.3g}; use fewer "
-            "points or modes, or a higher lowest frequency",
-            field="frequency_points",
-        )
     w2 = omega0 * omega0
     mod = np.empty((amps.size, freqs.size))
     steps_used: list[int] = []

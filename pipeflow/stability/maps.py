@@ -54,7 +54,8 @@ class BoundaryCrossing:
     frequency: float
 
 
-def _work_check(points: int, modes: int, field: str) -> None:
+def check_map_work(points: int, modes: int, field: str) -> None:
+    """Raise :class:`BudgetExceeded` when ``points`` eigenproblems of ``2 modes`` cost too much."""
     work = points * (2.0 * modes) ** 3
     if work > MAX_MAP_WORK:
         raise BudgetExceeded(
@@ -197,7 +198,7 @@ def spin_map(
     check_range(*spin_range, field="spin_range")
     if velocity_points < 3 or spin_points < 1:
         raise InvalidInput("need >= 3 velocity points and >= 1 spin point", field="points")
-    _work_check(velocity_points * spin_points, modes, "points")
+    check_map_work(velocity_points * spin_points, modes, "spin_points")
     model = build_model(pipe, modes)
     v = np.linspace(*velocity_range, velocity_points)
     if velocity_range[0] < 0 < velocity_range[1]:
@@ -308,7 +309,7 @@ def beta_map(
         raise InvalidInput("u_range must be >= 0 (" + REVERSE_FLOW_CAVEAT + ")", field="u_range")
     if beta_points < 1 or u_points < 3:
         raise InvalidInput("need >= 1 beta point and >= 3 u points", field="points")
-    _work_check(beta_points * u_points, modes, "points")
+    check_map_work(beta_points * u_points, modes, "u_points")
     betas = np.linspace(*beta_range, beta_points)
     u = np.linspace(*u_range, u_points)
     crossings, stable = [], []

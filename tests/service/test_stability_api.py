@@ -329,15 +329,14 @@ def test_sweep_job_can_be_cancelled(api: TestClient) -> None:
     _problem(api.get(f"/v1/results/{key}"), 404)
 
 
-def test_library_budget_refusal_fails_the_job_with_a_field(api: TestClient) -> None:
-    """A 200 x 200 map with 40 modes passes the schema bounds but exceeds the library's
-    work budget: the job fails with the library's 422 problem, naming the field."""
+def test_over_budget_map_is_refused_at_submission(api: TestClient) -> None:
+    """A 200 x 200 map with 40 modes passes the per-field bounds but exceeds the library's
+    work budget: the request is refused at once (422 naming the field), no job is created."""
     body = _sweep("spin_map") | {"modes": 40, "velocity_points": 200, "spin_points": 200}
-    key = api.post("/v1/sweeps", json=body).json()["key"]
-    job = wait_job(api, key)
-    assert job["status"] == "failed"
-    assert job["error"]["status"] == 422 and job["error"]["errors"][0]["field"] == "points"
-    assert "fewer points or modes" in job["error"]["detail"]
+    r = api.post("/v1/sweeps", json=body)
+    doc = _problem(r, 422)
+    assert doc["errors"][0]["field"] == "spin_points"
+    assert "fewer points or modes" in doc["detail"]
 
 
 @pytest.mark.parametrize(
