@@ -10,7 +10,7 @@ cache key is computed from.
 from __future__ import annotations
 
 import hashlib
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Protocol
 
 import rfc8785
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -312,11 +312,23 @@ class SimulationSpec(_Strict):
 PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_json_schema()["examples"][0]
 
 
-def cache_key(spec: SimulationSpec, kind: str = "simulation") -> str:
-    """SHA-256 of the RFC 8785 canonical JSON of the normalised spec, salted with the version.
+class Canonical(Protocol):
+    """A validated request that can give its normalised JSON form."""
+
+    def canonical(self) -> dict[str, Any]: ...
+
+
+def cache_key(spec: Canonical, kind: str = "simulation") -> str:
+    """SHA-256 of the RFC 8785 canonical JSON of the normalised spec, salted with the
+    pipeflow version and the job kind; the one parameter hash of every request kind.
 
     Equivalent requests (key order, ``1`` vs ``1.0``, defaults omitted or spelled out,
     options the method ignores) share a key; any change to a number that matters changes it.
     """
-    payload: dict[str, Any] = {"pipeflow": __version__, "kind": kind, "spec": spec.canonical()}
+    return hash_canonical(spec.canonical(), kind)
+
+
+def hash_canonical(canonical: dict[str, Any], kind: str) -> str:
+    """The hash behind :func:`cache_key`, for an already normalised JSON form."""
+    payload: dict[str, Any] = {"pipeflow": __version__, "kind": kind, "spec": canonical}
     return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()

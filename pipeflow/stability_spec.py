@@ -15,15 +15,12 @@ cache key.  The run functions return JSON-ready dicts (every float finite) and t
 
 from __future__ import annotations
 
-import hashlib
 import math
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
-import rfc8785
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
 
-from pipeflow import __version__
 from pipeflow.errors import BudgetExceeded
 from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec
 from pipeflow.stability.critical import critical_velocities
@@ -327,13 +324,6 @@ def _within_budget(check: Callable[..., None], *args: Any) -> None:
         check(*args)
     except BudgetExceeded as exc:
         raise ValueError(f"{exc.field}: {exc.message}") from None
-
-
-def cache_key(spec: _Strict, kind: str) -> str:
-    """SHA-256 of the RFC 8785 canonical JSON of the spec, salted with the version and kind
-    (the same construction as :func:`pipeflow.spec.cache_key`)."""
-    payload: Any = {"pipeflow": __version__, "kind": kind, "spec": spec.canonical()}
-    return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()
 
 
 def json_safe(data: Any) -> Any:

@@ -13,19 +13,17 @@ below, and add a route that calls :func:`service.compute.run_sync` or
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import rfc8785
 from pydantic import BaseModel
 
-from pipeflow import __version__
+from pipeflow.compare import CompareSpec, run_compare
 from pipeflow.plots import available_plots
 from pipeflow.simulation import simulate
 from pipeflow.solvers.base import ProgressCallback
-from pipeflow.spec import SimulationSpec, cache_key
+from pipeflow.spec import SimulationSpec, hash_canonical
 from pipeflow.stability_spec import (
     ArgandSweep,
     BetaMapSweep,
@@ -51,10 +49,7 @@ class JobKind:
 
     def key(self, spec: BaseModel) -> str:
         """The parameter hash: :func:`pipeflow.spec.cache_key` salted with this kind."""
-        if isinstance(spec, SimulationSpec):
-            return cache_key(spec, self.name)
-        payload: Any = {"pipeflow": __version__, "kind": self.name, "spec": self.canonical(spec)}
-        return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()
+        return hash_canonical(self.canonical(spec), self.name)
 
 
 KINDS: dict[str, JobKind] = {}
@@ -74,6 +69,7 @@ def run_simulation(spec: SimulationSpec, progress: ProgressCallback) -> dict[str
 
 
 SIMULATION = register(JobKind("simulation", SimulationSpec, run_simulation))
+COMPARE = register(JobKind("compare", CompareSpec, run_compare))
 
 
 def run_stability_analysis(spec: StabilitySpec, progress: ProgressCallback) -> dict[str, Any]:

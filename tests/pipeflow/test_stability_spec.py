@@ -8,10 +8,10 @@ import pytest
 from pydantic import ValidationError
 
 from pipeflow.errors import Cancelled
+from pipeflow.spec import cache_key
 from pipeflow.stability_spec import (
     PAPER_PIPE_JSON,
     StabilitySpec,
-    cache_key,
     parse_sweep,
     run_stability,
     run_sweep,

@@ -15,7 +15,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from pipeflow.stability_spec import PAPER_PIPE_JSON, StabilitySpec, cache_key, parse_sweep
+from pipeflow.spec import cache_key
+from pipeflow.stability_spec import PAPER_PIPE_JSON, StabilitySpec, parse_sweep
 from service.stability_schemas import RESPONSE_BY_KIND
 from tests.service.conftest import make_client, wait_job, wait_ready
 
