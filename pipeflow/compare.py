@@ -16,12 +16,15 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from pipeflow.diagnostics import summary
 from pipeflow.errors import InvalidInput
 from pipeflow.model import build_model
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS
+from pipeflow.solvers.base import ProgressCallback
+from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
 
 #: the reference integrator's error is taken as this multiple of its rtol when ranking
 #: (measured: rtol 1e-12 gives ~3e-10 on the paper's example)
@@ -51,7 +54,11 @@ def _relative(a: np.ndarray, b: np.ndarray) -> float:
     return diff / scale if scale > 0 else diff
 
 
-def compare(sim: Simulation, methods: Sequence[str] | None = None) -> dict[str, Any]:
+def compare(
+    sim: Simulation,
+    methods: Sequence[str] | None = None,
+    progress: ProgressCallback | None = None,
+) -> dict[str, Any]:
     """Run ``sim`` with each of ``methods`` (default: every registered method but
     ``reference``) and compare.
 
@@ -83,9 +90,14 @@ def compare(sim: Simulation, methods: Sequence[str] | None = None) -> dict[str, 
             )
     model = build_model(sim.pipe, sim.modes, sim.quadrature_order)
     runs: list[tuple[Result, float]] = []
-    for name in names:
+    for i, name in enumerate(names):
+
+        def part(fraction: float, i: int = i) -> None:
+            if progress is not None:
+                progress((i + fraction) / len(names))
+
         t0 = time.perf_counter()
-        result = simulate(replace(sim, method=name))
+        result = simulate(replace(sim, method=name), progress=part)
         runs.append((result, time.perf_counter() - t0))
 
     accuracy = [_accuracy(r) for r, _ in runs]
@@ -122,3 +134,51 @@ def compare(sim: Simulation, methods: Sequence[str] | None = None) -> dict[str, 
         "modes": sim.modes,
         "t_end": sim.t_end,
     }
+
+
+class CompareSpec(BaseModel):
+    """Body of ``POST /v1/compare``: one simulation, several methods."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        allow_inf_nan=False,
+        json_schema_extra={
+            "examples": [{"simulation": PAPER_EXAMPLE, "methods": ["cma", "magnus", "rk4"]}]
+        },
+    )
+
+    simulation: SimulationSpec = Field(
+        description="The case to run; its 'method' is ignored, its 'options' apply to every "
+        "method that reads them."
+    )
+    methods: list[str] = Field(
+        default_factory=lambda: [m for m in SOLVERS if m != "reference"],
+        min_length=1,
+        max_length=MAX_METHODS,
+        description="Distinct method names to run (default: every method but 'reference').",
+        json_schema_extra={"items": {"enum": list(sorted(SOLVERS))}},
+    )
+
+    @field_validator("methods")
+    @classmethod
+    def _known(cls, v: list[str]) -> list[str]:
+        for i, name in enumerate(v):
+            if name not in SOLVERS:
+                raise ValueError(
+                    f"methods.{i}: unknown method {name!r}; choose from "
+                    f"{', '.join(sorted(SOLVERS))}"
+                )
+        if len(set(v)) != len(v):
+            raise ValueError("methods must be distinct")
+        return v
+
+    def canonical(self) -> dict[str, Any]:
+        """Normalised form for the cache key: every option kept (each method reads its own)."""
+        data = self.simulation.model_dump(mode="json")
+        data.pop("method")
+        return {"simulation": data, "methods": list(self.methods)}
+
+
+def run_compare(spec: CompareSpec, progress: ProgressCallback | None = None) -> dict[str, Any]:
+    """:func:`compare` on a validated :class:`CompareSpec` (the service's job function)."""
+    return compare(spec.simulation.to_simulation(), spec.methods, progress)

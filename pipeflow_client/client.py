@@ -258,6 +258,20 @@ class Client:
         """PNG or SVG bytes of plot ``name`` of the stored result ``key``."""
         return self._request("GET", f"/v1/results/{key}/plots/{name}.{fmt}").content
 
+    # ---- method comparison ---------------------------------------------------------------
+
+    def compare(
+        self, simulation: Any, methods: list[str] | None = None, *, refresh: bool = False
+    ) -> dict[str, Any]:
+        """Run one case with several methods (``POST /v1/compare``): per method the solve and
+        wall time [s], estimated error [-] and relative difference from the most accurate
+        (``baseline``) on the modal state and the tip [-]."""
+        body: dict[str, Any] = {"simulation": _spec_json(simulation)}
+        if methods is not None:
+            body["methods"] = list(methods)
+        doc: dict[str, Any] = self._json("POST", "/v1/compare", json=body, params=_refresh(refresh))
+        return doc
+
     # ---- stability -----------------------------------------------------------------------
 
     def stability(

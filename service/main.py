@@ -16,7 +16,17 @@ from fastapi.openapi.utils import get_openapi
 from pipeflow import __version__
 from service import problems
 from service.middleware import BodyLimit
-from service.routes import exports, health, jobs, results, simulations, stability, sweeps, viewer
+from service.routes import (
+    compare,
+    exports,
+    health,
+    jobs,
+    results,
+    simulations,
+    stability,
+    sweeps,
+    viewer,
+)
 from service.runner import Runner
 from service.settings import Settings, get_settings
 from service.store import Store
@@ -55,7 +65,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
-    for module in (simulations, jobs, stability, sweeps, results, exports, health, viewer):
+    for module in (simulations, jobs, compare, stability, sweeps, results, exports, health, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:

@@ -113,3 +113,35 @@ class Readiness(BaseModel):
     workers: int = Field(description="Worker processes.")
     in_flight: int = Field(description="Computations queued or running.")
     capacity: int = Field(description="Computations accepted before answering 503.")
+
+
+class MethodComparison(BaseModel):
+    method: str = Field(description="Method name.")
+    status: str = Field(description="'ok', 'diverging' or 'overflow' (see simulations).")
+    solve_seconds: float = Field(description="Time inside the solver [s].")
+    wall_seconds: float = Field(description="Whole run incl. eigenvalue traces [s].")
+    speedup_vs_slowest: float | None = Field(description="Slowest solve time / this one [-].")
+    estimated_relative_error: float | None = Field(
+        description="The method's own or measured error estimate [-] (null: unknown)."
+    )
+    difference_from_baseline: float = Field(
+        description="max_t |z - z_baseline| / max_t |z_baseline| on the modal state [-]."
+    )
+    tip_difference_from_baseline: float = Field(
+        description="The same on the tip displacement u(L, t) [-]."
+    )
+    compared_samples: int = Field(description="Output times compared (finite in both).")
+    warnings: list[str]
+    diagnostics: dict[str, Any] = Field(description="Key solver diagnostics.")
+
+
+class CompareResponse(BaseModel):
+    """Result of ``POST /v1/compare`` (see :func:`pipeflow.compare.compare`)."""
+
+    key: str = Field(description="Parameter hash of the request.")
+    cached: bool = Field(description="True when served from the cache.")
+    baseline: str = Field(description="The most accurate method, differences refer to it.")
+    methods: list[MethodComparison]
+    samples: int = Field(description="Output times per run.")
+    modes: int = Field(description="Galerkin modes.")
+    t_end: float = Field(description="Simulated duration [s].")

@@ -12,7 +12,7 @@ from service.deps import RunnerDep, StoreDep
 from service.problems import ProblemError, responses
 from service.routes.exports import TABLE_DESCRIPTION, Table, csv_response, wants_csv
 from service.routes.simulations import CACHE_HEADERS
-from service.schemas import KEY_PATTERN, SimulationResponse
+from service.schemas import KEY_PATTERN, CompareResponse, SimulationResponse
 from service.stability_schemas import (
     BetaMapResponse,
     FloquetResponse,
@@ -27,6 +27,7 @@ router = APIRouter(prefix="/v1/results", tags=["results"])
 #: what a stored result can be: one model per job kind (stability kinds carry ``kind``)
 ResultDocument = (
     SimulationResponse
+    | CompareResponse
     | StabilityResponse
     | SweepResponse
     | SpinMapResponse

@@ -109,3 +109,13 @@ def test_cli_run_and_plot_with_server(
     png = tmp_path / "tip.png"
     assert cli_main(["plot", str(spec), "--server", url, "--out", str(png), "--quiet"]) == 0
     assert png.read_bytes().startswith(b"\x89PNG")
+
+
+def test_compare_through_the_client(client: Client) -> None:
+    """Client.compare against the real app: magnus is the baseline on a time-variant case."""
+    doc = client.compare(SMALL, ["cma", "magnus"])
+    assert doc["baseline"] == "magnus"
+    assert [r["method"] for r in doc["methods"]] == ["cma", "magnus"]
+    with pytest.raises(ServiceError) as err:
+        client.compare(SMALL, ["nope"])
+    assert err.value.status == 422 and (err.value.field or "").startswith("methods")

@@ -25,6 +25,7 @@ def test_operations_errors_and_example() -> None:
     assert {op["operationId"] for op in ops.values()} == {
         "runSimulation",
         "submitJob",
+        "compareMethods",
         "runStability",
         "submitStabilityJob",
         "submitSweep",
