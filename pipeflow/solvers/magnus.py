@@ -17,7 +17,11 @@ All exponentials of a block of steps are computed at once (:func:`expm_stack`, s
 squaring of a Taylor polynomial with batched matrix products); only the final propagation
 is sequential, one matrix-vector product per output interval.  Steps land on the output
 times: interval k gets m_k equal sub-steps, and their exponentials are multiplied together
-(batched, pairwise) before they touch the state.
+(batched, pairwise: :func:`product_of_steps`) before they touch the state.
+
+The building blocks (:data:`GAUSS_NODES`, :func:`magnus4_omega`, :func:`expm_stack`,
+:func:`product_of_steps`) accept leading batch dimensions and are shared with the Floquet
+analysis (:mod:`pipeflow.stability.floquet`), which propagates Z' = S(t) Z over a period.
 
 Error estimate and step selection (``Options.tolerance``, relative): the run is repeated
 with twice the step on every other output time, and the estimate is
@@ -50,6 +54,8 @@ from pipeflow.solvers.base import (
 )
 
 GAUSS_OFFSET = math.sqrt(3.0) / 6.0
+#: the two Gauss-Legendre nodes on a step, as fractions of the step [-]
+GAUSS_NODES = (0.5 - GAUSS_OFFSET, 0.5 + GAUSS_OFFSET)
 COMMUTATOR_FACTOR = math.sqrt(3.0) / 12.0
 #: Taylor degree and the 1-norm to which a matrix is scaled before it is applied
 TAYLOR_DEGREE = 18
@@ -69,25 +75,38 @@ _BLOCK_ENTRIES = 12_000
 _CACHE_ENTRIES = 12_000
 
 
+def magnus4_omega(A1: FloatArray, A2: FloatArray, h: float | FloatArray) -> FloatArray:
+    """The fourth-order Magnus generator of steps of length ``h`` [s] (dimensionless).
+
+    Omega = h/2 (A_1 + A_2) + sqrt(3) h^2 / 12 [A_2, A_1], with ``A1``, ``A2`` the state
+    matrices [1/s] at the Gauss nodes t + GAUSS_NODES * h, stacks of shape (..., N, N);
+    ``h`` is a number or an array of the leading shape (...).
+    """
+    hh = np.asarray(h, dtype=float)[..., None, None]
+    return np.asarray(0.5 * hh * (A1 + A2) + (COMMUTATOR_FACTOR * hh * hh) * (A2 @ A1 - A1 @ A2))
+
+
 def expm_stack(X: FloatArray) -> FloatArray:
-    """exp(X_k) for a stack ``X`` of shape (K, N, N), by scaling and squaring.
+    """exp(X_k) for a stack ``X`` of shape (..., N, N), by scaling and squaring.
 
     exp(X) = (T_18(X / 2^s))^(2^s) with T_18 the degree-18 Taylor polynomial, evaluated by
-    Paterson-Stockmeyer (7 matrix products), and s chosen so |X/2^s|_1 <= 1 for the
-    largest matrix of the stack: the truncation error is then below 1/19! e < 1e-16
-    relative.  Every operation is a batched matrix product (numpy matmul over the stack).
+    Paterson-Stockmeyer (7 matrix products), and s chosen per matrix so |X/2^s|_1 <= 1:
+    the truncation error is then below 1/19! e < 1e-16 relative.  Every operation is a
+    batched matrix product (numpy matmul over the stack); leading dimensions are flattened.
     """
     X = np.asarray(X, dtype=float)
+    shape = X.shape
+    X = X.reshape(-1, shape[-2], shape[-1])
     if X.shape[0] == 0:
-        return X.copy()
+        return X.reshape(shape).copy()
     # small blocks keep the temporaries in cache (large temporaries cost page faults)
     block_size = max(1, _CACHE_ENTRIES // (X.shape[-1] ** 2))
     if X.shape[0] > block_size:
         out = np.empty_like(X)
         for b in range(0, X.shape[0], block_size):
             out[b : b + block_size] = _expm_block(X[b : b + block_size])
-        return out
-    return _expm_block(X)
+        return out.reshape(shape)
+    return _expm_block(X).reshape(shape)
 
 
 #: Taylor coefficients 1/j! arranged for Paterson-Stockmeyer with p = 4: row i holds the
@@ -133,13 +152,18 @@ def _expm_block(X: FloatArray) -> FloatArray:
     return R
 
 
-def _product_of_steps(E: FloatArray) -> FloatArray:
-    """E[:, m-1] @ ... @ E[:, 0] for a stack of shape (K, m, N, N), pairwise (batched)."""
-    while E.shape[1] > 1:
-        m = E.shape[1]
-        paired = E[:, 1 : m - m % 2 : 2] @ E[:, 0 : m - m % 2 : 2]
-        E = np.concatenate([paired, E[:, m - 1 :]], axis=1) if m % 2 else paired
-    return E[:, 0]
+def product_of_steps(E: FloatArray) -> FloatArray:
+    """E[..., m-1, :, :] @ ... @ E[..., 0, :, :] for a stack (..., m, N, N), pairwise.
+
+    The propagator of m consecutive steps from their step propagators (earliest first),
+    in ceil(log2 m) rounds of batched products.
+    """
+    while E.shape[-3] > 1:
+        m = E.shape[-3]
+        even = m - m % 2
+        paired = E[..., 1:even:2, :, :] @ E[..., 0:even:2, :, :]
+        E = np.concatenate([paired, E[..., m - 1 :, :, :]], axis=-3) if m % 2 else paired
+    return np.asarray(E[..., 0, :, :])
 
 
 class MagnusGenerator:
@@ -179,16 +203,8 @@ class MagnusGenerator:
     def omega(self, starts: FloatArray, h: FloatArray) -> FloatArray:
         """Omega for steps [starts, starts + h] (arrays of equal length) [-]."""
         k = starts.size
-        c = self.coefficients(
-            np.concatenate([starts + (0.5 - GAUSS_OFFSET) * h, starts + (0.5 + GAUSS_OFFSET) * h])
-        )
-        c1, c2 = c[:k], c[k:]
-        shape = (k, self.size, self.size)
-        A1 = (c1 @ self.basis).reshape(shape)
-        A2 = (c2 @ self.basis).reshape(shape)
-        mean = ((0.5 * h[:, None]) * (c1 + c2) @ self.basis).reshape(shape)
-        hh = (COMMUTATOR_FACTOR * h * h)[:, None, None]
-        return mean + hh * (A2 @ A1 - A1 @ A2)
+        A = self.matrices(np.concatenate([starts + g * h for g in GAUSS_NODES]))
+        return magnus4_omega(A[:k], A[k:], h)
 
     def propagators(self, starts: FloatArray, h: FloatArray) -> FloatArray:
         return expm_stack(self.omega(starts, h))
@@ -356,7 +372,7 @@ class Magnus:
             starts = (t[idx][:, None] + h[:, None] * np.arange(m)[None, :]).ravel()
             E = gen.propagators(starts, np.repeat(h, m))
             exps += E.shape[0]
-            E = _product_of_steps(E.reshape(idx.size, m, gen.size, gen.size))
+            E = product_of_steps(E.reshape(idx.size, m, gen.size, gen.size))
             for j in range(idx.size):
                 z = E[j] @ z
                 Zaug[k + j + 1] = z

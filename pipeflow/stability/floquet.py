@@ -12,10 +12,12 @@ Oteo & Ros, Physics Reports 470, 2009, eq. 253)::
 
     Omega_k = h/2 (A_1 + A_2) + sqrt(3) h^2 / 12 [A_2, A_1],   Phi = prod_k exp(Omega_k),
 
-batched: all exponentials of a period (and, for a chart, of all amplitudes) are one stacked
-``scipy.linalg.expm`` call, and the product is taken pairwise.  The number of steps per
-period is doubled until two successive monodromy matrices agree to ``tolerance``
-(relative, 2-norm); that difference is reported as the error estimate.  With zero
+batched: all exponentials of a period (and, for a chart, of all amplitudes) are one
+:func:`~pipeflow.solvers.magnus.expm_stack` call, and the product is taken pairwise
+(:func:`~pipeflow.solvers.magnus.product_of_steps`); the step itself is
+:func:`~pipeflow.solvers.magnus.magnus4_omega`, shared with the Magnus solver.  The
+number of steps per period is doubled until two successive monodromy matrices agree to
+``tolerance`` (relative, 2-norm); that difference is reported as the error estimate.  With zero
 pulsation amplitude S is constant, Omega = h S and Phi = exp(S T) to rounding.
 """
 
@@ -31,6 +33,7 @@ from scipy import ndimage
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
+from pipeflow.solvers.magnus import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.stability.core import (
     REVERSE_FLOW_CAVEAT,
     ComplexArray,
@@ -41,43 +44,11 @@ from pipeflow.stability.core import (
     eigenvalues,
 )
 
-GAUSS = (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0)
-COMMUTATOR = math.sqrt(3.0) / 12.0
 MIN_STEPS = 16
 #: ceiling on Magnus steps per period
 MAX_STEPS = 65_536
 #: ceiling on (grid points) x (steps per period) x (2n)^3 for one chart
 MAX_CHART_WORK = 2e11
-#: exponentials per batched call
-CHUNK = 8192
-
-
-def expm_batch(X: FloatArray) -> FloatArray:
-    """exp of each matrix in a stack (..., m, m): scaling and squaring of a degree-16 Taylor
-    polynomial (Horner, batched matmul).  After scaling the 1-norm to <= 1/2, the truncation
-    error is below 0.5^17 / 17! ~ 6e-21, under rounding.  Faster than
-    ``scipy.linalg.expm`` for large stacks of small matrices.
-    """
-    norm = float(np.max(np.sum(np.abs(X), axis=-2))) if X.size else 0.0
-    squarings = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
-    Y = X / 2.0**squarings
-    eye = np.eye(X.shape[-1])
-    E = eye + Y / 16.0
-    for k in range(15, 0, -1):
-        E = eye + (Y @ E) / k
-    for _ in range(squarings):
-        E = E @ E
-    return np.asarray(E)
-
-
-def _chain(E: FloatArray) -> FloatArray:
-    """E[..., N-1, :, :] @ ... @ E[..., 0, :, :] by pairwise products."""
-    while E.shape[-3] > 1:
-        if E.shape[-3] % 2:
-            eye = np.broadcast_to(np.eye(E.shape[-1]), (*E.shape[:-3], 1, *E.shape[-2:]))
-            E = np.concatenate([E, eye], axis=-3)
-        E = E[..., 1::2, :, :] @ E[..., 0::2, :, :]
-    return np.asarray(E[..., 0, :, :])
 
 
 def _matrices(model: PipeModel, v: FloatArray, vdot: FloatArray, w2: FloatArray) -> FloatArray:
@@ -99,14 +70,8 @@ def _monodromy_steps(
     """Monodromy matrices for a batch: ``coefficients(t)`` -> (v, vdot, w2), each (B, len(t))."""
     h = period / steps
     t0 = np.arange(steps) * h
-    A = [_matrices(model, *coefficients(t0 + g * h)) for g in GAUSS]  # (B, N, m, m)
-    Om = 0.5 * h * (A[0] + A[1]) + COMMUTATOR * h * h * (A[1] @ A[0] - A[0] @ A[1])
-    shape = Om.shape
-    flat = Om.reshape(-1, *shape[-2:])
-    E = np.empty_like(flat)
-    for i in range(0, flat.shape[0], CHUNK):
-        E[i : i + CHUNK] = expm_batch(flat[i : i + CHUNK])
-    return _chain(E.reshape(shape))
+    A1, A2 = (_matrices(model, *coefficients(t0 + g * h)) for g in GAUSS_NODES)  # (B, N, m, m)
+    return product_of_steps(expm_stack(magnus4_omega(A1, A2, h)))
 
 
 def _converged_monodromy(

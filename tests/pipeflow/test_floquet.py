@@ -13,7 +13,7 @@ from pipeflow.errors import InvalidInput
 from pipeflow.model import Loading, build_model
 from pipeflow.profiles import Constant, Harmonic, polynomial
 from pipeflow.stability.core import eigenvalues, nondimensional_pipe
-from pipeflow.stability.floquet import expm_batch, floquet, resonance_chart
+from pipeflow.stability.floquet import floquet, resonance_chart
 
 BETA = 0.2
 PIPE = nondimensional_pipe(BETA)
@@ -115,12 +115,3 @@ def test_harmonic_spin_and_input_errors():
     with pytest.raises(InvalidInput) as e:
         floquet(PIPE, polynomial(0.0, 1.0), None, modes=3)
     assert e.value.field == "flow.velocity"
-
-
-def test_batched_expm_matches_scipy():
-    from scipy.linalg import expm
-
-    X = np.random.default_rng(0).standard_normal((20, 6, 6)) * 3
-    np.testing.assert_allclose(
-        expm_batch(X), expm(X), rtol=1e-11, atol=1e-11 * np.abs(expm(X)).max()
-    )

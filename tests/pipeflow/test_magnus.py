@@ -19,7 +19,7 @@ from pipeflow.model import PAPER_PIPE, Loading, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile, polynomial
 from pipeflow.simulation import Result, simulate
 from pipeflow.solvers import SOLVERS, Options, Problem
-from pipeflow.solvers.magnus import expm_stack
+from pipeflow.solvers.magnus import expm_stack, magnus4_omega, product_of_steps
 from tests.pipeflow.cases import PAPER_FLOWS, paper_sim, reference_run
 
 #: the reference itself agrees with a 40000-step Magnus run to ~3e-10 on these cases, so
@@ -183,3 +183,29 @@ def test_expm_stack_matches_scipy() -> None:
     assert np.max(err[10:20]) < 1e-14
     assert np.max(err[20:30]) < 1e-12
     assert np.max(err[30:]) < 1e-11  # |X| ~ 2e3: 11 squarings amplify rounding
+
+
+def test_step_helpers_accept_leading_batch_dimensions() -> None:
+    """The Floquet analysis calls the helpers on (batch, steps, N, N) stacks: each batched
+    result equals the one computed matrix by matrix (expm to 1e-13 of scipy's Pade, the
+    pairwise product to rounding of the sequential one, Omega exactly), and Omega of a
+    constant A is h A (to rounding)."""
+    rng = np.random.default_rng(1)
+    X = rng.standard_normal((3, 5, 6, 6)) * 3
+    ours = expm_stack(X)
+    assert ours.shape == X.shape
+    theirs = np.stack([[expm(x) for x in row] for row in X])
+    np.testing.assert_allclose(ours, theirs, rtol=1e-13, atol=1e-13 * np.abs(theirs).max())
+    product = product_of_steps(X)
+    for b in range(X.shape[0]):
+        expected = np.eye(6)
+        for k in range(X.shape[1]):
+            expected = X[b, k] @ expected
+        np.testing.assert_allclose(product[b], expected, rtol=1e-12, atol=1e-12)
+    A1, A2 = X[:, :, :3, :3], X[:, :, 3:, 3:]
+    h = rng.uniform(0.1, 1.0, size=X.shape[:2])
+    omega = magnus4_omega(A1, A2, h)
+    for b, k in np.ndindex(*h.shape):
+        one = magnus4_omega(A1[b, k][None], A2[b, k][None], h[b, k : k + 1])[0]
+        np.testing.assert_array_equal(omega[b, k], one)
+    np.testing.assert_allclose(magnus4_omega(A1, A1, 0.3), 0.3 * A1, rtol=1e-15, atol=1e-15)
