@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -13,24 +12,11 @@ import pytest
 import pipeflow_client
 from pipeflow.cli import main as cli_main
 from pipeflow_client import Client, JobFailed, ServiceError, SimulationResult
-from tests.service.conftest import SMALL, make_client, wait_ready
+from tests.service.conftest import SMALL
 
 
-@pytest.fixture(scope="module")
-def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
-    with make_client(tmp_path_factory.mktemp("client")) as tc:
-        wait_ready(tc)
-        yield tc
-
-
-@pytest.fixture
-def client(service: Any) -> Iterator[Client]:
-    with Client(str(service.base_url), http=service) as c:
-        yield c
-
-
-def test_simulate_returns_numpy_arrays(client: Client) -> None:
-    r = client.simulate(SMALL)
+def test_simulate_returns_numpy_arrays(sdk_client: Client) -> None:
+    r = sdk_client.simulate(SMALL)
     assert isinstance(r, SimulationResult)
     assert len(r.key) == 64 and r.status == "ok"
     assert r.t.shape == r.tip_displacement.shape == (101,)
@@ -39,58 +25,58 @@ def test_simulate_returns_numpy_arrays(client: Client) -> None:
     assert r.sigma.shape == r.omega.shape == (r.eigen_t.size, 3)
     assert np.all(r.omega[:, 0] > 0)  # [rad/s]
     assert r.plots[:3] == ["tip_displacement", "damping", "frequency"]
-    again = client.simulate(SMALL)
+    again = sdk_client.simulate(SMALL)
     assert again.cached and again.key == r.key
     np.testing.assert_array_equal(again.tip_displacement, r.tip_displacement)
 
 
-def test_job_with_progress_then_fetch_by_key(client: Client) -> None:
+def test_job_with_progress_then_fetch_by_key(sdk_client: Client) -> None:
     spec = dict(SMALL, time={"t_end": 0.3, "samples": 61})
     seen: list[float] = []
-    job = client.submit(spec)
+    job = sdk_client.submit(spec)
     assert job["status"] in ("queued", "running", "succeeded")
-    r = client.wait(job["key"], progress=seen.append, poll=0.02, timeout=60)
+    r = sdk_client.wait(job["key"], progress=seen.append, poll=0.02, timeout=60)
     assert seen and seen[-1] == 1.0 and all(0 <= f <= 1 for f in seen)
     assert r.t.size == 61
-    stored = client.result(r.key)
+    stored = sdk_client.result(r.key)
     np.testing.assert_array_equal(stored.tip_displacement, r.tip_displacement)
     # simulate with a progress callback goes through the same job path
-    assert client.simulate(spec, progress=lambda f: None).key == r.key
+    assert sdk_client.simulate(spec, progress=lambda f: None).key == r.key
 
 
-def test_csv_and_plots_through_the_client(client: Client) -> None:
-    key = client.simulate(SMALL).key
-    text = client.result_csv(key, "eigenvalues")
+def test_csv_and_plots_through_the_client(sdk_client: Client) -> None:
+    key = sdk_client.simulate(SMALL).key
+    text = sdk_client.result_csv(key, "eigenvalues")
     assert text.splitlines()[0].startswith("t [s],sigma_1 [1/s],omega_1 [rad/s]")
-    assert client.plot(key, "damping", "png").startswith(b"\x89PNG")
-    assert b"<svg" in client.plot(key, "frequency", "svg")
+    assert sdk_client.plot(key, "damping", "png").startswith(b"\x89PNG")
+    assert b"<svg" in sdk_client.plot(key, "frequency", "svg")
 
 
-def test_service_errors_carry_problem_details(client: Client) -> None:
+def test_service_errors_carry_problem_details(sdk_client: Client) -> None:
     bad = json.loads(json.dumps(SMALL))
     bad["pipe"]["E"] = -1.0
     with pytest.raises(ServiceError) as err:
-        client.simulate(bad)
+        sdk_client.simulate(bad)
     assert err.value.status == 422
     assert err.value.field == "pipe.E"
     assert err.value.problem["status"] == 422
     assert "pipe.E" in str(err.value)
 
     with pytest.raises(ServiceError) as err:
-        client.result("0" * 64)
+        sdk_client.result("0" * 64)
     assert err.value.status == 404 and "no result" in err.value.problem["detail"]
 
     with pytest.raises(ServiceError) as err:
-        client.plot(client.simulate(SMALL).key, "bode")
+        sdk_client.plot(sdk_client.simulate(SMALL).key, "bode")
     assert err.value.status == 404 and err.value.field == "name"
 
 
-def test_failed_job_raises_job_failed(client: Client) -> None:
+def test_failed_job_raises_job_failed(sdk_client: Client) -> None:
     # an explicit RK4 step far outside the stability region is refused by the solver
     spec = dict(SMALL, method="rk4", options={"step": 0.01})
-    job = client.submit(spec)
+    job = sdk_client.submit(spec)
     with pytest.raises(JobFailed) as err:
-        client.wait(job["key"], poll=0.02, timeout=60)
+        sdk_client.wait(job["key"], poll=0.02, timeout=60)
     assert err.value.field == "options.step"
 
 
@@ -111,11 +97,11 @@ def test_cli_run_and_plot_with_server(
     assert png.read_bytes().startswith(b"\x89PNG")
 
 
-def test_compare_through_the_client(client: Client) -> None:
+def test_compare_through_the_client(sdk_client: Client) -> None:
     """Client.compare against the real app: magnus is the baseline on a time-variant case."""
-    doc = client.compare(SMALL, ["cma", "magnus"])
+    doc = sdk_client.compare(SMALL, ["cma", "magnus"])
     assert doc["baseline"] == "magnus"
     assert [r["method"] for r in doc["methods"]] == ["cma", "magnus"]
     with pytest.raises(ServiceError) as err:
-        client.compare(SMALL, ["nope"])
+        sdk_client.compare(SMALL, ["nope"])
     assert err.value.status == 422 and (err.value.field or "").startswith("methods")

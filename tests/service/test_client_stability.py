@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
 from pipeflow.stability_spec import PAPER_PIPE_JSON, ArgandSweep, StabilitySpec
 from pipeflow_client import Client, ServiceError
-from tests.service.conftest import make_client, wait_ready
 
 #: beta = 0.2 non-dimensional pipe (E = I = L = 1, M1 + M2 = 1): u = v sqrt(beta)
 BETA_02: dict[str, Any] = {
@@ -21,40 +19,27 @@ BETA_02: dict[str, Any] = {
 }
 
 
-@pytest.fixture(scope="module")
-def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
-    with make_client(tmp_path_factory.mktemp("client-stability")) as tc:
-        wait_ready(tc)
-        yield tc
-
-
-@pytest.fixture
-def client(service: Any) -> Iterator[Client]:
-    with Client(str(service.base_url), http=service) as c:
-        yield c
-
-
-def test_stability_returns_the_critical_velocity(client: Client) -> None:
+def test_stability_returns_the_critical_velocity(sdk_client: Client) -> None:
     """Gregory & Paidoussis (1966) / Paidoussis (1998) sec. 3.5: beta = 0.2 flutters in the
     second mode at u_cr ~ 5.6 (graphical, +-0.1); the 10-mode value is 5.5917."""
-    doc = client.stability(BETA_02)
+    doc = sdk_client.stability(BETA_02)
     assert doc["dimensionless"]["u_cr"] == pytest.approx(5.6, abs=0.1)
     assert doc["dimensionless"]["u_cr"] == pytest.approx(5.5917, rel=1e-4)
     assert doc["crossings"][0]["mode"] == 2 and doc["cached"] is False
     # a spec model gives the same key; the second call is served from the cache
-    again = client.stability(StabilitySpec.model_validate(BETA_02))
+    again = sdk_client.stability(StabilitySpec.model_validate(BETA_02))
     assert again["key"] == doc["key"] and again["cached"] is True
 
 
-def test_stability_with_progress_goes_through_a_job(client: Client) -> None:
+def test_stability_with_progress_goes_through_a_job(sdk_client: Client) -> None:
     seen: list[float] = []
-    doc = client.stability({**BETA_02, "modes": 8}, progress=seen.append)
+    doc = sdk_client.stability({**BETA_02, "modes": 8}, progress=seen.append)
     assert seen and seen[-1] == 1.0 and all(0.0 <= f <= 1.0 for f in seen)
     assert doc["critical_velocity"] == pytest.approx(5.5917 / math.sqrt(0.2), rel=1e-3)
-    assert client.job(doc["key"])["kind"] == "stability"
+    assert sdk_client.job(doc["key"])["kind"] == "stability"
 
 
-def test_sweep_submits_waits_and_returns_the_result(client: Client) -> None:
+def test_sweep_submits_waits_and_returns_the_result(sdk_client: Client) -> None:
     spec = ArgandSweep.model_validate(
         {
             "pipe": PAPER_PIPE_JSON,
@@ -65,21 +50,21 @@ def test_sweep_submits_waits_and_returns_the_result(client: Client) -> None:
         }
     )  # the model's "kind" is a default, not set: the client still sends it
     seen: list[float] = []
-    doc = client.sweep(spec, progress=seen.append, poll=0.02, timeout=60)
+    doc = sdk_client.sweep(spec, progress=seen.append, poll=0.02, timeout=60)
     assert doc["kind"] == "argand" and len(doc["modes"]) == 2
     assert seen[-1] == 1.0
     assert doc["plots"] == ["argand", "sweep_frequency", "sweep_damping"]
-    assert client.plot(doc["key"], "sweep_damping").startswith(b"\x89PNG")
-    job = client.submit_sweep(spec)
+    assert sdk_client.plot(doc["key"], "sweep_damping").startswith(b"\x89PNG")
+    job = sdk_client.submit_sweep(spec)
     assert job["status"] == "succeeded" and job["key"] == doc["key"]
 
 
-def test_sweep_errors(client: Client) -> None:
+def test_sweep_errors(sdk_client: Client) -> None:
     with pytest.raises(ServiceError) as err:
-        client.sweep({"kind": "bode", "pipe": PAPER_PIPE_JSON})
+        sdk_client.sweep({"kind": "bode", "pipe": PAPER_PIPE_JSON})
     assert err.value.status == 422 and err.value.field == "kind"
     with pytest.raises(ServiceError) as err:
-        client.stability({**BETA_02, "velocity_range": [1.0, 0.0]})
+        sdk_client.stability({**BETA_02, "velocity_range": [1.0, 0.0]})
     assert err.value.status == 422 and err.value.field == "velocity_range"
     # within every per-field bound, but over the library's work budget: refused at once
     too_big = {
@@ -92,5 +77,5 @@ def test_sweep_errors(client: Client) -> None:
         "spin_points": 200,
     }
     with pytest.raises(ServiceError) as err:
-        client.sweep(too_big, poll=0.02, timeout=60)
+        sdk_client.sweep(too_big, poll=0.02, timeout=60)
     assert err.value.status == 422 and err.value.field == "spin_points"
