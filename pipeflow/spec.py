@@ -28,11 +28,22 @@ MAX_EIGEN_SAMPLES = 2001
 MAX_POLY_DEGREE = 8
 
 
-class _Strict(BaseModel):
+class StrictModel(BaseModel):
+    """Base of every request model: unknown fields and non-finite numbers are refused.
+
+    :meth:`canonical` is the normalised JSON form the cache key is computed from; models
+    that normalise further (:class:`SimulationSpec`) override it.  Subclasses setting
+    ``model_config`` (e.g. for schema examples) inherit these settings (pydantic merges it).
+    """
+
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
+    def canonical(self) -> dict[str, Any]:
+        """Normalised JSON form (every default filled in) that the cache key is computed from."""
+        return self.model_dump(mode="json")
 
-class PipeSpec(_Strict):
+
+class PipeSpec(StrictModel):
     """Pipe and fluid properties (the paper's section 5 values are the example)."""
 
     E: float = Field(gt=0, description="Young's modulus of the pipe wall [Pa].")
@@ -51,7 +62,7 @@ class PipeSpec(_Strict):
         return Pipe(E=self.E, I=self.I, L=self.L, M1=self.M1, M2=self.M2)
 
 
-class ConstantProfile(_Strict):
+class ConstantProfile(StrictModel):
     """p(t) = value."""
 
     kind: Literal["constant"] = "constant"
@@ -61,7 +72,7 @@ class ConstantProfile(_Strict):
         return profiles.Constant(self.value)
 
 
-class PolynomialProfile(_Strict):
+class PolynomialProfile(StrictModel):
     """p(t) = sum_k coefficients[k] t^k with t in seconds (the paper's a, a t, a t^2)."""
 
     kind: Literal["polynomial"] = "polynomial"
@@ -75,7 +86,7 @@ class PolynomialProfile(_Strict):
         return profiles.Polynomial(tuple(self.coefficients))
 
 
-class HarmonicProfile(_Strict):
+class HarmonicProfile(StrictModel):
     """p(t) = mean + amplitude sin(frequency t + phase): pulsating flow, oscillating spin."""
 
     kind: Literal["harmonic"] = "harmonic"
@@ -88,7 +99,7 @@ class HarmonicProfile(_Strict):
         return profiles.Harmonic(self.mean, self.amplitude, self.frequency, self.phase)
 
 
-class TableProfile(_Strict):
+class TableProfile(StrictModel):
     """Tabulated values interpolated in time; must start at t <= 0 and cover t_end."""
 
     kind: Literal["table"] = "table"
@@ -122,20 +133,20 @@ ProfileSpec = Annotated[
 ]
 
 
-class RotationSpec(_Strict):
+class RotationSpec(StrictModel):
     omega0: ProfileSpec = Field(
         default_factory=ConstantProfile, description="Spin w0(t) of the hub [rad/s]."
     )
 
 
-class FlowSpec(_Strict):
+class FlowSpec(StrictModel):
     velocity: ProfileSpec = Field(
         default_factory=ConstantProfile,
         description="Flow velocity v(t) [m/s]; v > 0 flows from the clamped end to the tip.",
     )
 
 
-class InitialSpec(_Strict):
+class InitialSpec(StrictModel):
     u0: float = Field(
         0.001,
         ge=-1e3,
@@ -155,14 +166,14 @@ class InitialSpec(_Strict):
     )
 
 
-class TimeSpec(_Strict):
+class TimeSpec(StrictModel):
     t_end: float = Field(1.0, gt=0, le=1e6, description="Simulated duration [s].")
     samples: int = Field(
         2001, ge=2, le=MAX_SAMPLES, description="Output times, evenly spaced incl. 0 and t_end."
     )
 
 
-class MethodOptions(_Strict):
+class MethodOptions(StrictModel):
     """Solver options; a method ignores the ones it does not read (and so does the cache key)."""
 
     step: float | None = Field(
@@ -189,7 +200,7 @@ class MethodOptions(_Strict):
     )
 
 
-class OutputSpec(_Strict):
+class OutputSpec(StrictModel):
     positions: list[float] = Field(
         default_factory=list,
         max_length=MAX_POSITIONS,
@@ -207,12 +218,10 @@ class OutputSpec(_Strict):
     )
 
 
-class SimulationSpec(_Strict):
+class SimulationSpec(StrictModel):
     """A simulation request: pipe, loading, initial condition, discretisation and method."""
 
     model_config = ConfigDict(
-        extra="forbid",
-        allow_inf_nan=False,
         json_schema_extra={
             "examples": [
                 {

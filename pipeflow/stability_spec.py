@@ -19,10 +19,10 @@ import math
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
+from pydantic import ConfigDict, Field, TypeAdapter, model_validator
 
 from pipeflow.errors import BudgetExceeded
-from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec
+from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec, StrictModel
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, resonance_chart
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
@@ -43,14 +43,6 @@ MAX_SPEED = 1e6
 MAX_SPIN = 1e7
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-    def canonical(self) -> dict[str, Any]:
-        """Normalised JSON form (every default filled in) that the cache key is computed from."""
-        return self.model_dump(mode="json")
-
-
 def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
     lo, hi = value
     if not lo < hi:
@@ -59,13 +51,13 @@ def _check_range(value: tuple[float, float], name: str, bound: float, unit: str)
         raise ValueError(f"{name} must lie within +-{bound:g} {unit}")
 
 
-class ConstantRotation(_Strict):
+class ConstantRotation(StrictModel):
     omega0: ConstantProfile = Field(
         default_factory=ConstantProfile, description="Constant spin w0 of the hub [rad/s]."
     )
 
 
-class ConstantFlow(_Strict):
+class ConstantFlow(StrictModel):
     velocity: ConstantProfile = Field(
         default_factory=ConstantProfile,
         description="Constant flow velocity v [m/s]; v > 0 flows from the clamped end to the tip.",
@@ -82,12 +74,10 @@ SpinRange = Annotated[
 Modes = Annotated[int, Field(ge=1, le=MAX_MODES, description="Galerkin (cantilever) modes n.")]
 
 
-class StabilitySpec(_Strict):
+class StabilitySpec(StrictModel):
     """Critical flow velocity of a pipe at constant spin over a velocity range."""
 
     model_config = ConfigDict(
-        extra="forbid",
-        allow_inf_nan=False,
         json_schema_extra={
             "examples": [
                 {
@@ -120,7 +110,7 @@ class StabilitySpec(_Strict):
         return self
 
 
-class _TrackedSweep(_Strict):
+class _TrackedSweep(StrictModel):
     pipe: PipeSpec
     modes: Modes = 10
     points: int = Field(201, ge=2, le=MAX_SWEEP_POINTS, description="Evenly spaced points [-].")
@@ -176,7 +166,7 @@ class CampbellSweep(_TrackedSweep):
         return self
 
 
-class SpinMapSweep(_Strict):
+class SpinMapSweep(StrictModel):
     """Growth-rate map over (spin, flow velocity) and the critical velocity at each spin."""
 
     kind: Literal["spin_map"] = "spin_map"
@@ -197,7 +187,7 @@ class SpinMapSweep(_Strict):
         return self
 
 
-class BetaMapSweep(_Strict):
+class BetaMapSweep(StrictModel):
     """u_cr(beta) in Paidoussis' non-dimensional form, all crossings per beta (S-shapes)."""
 
     kind: Literal["beta_map"] = "beta_map"
@@ -224,7 +214,7 @@ class BetaMapSweep(_Strict):
         return self
 
 
-class ResonanceChartSweep(_Strict):
+class ResonanceChartSweep(StrictModel):
     """Floquet chart of pulsating flow v = mean + a sin(Omega t) over (a, Omega)."""
 
     kind: Literal["resonance_chart"] = "resonance_chart"
@@ -265,13 +255,13 @@ class ResonanceChartSweep(_Strict):
         return self
 
 
-class PeriodicFlow(_Strict):
+class PeriodicFlow(StrictModel):
     velocity: ConstantProfile | HarmonicProfile = Field(
         discriminator="kind", description="Flow velocity v(t) [m/s]: constant or harmonic."
     )
 
 
-class PeriodicRotation(_Strict):
+class PeriodicRotation(StrictModel):
     omega0: ConstantProfile | HarmonicProfile = Field(
         default_factory=ConstantProfile,
         discriminator="kind",
@@ -279,7 +269,7 @@ class PeriodicRotation(_Strict):
     )
 
 
-class FloquetSweep(_Strict):
+class FloquetSweep(StrictModel):
     """Floquet multipliers of one case with harmonic flow and/or spin (one period)."""
 
     kind: Literal["floquet"] = "floquet"
