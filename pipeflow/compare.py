@@ -16,7 +16,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import ConfigDict, Field, field_validator
 
 from pipeflow.diagnostics import summary
 from pipeflow.errors import InvalidInput
@@ -24,7 +24,7 @@ from pipeflow.model import build_model
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS
 from pipeflow.solvers.base import ProgressCallback
-from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec, StrictModel
 
 #: the reference integrator's error is taken as this multiple of its rtol when ranking
 #: (measured: rtol 1e-12 gives ~3e-10 on the paper's example)
@@ -136,12 +136,10 @@ def compare(
     }
 
 
-class CompareSpec(BaseModel):
+class CompareSpec(StrictModel):
     """Body of ``POST /v1/compare``: one simulation, several methods."""
 
     model_config = ConfigDict(
-        extra="forbid",
-        allow_inf_nan=False,
         json_schema_extra={
             "examples": [{"simulation": PAPER_EXAMPLE, "methods": ["cma", "magnus", "rk4"]}]
         },
