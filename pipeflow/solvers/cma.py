@@ -12,9 +12,10 @@ with Gauss-Legendre quadrature fine enough for the fastest retained mode.
 from __future__ import annotations
 
 import time
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.linalg import expm
 
 from pipeflow.errors import BudgetExceeded
@@ -88,8 +89,13 @@ class CMA:
             Z = _expm_marching(S, t, z0)
             return Z, np.array([cond]), 1
         c = np.linalg.solve(V, z0.astype(complex))
+        # S is real, so LAPACK returns exact conjugate pairs: keep one of each pair and
+        # double its real part (half the exponentials and the product), real ones once
+        keep = w.imag >= 0
+        weight = np.where(w.imag[keep] > 0, 2.0, 1.0)
         with np.errstate(over="ignore", invalid="ignore"):
-            Z = ((np.exp(np.outer(t, w)) * c) @ V.T).real
+            E = modal_exponentials(t, w[keep])
+            Z = ((E * (weight * c[keep])) @ V[:, keep].T).real
         return Z, np.array([cond]), 0
 
     def _time_variant(
@@ -149,6 +155,24 @@ class CMA:
         out = np.zeros((t.size, model.size))
         out[1:] = np.cumsum(per_interval, axis=0)
         return out
+
+
+def modal_exponentials(t: FloatArray, w: NDArray[np.complex128], block: int = 64) -> Any:
+    """exp(outer(t, w)): on a uniform grid t_k = k dt as products exp(w t_b) exp(w j dt) of
+    two small tables (block starts t_b, offsets j dt), one complex multiply per entry
+    instead of one complex exponential; a general grid uses exp directly."""
+    n = t.size
+    dt = t[1] - t[0] if n > 1 else 0.0
+    uniform = (
+        n > 2 * block
+        and t[0] == 0.0
+        and np.allclose(t, dt * np.arange(n), rtol=0, atol=1e-14 * abs(t[-1]))
+    )
+    if not uniform:
+        return np.exp(np.outer(t, w))
+    starts = np.exp(np.outer(t[::block], w))
+    offsets = np.exp(np.outer(dt * np.arange(block), w))
+    return (starts[:, None, :] * offsets[None, :, :]).reshape(-1, w.size)[:n]
 
 
 def _expm_marching(S: FloatArray, t: FloatArray, z0: FloatArray) -> FloatArray:
