@@ -196,7 +196,7 @@ class MethodOptions(StrictModel):
         1e8,
         ge=10,
         le=1e14,
-        description="cma: eigenvector condition number above which expm is used instead [-].",
+        description="cma: eigenvector 1-norm condition number above which expm is used [-].",
     )
 
 

@@ -29,7 +29,7 @@ class Options:
         balanced state, i.e. metres of modal amplitude).
     integrator : ``solve_ivp`` method for ``reference`` (DOP853, RK45, Radau, BDF, LSODA).
     tolerance : relative accuracy target of ``magnus`` [-].
-    condition_limit : eigenvector-matrix condition number above which ``cma`` falls back to
+    condition_limit : eigenvector-matrix 1-norm condition number above which ``cma`` falls back to
         a Pade matrix exponential for that time [-].
     """
 
