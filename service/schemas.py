@@ -131,7 +131,7 @@ class MethodComparison(BaseModel):
         description="The same on the tip displacement u(L, t) [-]."
     )
     compared_samples: int = Field(description="Output times compared (finite in both).")
-    warnings: list[str]
+    warnings: list[str] = Field(description="The run's warnings (e.g. error above 1e-4).")
     diagnostics: dict[str, Any] = Field(description="Key solver diagnostics.")
 
 
@@ -141,7 +141,7 @@ class CompareResponse(BaseModel):
     key: str = Field(description="Parameter hash of the request.")
     cached: bool = Field(description="True when served from the cache.")
     baseline: str = Field(description="The most accurate method, differences refer to it.")
-    methods: list[MethodComparison]
+    methods: list[MethodComparison] = Field(description="One entry per method, in order.")
     samples: int = Field(description="Output times per run.")
     modes: int = Field(description="Galerkin modes.")
     t_end: float = Field(description="Simulated duration [s].")
