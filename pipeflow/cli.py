@@ -159,13 +159,16 @@ def _stability_local(spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
         bar.close()
 
 
-def _stability_remote(spec_data: Any, server: str) -> dict[str, Any]:
+def _stability_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
     from pipeflow_client import Client  # imported here: the library has no web imports
 
     with Client(server) as client:
-        if "kind" in spec_data:
-            return dict(client.sweep(spec_data))
-        return dict(client.stability(spec_data))
+        try:
+            if "kind" in spec_data:
+                return dict(client.sweep(spec_data, progress=bar))
+            return dict(client.stability(spec_data, progress=bar))
+        finally:
+            bar.close()
 
 
 def _result_for(args: argparse.Namespace, data: Any) -> dict[str, Any]:
@@ -173,9 +176,10 @@ def _result_for(args: argparse.Namespace, data: Any) -> dict[str, Any]:
     if _is_result(data):
         return data
     if _is_stability_spec(data):
+        bar = _progress(args, "analysing")
         if getattr(args, "server", None):
-            return _stability_remote(data, args.server)
-        return _stability_local(data, _progress(args, "analysing"))
+            return _stability_remote(data, args.server, bar)
+        return _stability_local(data, bar)
     bar = _progress(args, "simulating")
     if getattr(args, "server", None):
         return _run_remote(data, args.server, bar)
@@ -196,6 +200,16 @@ def _write(out: str | None, payload: str | bytes) -> None:
         path.write_text(payload, encoding="utf-8", newline="")
 
 
+def _write_json(args: argparse.Namespace, result: dict[str, Any]) -> None:
+    """``result`` as JSON to ``--output`` (stdout by default), one line with ``--compact``."""
+    _write(args.output, json.dumps(result, indent=None if args.compact else 1) + "\n")
+
+
+def _print_warnings(result: dict[str, Any]) -> None:
+    for w in result.get("warnings", []):
+        print(f"warning: {w}", file=sys.stderr)
+
+
 def cmd_example(args: argparse.Namespace) -> int:
     from pipeflow.spec import PAPER_EXAMPLE
 
@@ -210,9 +224,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         _write(args.output, to_csv(result, args.table))
     else:
-        _write(args.output, json.dumps(result, indent=None if args.compact else 1) + "\n")
-    for w in result.get("warnings", []):
-        print(f"warning: {w}", file=sys.stderr)
+        _write_json(args, result)
+    _print_warnings(result)
     return 0
 
 
@@ -247,13 +260,12 @@ def cmd_stability(args: argparse.Namespace) -> int:
             field="kind",
         )
     result = _result_for(args, data)
-    _write(args.output, json.dumps(result, indent=None if args.compact else 1) + "\n")
+    _write_json(args, result)
     if result.get("kind") == "stability":
         v = result.get("critical_velocity")
         where = "none in the range" if v is None else f"{v:.6g} m/s"
         print(f"critical flow velocity: {where}", file=sys.stderr)
-    for w in result.get("warnings", []):
-        print(f"warning: {w}", file=sys.stderr)
+    _print_warnings(result)
     return 0
 
 
@@ -288,6 +300,13 @@ def build_parser() -> argparse.ArgumentParser:
         )
         g.add_argument("--quiet", action="store_true", help="never draw the progress bar")
 
+    def json_output_flags(sp: argparse.ArgumentParser) -> None:
+        """-o, --server, --compact and the progress flags of the JSON-writing commands."""
+        sp.add_argument("-o", "--output", help="write to this file instead of stdout")
+        sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
+        sp.add_argument("--compact", action="store_true", help="JSON on one line")
+        progress_flags(sp)
+
     sp = sub.add_parser(
         "example",
         help="print the paper's example spec (JSON)",
@@ -314,10 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="history",
         help="CSV table: " + "; ".join(f"{k}: {v}" for k, v in TABLES.items()),
     )
-    sp.add_argument("-o", "--output", help="write to this file instead of stdout")
-    sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
-    sp.add_argument("--compact", action="store_true", help="JSON on one line")
-    progress_flags(sp)
+    json_output_flags(sp)
     sp.set_defaults(func=cmd_run)
 
     sp = sub.add_parser(
@@ -356,10 +372,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("spec", help="stability or sweep spec JSON file ('-': stdin)")
-    sp.add_argument("-o", "--output", help="write to this file instead of stdout")
-    sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
-    sp.add_argument("--compact", action="store_true", help="JSON on one line")
-    progress_flags(sp)
+    json_output_flags(sp)
     sp.set_defaults(func=cmd_stability)
 
     sp = sub.add_parser(
