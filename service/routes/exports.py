@@ -15,7 +15,7 @@ from __future__ import annotations
 import asyncio
 import json
 import threading
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Header, Path, Response
 
@@ -34,11 +34,6 @@ IMMUTABLE = "public, max-age=86400, immutable"
 
 Table = Literal["history", "eigenvalues", "cma_exponents"]
 TABLE_DESCRIPTION = "CSV table: " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
-
-
-def with_plot_names(result: dict[str, Any]) -> dict[str, Any]:
-    """``result`` plus ``"plots"``: the names of the figures it supports."""
-    return {**result, "plots": plots.available_plots(result)}
 
 
 def wants_csv(fmt: str | None, accept: str | None) -> bool:
@@ -95,11 +90,11 @@ def csv_response(key: str, body: bytes, table: str) -> Response:
 
 def _render(body: bytes, name: str, fmt: str) -> bytes:
     result = json.loads(body)
-    if name not in plots.available_plots(result):
+    names = plots.available_plots(result)
+    if name not in names:
         raise ProblemError(
             404,
-            f"no plot {name!r} for this result; it has: "
-            + (", ".join(plots.available_plots(result)) or "none"),
+            f"no plot {name!r} for this result; it has: {', '.join(names) or 'none'}",
             slug="no-such-plot",
             errors=[{"field": "name", "location": "path", "message": f"unknown plot {name!r}"}],
         )

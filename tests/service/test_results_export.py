@@ -5,11 +5,12 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, get_args
 
 import pytest
 
-from service.routes.exports import wants_csv
+from pipeflow.export import TABLES
+from service.routes.exports import Table, wants_csv
 from tests.service.conftest import SMALL, make_client, wait_ready
 
 
@@ -119,3 +120,10 @@ def test_plot_errors(tc: Any, stored: dict[str, Any]) -> None:
     assert "tip_displacement" in r.json()["detail"]
     assert tc.get(f"/v1/results/{stored['key']}/plots/damping.gif").status_code == 422
     assert tc.get(f"/v1/results/{'0' * 64}/plots/damping.png").status_code == 404
+
+
+def test_table_parameter_lists_every_export_table() -> None:
+    """The ``table`` query Literal repeats :data:`pipeflow.export.TABLES` (a Literal cannot
+    be built from a dict for the type checker): keep them equal, so no table is refused
+    with 422 and none is advertised that the exporter lacks."""
+    assert list(get_args(Table)) == list(TABLES)
