@@ -120,15 +120,21 @@ def _draw_sweep(part: str) -> Callable[[Axes, dict[str, Any], str | None], None]
     return draw
 
 
-def _draw_spin_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+def _growth_mesh(ax: Axes, x: Any, y: Any, r: dict[str, Any], label: str) -> None:
+    """``r["growth_rate"]`` [1/s] (null: undefined, left blank) over ``x``, ``y`` on a
+    diverging colour scale symmetric about 0 (red: growing), with a colour bar."""
     import numpy as np
 
     g = np.array([[np.nan if v is None else v for v in row] for row in r["growth_rate"]])
-    lim = float(np.nanmax(np.abs(g))) if np.isfinite(g).any() else 1.0
-    mesh = ax.pcolormesh(
-        r["velocities"], r["spins"], g, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="nearest"
-    )
-    ax.figure.colorbar(mesh, ax=ax, label="largest growth rate max σ [1/s]")
+    lim = (float(np.nanmax(np.abs(g))) if np.isfinite(g).any() else 0.0) or 1.0
+    mesh = ax.pcolormesh(x, y, g, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="nearest")
+    ax.figure.colorbar(mesh, ax=ax, label=label)
+
+
+def _draw_spin_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    import numpy as np
+
+    _growth_mesh(ax, r["velocities"], r["spins"], r, "largest growth rate max σ [1/s]")
     vcr = [np.nan if v is None else v for v in r["critical_velocity"]]
     ax.plot(vcr, r["spins"], "k-", lw=1.5, label=label or "critical velocity")
 
@@ -142,12 +148,8 @@ def _draw_beta_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
 def _draw_resonance_chart(ax: Axes, r: dict[str, Any], label: str | None) -> None:
     import numpy as np
 
-    g = np.array([[np.nan if v is None else v for v in row] for row in r["growth_rate"]])
-    lim = float(np.nanmax(np.abs(g))) if np.isfinite(g).any() else 1.0
-    lim = lim or 1.0
     freq, amp = r["frequencies"], r["amplitudes"]
-    mesh = ax.pcolormesh(freq, amp, g, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="nearest")
-    ax.figure.colorbar(mesh, ax=ax, label="growth rate log(max |λ|)/T [1/s]")
+    _growth_mesh(ax, freq, amp, r, "growth rate log(max |λ|)/T [1/s]")
     unstable = np.asarray(r["unstable"], dtype=float)
     if unstable.ndim == 2 and min(unstable.shape) > 1 and 0 < unstable.sum() < unstable.size:
         ax.contour(freq, amp, unstable, levels=[0.5], colors="k", linewidths=1.2)

@@ -193,3 +193,18 @@ def test_stability_plots() -> None:
         assert available_plots(result) == names
         text = _svg_text(render(result, names[-1], "svg"))
         assert xlabel in text
+
+
+def test_growth_maps_with_no_growth_keep_a_symmetric_scale() -> None:
+    """A stability map whose growth rates [1/s] are all 0 (or all undefined) still gets the
+    symmetric colour scale [-1, 1] instead of a degenerate [0, 0]."""
+    for grid in ([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], [[None, None, None]] * 2):
+        r = {
+            "kind": "spin_map",
+            "velocities": [0.0, 1.0, 2.0],
+            "spins": [0.0, 10.0],
+            "growth_rate": grid,
+            "critical_velocity": [None, None],
+        }
+        mesh = figure("spin_map", [(None, r)]).axes[0].collections[0]
+        assert (mesh.norm.vmin, mesh.norm.vmax) == (-1.0, 1.0)
