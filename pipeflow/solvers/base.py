@@ -83,8 +83,15 @@ def register(solver: Solver) -> Solver:
     return solver
 
 
+def frozen_eigenvalues(
+    model: PipeModel, loading: Loading, t_end: float, samples: int = 65
+) -> NDArray[np.complex128]:
+    """Eigenvalues of S(t) [1/s] at ``samples`` times over [0, t_end] (one if invariant)."""
+    ts = np.linspace(0.0, t_end, 1 if loading.is_time_invariant else samples)
+    S = model.state_matrix(loading.coefficients(ts))
+    return np.asarray(np.linalg.eigvals(S), dtype=complex)
+
+
 def spectral_radius(model: PipeModel, loading: Loading, t_end: float, samples: int = 33) -> float:
     """Largest |eigenvalue| [1/s] of the frozen S(t), sampled at ``samples`` times in [0, t_end]."""
-    ts = np.linspace(0.0, t_end, samples if not loading.is_time_invariant else 1)
-    S = model.state_matrix(loading.coefficients(ts))
-    return float(np.max(np.abs(np.linalg.eigvals(S))))
+    return float(np.max(np.abs(frozen_eigenvalues(model, loading, t_end, samples))))

@@ -17,12 +17,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow.errors import BudgetExceeded, UnstableStep
-from pipeflow.model import Loading, PipeModel
 from pipeflow.solvers.base import (
     MAX_STEPS_CEILING,
     FloatArray,
     Problem,
     SolverOutput,
+    frozen_eigenvalues,
     register,
 )
 
@@ -63,15 +63,6 @@ def largest_stable_step(eigenvalues: NDArray[np.complex128]) -> float:
         hi = np.where(unstable, mid, hi)
         lo = np.where(unstable, lo, mid)
     return float(np.min(lo / np.abs(lam)))
-
-
-def frozen_eigenvalues(
-    model: PipeModel, loading: Loading, t_end: float, samples: int = 65
-) -> NDArray[np.complex128]:
-    """Eigenvalues of S(t) [1/s] at ``samples`` times over [0, t_end] (one if invariant)."""
-    ts = np.linspace(0.0, t_end, 1 if loading.is_time_invariant else samples)
-    S = model.state_matrix(loading.coefficients(ts))
-    return np.asarray(np.linalg.eigvals(S), dtype=complex)
 
 
 class RK4:
