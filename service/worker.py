@@ -62,6 +62,8 @@ def run(
     write checks the cancel flag and the runtime limit ``timeout_s`` [s]; the solver stops
     by the :class:`pipeflow.errors.Cancelled` raised from its progress callback.
     """
+    from numpy.linalg import LinAlgError
+
     from pipeflow.errors import Cancelled, PipeflowError
     from service.problems import pipeflow_problem, problem
 
@@ -85,13 +87,23 @@ def run(
         try:
             validated = spec_model.model_validate(spec)
             result = function(validated, progress)
-            body = json.dumps(result, separators=(",", ":"), allow_nan=False).encode()
         except Cancelled as exc:
             if time.monotonic() > deadline:
                 return ("error", runtime_problem(timeout_s))
             return ("cancelled", str(exc) or "cancelled")
         except PipeflowError as exc:
             return ("error", pipeflow_problem(exc))
+        except (ArithmeticError, LinAlgError) as exc:
+            return ("error", out_of_range_problem(f"{type(exc).__name__}: {exc}"))
+        except Exception as exc:
+            return (
+                "error",
+                problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
+            )
+        try:
+            body = json.dumps(result, separators=(",", ":"), allow_nan=False).encode()
+        except ValueError:  # Inf or NaN: JSON has neither
+            return ("error", out_of_range_problem("the result holds Inf or NaN"))
         except Exception as exc:
             return (
                 "error",
@@ -111,4 +123,22 @@ def runtime_problem(timeout_s: float) -> dict[str, Any]:
         "samples or a shorter t_end",
         slug="runtime-limit",
         title="Runtime limit exceeded",
+    )
+
+
+def out_of_range_problem(cause: str) -> dict[str, Any]:
+    """422 for inputs whose magnitudes take the numerics out of double precision.
+
+    Valid in type and sign but extreme (e.g. ``pipe.L`` = 1e308 m, ``omega0`` = 1e308
+    rad/s): the model overflows or divides by zero.  No single field can be blamed, so
+    the problem names the inputs whose magnitudes set the scales.
+    """
+    from service.problems import problem
+
+    return problem(
+        422,
+        f"the inputs take the computation out of the range of double precision ({cause}); "
+        "check the magnitudes of pipe (E, I, L, M1, M2), rotation.omega0 and flow.velocity",
+        slug="numerical-range",
+        title="Inputs out of numerical range",
     )

@@ -145,6 +145,27 @@ def test_non_finite_inputs_rejected(client: TestClient) -> None:
         assert _fields(doc) == ["pipe.E"], literal
 
 
+def test_extreme_magnitudes_are_422_not_500(client: TestClient) -> None:
+    """Finite, positive but extreme inputs take the numerics out of double precision
+    (OverflowError, division by zero, singular matrices, Inf/NaN in the result): each
+    answer is a 422 problem, never an internal error."""
+    pipe = SMALL["pipe"]
+    bodies = {
+        "L=1e308": _small(pipe={**pipe, "L": 1e308}),
+        "L=1e-300": _small(pipe={**pipe, "L": 1e-300}),
+        "M1=1e308": _small(pipe={**pipe, "M1": 1e308}),
+        "E=1e-300": _small(pipe={**pipe, "E": 1e-300}),
+        "omega0=1e308": _small(rotation={"omega0": {"kind": "constant", "value": 1e308}}),
+        "v=1e308": _small(flow={"velocity": {"kind": "polynomial", "coefficients": [1e308]}}),
+    }
+    for name, body in bodies.items():
+        resp = client.post("/v1/simulations", json=body)
+        assert resp.status_code != 500, (name, resp.text)
+        if resp.status_code != 200:  # a result with status "overflow" is a clear answer too
+            doc = _problem(resp, 422)
+            assert doc["detail"], name
+
+
 def test_bad_json_and_missing_body(client: TestClient) -> None:
     doc = _problem(
         client.post(
