@@ -224,9 +224,12 @@
 
   async function loadShared() {
     const params = new URLSearchParams(window.location.search);
-    const spec = params.get("spec");
-    if (spec) {
-      try { fillForm(JSON.parse(spec)); } catch (e) { statusEl.textContent = "bad spec in link"; }
+    let spec = null;
+    if (params.get("spec")) {
+      try { spec = JSON.parse(params.get("spec")); fillForm(spec); } catch (e) {
+        spec = null;
+        statusEl.textContent = "bad spec in link";
+      }
     }
     const key = params.get("key");
     if (!key) return;
@@ -236,7 +239,7 @@
     const result = await response.json();
     state.key = key;
     render(result);
-    share(key, spec ? JSON.parse(spec) : null);
+    share(key, spec);
     statusEl.textContent = "loaded result " + key.slice(0, 12) + "…";
   }
 
