@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -186,6 +186,11 @@ class Coefficients:
     w2: FloatArray
     wdot: FloatArray
 
+    def weights(self) -> FloatArray:
+        """Rows (1, v, vdot, v^2, w0^2), shape ``(len(t), 5)``: the weights of
+        :attr:`PipeModel.state_pieces` in S(t) (mixed units, see the fields)."""
+        return np.stack([np.ones_like(self.v), self.v, self.vdot, self.v * self.v, self.w2], axis=1)
+
 
 @dataclass(frozen=True)
 class Integrals:
@@ -279,15 +284,17 @@ class PipeModel:
         return 2 * self.n
 
     # -- state matrices -------------------------------------------------------------
+    @cached_property
+    def state_pieces(self) -> FloatArray:
+        """(S_0, S_v, S_vdot, S_v2, S_w2) stacked, shape ``(5, 2n, 2n)``, read-only: S(t) is
+        ``Coefficients.weights() @ state_pieces`` over the first axis."""
+        A = np.stack([self.S_0, self.S_v, self.S_vdot, self.S_v2, self.S_w2])
+        A.setflags(write=False)
+        return A
+
     def state_matrix(self, c: Coefficients) -> NDArray[np.float64]:
         """Frozen-time balanced state matrices S(t), shape ``(len(t), 2n, 2n)`` [1/s]."""
-        return (
-            self.S_0[None]
-            + c.v[:, None, None] * self.S_v[None]
-            + c.vdot[:, None, None] * self.S_vdot[None]
-            + (c.v**2)[:, None, None] * self.S_v2[None]
-            + c.w2[:, None, None] * self.S_w2[None]
-        )
+        return np.tensordot(c.weights(), self.state_pieces, axes=1)
 
     def forcing(self, c: Coefficients) -> FloatArray:
         """Balanced forcing vectors f(t), shape ``(len(t), 2n)`` [1/s]."""
@@ -295,13 +302,8 @@ class PipeModel:
 
     def integrated_state_matrix(self, g: Integrals) -> FloatArray:
         """P(t) = integral_0^t S, eq. (18), in closed form; shape ``(len(t), 2n, 2n)`` [-]."""
-        return (
-            g.t[:, None, None] * self.S_0[None]
-            + g.v[:, None, None] * self.S_v[None]
-            + g.dv[:, None, None] * self.S_vdot[None]
-            + g.v2[:, None, None] * self.S_v2[None]
-            + g.w2[:, None, None] * self.S_w2[None]
-        )
+        weights = np.stack([g.t, g.v, g.dv, g.v2, g.w2], axis=1)
+        return np.tensordot(weights, self.state_pieces, axes=1)
 
     # -- conversions between the paper's state (d', d) and the balanced one --------------
     def to_balanced(self, d: FloatArray, ddot: FloatArray) -> FloatArray:

@@ -181,20 +181,17 @@ class MagnusGenerator:
         self.scale = scale  # the constant c the state is augmented with [m]
         N = model.size
         self.size = N + (1 if self.forced else 0)
-        mats = [model.S_0, model.S_v, model.S_vdot, model.S_v2, model.S_w2]
-        basis = np.zeros((len(mats) + (1 if self.forced else 0), self.size, self.size))
-        for i, S in enumerate(mats):
-            basis[i, :N, :N] = S
+        pieces = model.state_pieces
+        basis = np.zeros((len(pieces) + (1 if self.forced else 0), self.size, self.size))
+        basis[: len(pieces), :N, :N] = pieces
         if self.forced:
             basis[-1, :N, N] = model.f_wdot / scale
         self.basis = basis.reshape(basis.shape[0], -1)
 
     def coefficients(self, times: FloatArray) -> FloatArray:
         c = self.loading.coefficients(times)
-        cols = [np.ones_like(times), c.v, c.vdot, c.v * c.v, c.w2]
-        if self.forced:
-            cols.append(c.wdot)
-        return np.stack(cols, axis=1)
+        w = c.weights()
+        return np.concatenate([w, c.wdot[:, None]], axis=1) if self.forced else w
 
     def matrices(self, times: FloatArray) -> FloatArray:
         """A(t) at ``times``: S(t), bordered by f(t)/c when the spin varies [1/s]."""

@@ -44,7 +44,7 @@ class Reference:
                 f"unknown integrator {opts.integrator!r}; choose one of {', '.join(INTEGRATORS)}",
                 field="options.integrator",
             )
-        A = np.stack([model.S_0, model.S_v, model.S_vdot, model.S_v2, model.S_w2])
+        A = model.state_pieces
         forced = not loading.spin.is_constant
         budget = min(opts.max_steps * 12, MAX_EVALUATIONS_CEILING)
         t_end = float(t[-1])
@@ -56,9 +56,7 @@ class Reference:
         def matrix(s: float) -> FloatArray:
             if invariant:
                 return S_const
-            c = loading.coefficients(np.array([s]))
-            w = np.array([1.0, c.v[0], c.vdot[0], c.v[0] ** 2, c.w2[0]])
-            return np.tensordot(w, A, axes=1)
+            return model.state_matrix(loading.coefficients(np.array([s])))[0]
 
         def rhs(s: float, z: FloatArray) -> FloatArray:
             count[0] += 1
@@ -69,8 +67,7 @@ class Reference:
             if invariant:
                 return S_const @ z
             c = loading.coefficients(np.array([s]))
-            w = np.array([1.0, c.v[0], c.vdot[0], c.v[0] ** 2, c.w2[0]])
-            out = (A @ z).T @ w  # S(s) z without forming S(s)
+            out = (A @ z).T @ c.weights()[0]  # S(s) z without forming S(s)
             if forced:
                 out = out + c.wdot[0] * model.f_wdot
             return out

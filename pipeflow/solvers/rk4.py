@@ -114,7 +114,7 @@ class RK4:
 
     def _integrate(self, problem: Problem, substeps: NDArray[np.int64]) -> FloatArray:
         model, loading, t = problem.model, problem.loading, problem.t
-        A = np.stack([model.S_0, model.S_v, model.S_vdot, model.S_v2, model.S_w2])
+        A = model.state_pieces
         forced = not loading.spin.is_constant
         Z = np.empty((t.size, model.size))
         z = problem.z0.astype(float).copy()
@@ -123,14 +123,10 @@ class RK4:
         done = 0
         report_every = max(1, total // 100)
 
-        def coef(times: FloatArray) -> FloatArray:
-            c = loading.coefficients(times)
-            return np.stack([np.ones_like(times), c.v, c.vdot, c.v**2, c.w2], axis=1)
-
         invariant = loading.is_time_invariant
         block = max(16, _BLOCK_ENTRIES // (3 * model.size**2))
         if invariant:
-            S_const = np.tensordot(coef(np.zeros(1))[0], A, axes=1)
+            S_const = model.state_matrix(loading.coefficients(np.zeros(1)))[0]
         for k in range(t.size - 1):
             m = int(substeps[k])
             h = (t[k + 1] - t[k]) / m
@@ -146,9 +142,10 @@ class RK4:
                     nb = min(block, m - b0)
                     starts = t[k] + h * (b0 + np.arange(nb))
                     stage_t = np.concatenate([starts, starts + 0.5 * h, starts + h])
-                    cs = coef(stage_t).reshape(3, nb, 5)
+                    c = loading.coefficients(stage_t)
+                    cs = c.weights().reshape(3, nb, -1)
                     fs = (
-                        model.forcing(loading.coefficients(stage_t)).reshape(3, nb, -1)
+                        model.forcing(c).reshape(3, nb, -1)
                         if forced
                         else np.zeros((3, nb, model.size))
                     )

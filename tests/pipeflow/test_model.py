@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pipeflow.basis import cantilever_roots
-from pipeflow.model import PAPER_PIPE, Coefficients, Pipe, build_model
+from pipeflow.model import PAPER_PIPE, Coefficients, Integrals, Pipe, build_model
 
 
 def frozen_spectrum(pipe: Pipe, n: int, v: float, w0: float) -> np.ndarray:
@@ -89,3 +89,27 @@ def test_pipe_validation() -> None:
         Pipe(E=-1.0, I=1.0, L=1.0, M1=1.0, M2=1.0)
     with pytest.raises(ValueError, match=r"M1 \+"):
         Pipe(E=1.0, I=1.0, L=1.0, M1=0.0, M2=0.0)
+
+
+def test_state_matrix_and_its_integral_from_the_pieces() -> None:
+    """S(t) = S_0 + v S_v + vdot S_vdot + v^2 S_v2 + w0^2 S_w2 (eq. 13-14, balanced) and
+    P(t) from the same pieces with the integrals (eq. 18), written out term by term: equal
+    to rounding (1e-12 relative); the stacked pieces are read-only."""
+    model = build_model(PAPER_PIPE, 3)
+    v, vd, w2 = np.array([0.0, 1.5, -2.0]), np.array([0.3, 0.0, -1.0]), np.array([0.0, 4.0, 9.0])
+    c = Coefficients(v, vd, w2, np.zeros(3))
+    S = model.state_matrix(c)
+    for k in range(3):
+        expected = (
+            model.S_0 + v[k] * model.S_v + vd[k] * model.S_vdot + v[k] ** 2 * model.S_v2
+        ) + w2[k] * model.S_w2
+        assert np.allclose(S[k], expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    t = np.array([0.5, 1.0, 2.0])
+    P = model.integrated_state_matrix(Integrals(t, vd, v, w2, v, np.zeros(3)))
+    for k in range(3):
+        expected = (
+            t[k] * model.S_0 + vd[k] * model.S_v + v[k] * model.S_vdot + w2[k] * model.S_v2
+        ) + v[k] * model.S_w2
+        assert np.allclose(P[k], expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    with pytest.raises(ValueError):
+        model.state_pieces[0, 0, 0] = 1.0
