@@ -1,7 +1,9 @@
 """What every computing endpoint does, for any job kind: cache, single flight, jobs.
 
 Routes stay thin: they validate the body (FastAPI + the kind's spec model) and call
-:func:`run_sync` (answer with the result) or :func:`submit_job` (answer 202 with a job).
+:func:`run_sync` (answer with the result) or :func:`accept_job` (answer 202 with a job);
+the OpenAPI pieces they share (:data:`Refresh`, :data:`CACHE_HEADERS`,
+:data:`JOB_ACCEPTED`) are here too.
 """
 
 from __future__ import annotations
@@ -9,18 +11,38 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from datetime import UTC, datetime
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import Response
+from fastapi import Query, Response
+from fastapi.responses import JSONResponse
 from pydantic import BaseModel
 
 from service.kinds import JobKind
 from service.problems import ProblemError
 from service.runner import ComputationCancelled, ComputationFailed, QueueFull, Runner
+from service.schemas import JobStatus
 from service.store import Job, Store
 
 #: how long a resubmission waits for the cancelled run of the same job to stop [s]
 STOP_WAIT_S = 10.0
+
+Refresh = Annotated[
+    bool, Query(description="Recompute even if the result is cached (and replace it).")
+]
+
+#: OpenAPI headers of a result answered by :func:`result_response`
+CACHE_HEADERS: dict[str, Any] = {
+    "X-Cache": {
+        "description": "HIT when served from the cache, MISS when computed for this request.",
+        "schema": {"type": "string", "enum": ["HIT", "MISS"]},
+    },
+    "ETag": {"description": "Strong validator: the key in quotes.", "schema": {"type": "string"}},
+}
+
+#: OpenAPI entry of the 202 answered by :func:`accept_job`
+JOB_ACCEPTED: dict[int | str, dict[str, Any]] = {
+    202: {"headers": {"Location": {"description": "/v1/jobs/{key}", "schema": {"type": "string"}}}}
+}
 
 
 def envelope(key: str, cached: bool, body: bytes) -> bytes:
@@ -95,6 +117,21 @@ async def submit_job(
     job = await asyncio.to_thread(store.get_job, key)
     assert job is not None
     return key, job
+
+
+async def accept_job(
+    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
+) -> JSONResponse:
+    """:func:`submit_job`, answered 202 with the job and ``Location: /v1/jobs/{key}``."""
+    _, job = await submit_job(runner, store, kind, spec, refresh)
+    return job_response(job, 202)
+
+
+def job_response(job: Job, status: int = 200) -> JSONResponse:
+    """The job as :class:`service.schemas.JobStatus` JSON; a 202 carries its ``Location``."""
+    body = JobStatus.model_validate(job_document(job)).model_dump(mode="json")
+    headers = {"Location": f"/v1/jobs/{job.key}"} if status == 202 else None
+    return JSONResponse(body, status, headers)
 
 
 def _time(t: float | None) -> datetime | None:

@@ -15,11 +15,10 @@ from fastapi.responses import Response
 
 from pipeflow.compare import CompareSpec
 from pipeflow.spec import PAPER_EXAMPLE
-from service.compute import run_sync
+from service.compute import CACHE_HEADERS, Refresh, run_sync
 from service.deps import RunnerDep, StoreDep
 from service.kinds import COMPARE
 from service.problems import responses
-from service.routes.simulations import CACHE_HEADERS, Refresh
 from service.schemas import CompareResponse
 
 router = APIRouter(prefix="/v1", tags=["compare"])

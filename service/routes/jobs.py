@@ -8,20 +8,16 @@ from typing import Annotated
 from fastapi import APIRouter, Path
 from fastapi.responses import JSONResponse
 
-from service.compute import job_document, submit_job
+from service.compute import JOB_ACCEPTED, Refresh, accept_job, job_response
 from service.deps import RunnerDep, StoreDep
 from service.kinds import SIMULATION
 from service.problems import ProblemError, responses
-from service.routes.simulations import Refresh, SpecBody
+from service.routes.simulations import SpecBody
 from service.schemas import KEY_PATTERN, JobStatus
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
 
 Key = Annotated[str, Path(pattern=KEY_PATTERN, description="Job id = parameter hash.")]
-
-
-def _json(doc: dict[str, object], status: int = 200, **headers: str) -> JSONResponse:
-    return JSONResponse(JobStatus.model_validate(doc).model_dump(mode="json"), status, headers)
 
 
 @router.post(
@@ -30,12 +26,7 @@ def _json(doc: dict[str, object], status: int = 200, **headers: str) -> JSONResp
     summary="Submit a simulation as a job",
     status_code=202,
     response_model=JobStatus,
-    responses={
-        202: {
-            "headers": {"Location": {"description": "/v1/jobs/{key}", "schema": {"type": "string"}}}
-        },
-        **responses(413, 422, 503),
-    },
+    responses={**JOB_ACCEPTED, **responses(413, 422, 503)},
 )
 async def submit_simulation_job(
     spec: SpecBody, runner: RunnerDep, store: StoreDep, refresh: Refresh = False
@@ -43,8 +34,7 @@ async def submit_simulation_job(
     """Accept the simulation (persisted before the answer) and return its job at once.
     The job id is the parameter hash: resubmitting is idempotent, a finished result is
     reused, and a failed or cancelled job is run again."""
-    key, job = await submit_job(runner, store, SIMULATION, spec, refresh)
-    return _json(job_document(job), 202, Location=f"/v1/jobs/{key}")
+    return await accept_job(runner, store, SIMULATION, spec, refresh)
 
 
 @router.get(
@@ -58,7 +48,7 @@ async def get_job(key: Key, store: StoreDep) -> JSONResponse:
     job = await asyncio.to_thread(store.get_job, key)
     if job is None:
         raise ProblemError(404, f"no job {key}", slug="unknown-key")
-    return _json(job_document(job))
+    return job_response(job)
 
 
 @router.delete(
@@ -76,4 +66,4 @@ async def cancel_job(key: Key, store: StoreDep) -> JSONResponse:
         raise ProblemError(404, f"no job {key}", slug="unknown-key")
     if job.status in ("succeeded", "failed"):
         raise ProblemError(409, f"job {key} already {job.status}", slug="job-finished")
-    return _json(job_document(job))
+    return job_response(job)

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
-from fastapi import APIRouter, Body, Query, Response
+from fastapi import APIRouter, Body, Response
 
 from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
-from service.compute import run_sync
+from service.compute import CACHE_HEADERS, Refresh, run_sync
 from service.deps import RunnerDep, StoreDep
 from service.kinds import SIMULATION
 from service.problems import responses
@@ -26,17 +26,6 @@ SpecBody = Annotated[
         }
     ),
 ]
-Refresh = Annotated[
-    bool, Query(description="Recompute even if the result is cached (and replace it).")
-]
-
-CACHE_HEADERS: dict[str, Any] = {
-    "X-Cache": {
-        "description": "HIT when served from the cache, MISS when computed for this request.",
-        "schema": {"type": "string", "enum": ["HIT", "MISS"]},
-    },
-    "ETag": {"description": "Strong validator: the key in quotes.", "schema": {"type": "string"}},
-}
 
 
 @router.post(

@@ -14,11 +14,10 @@ from fastapi import APIRouter, Body
 from fastapi.responses import JSONResponse, Response
 
 from pipeflow.stability_spec import PAPER_PIPE_JSON, StabilitySpec
-from service.compute import job_document, run_sync, submit_job
+from service.compute import CACHE_HEADERS, JOB_ACCEPTED, Refresh, accept_job, run_sync
 from service.deps import RunnerDep, StoreDep
 from service.kinds import STABILITY
 from service.problems import responses
-from service.routes.simulations import CACHE_HEADERS, Refresh
 from service.schemas import JobStatus
 from service.stability_schemas import StabilityResponse
 
@@ -49,10 +48,6 @@ StabilityBody = Annotated[
         }
     ),
 ]
-
-JOB_ACCEPTED: dict[int | str, dict[str, Any]] = {
-    202: {"headers": {"Location": {"description": "/v1/jobs/{key}", "schema": {"type": "string"}}}}
-}
 
 
 @router.post(
@@ -88,11 +83,4 @@ async def submit_stability_job(
 ) -> JSONResponse:
     """The same analysis as ``POST /v1/stability``, answered at once with its job (202,
     ``Location: /v1/jobs/{key}``); poll the job, then ``GET /v1/results/{key}``."""
-    key, job = await submit_job(runner, store, STABILITY, spec, refresh)
-    return job_response(key, job_document(job))
-
-
-def job_response(key: str, doc: dict[str, Any]) -> JSONResponse:
-    """202 with the job document and ``Location: /v1/jobs/{key}``."""
-    body = JobStatus.model_validate(doc).model_dump(mode="json")
-    return JSONResponse(body, 202, {"Location": f"/v1/jobs/{key}"})
+    return await accept_job(runner, store, STABILITY, spec, refresh)

@@ -17,12 +17,10 @@ from fastapi import APIRouter, Body
 from fastapi.responses import JSONResponse
 
 from pipeflow.stability_spec import PAPER_PIPE_JSON, SweepSpec
-from service.compute import job_document, submit_job
+from service.compute import JOB_ACCEPTED, Refresh, accept_job
 from service.deps import RunnerDep, StoreDep
 from service.kinds import SWEEPS
 from service.problems import responses
-from service.routes.simulations import Refresh
-from service.routes.stability import JOB_ACCEPTED, job_response
 from service.schemas import JobStatus
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
@@ -134,6 +132,4 @@ async def submit_sweep(
     Poll ``GET /v1/jobs/{key}`` (status, progress 0..1), then fetch
     ``GET /v1/results/{key}``; its ``plots`` name the figures at
     ``/v1/results/{key}/plots/{name}.png``.  Resubmitting is idempotent."""
-    kind = SWEEPS[spec.kind]
-    key, job = await submit_job(runner, store, kind, spec, refresh)
-    return job_response(key, job_document(job))
+    return await accept_job(runner, store, SWEEPS[spec.kind], spec, refresh)
