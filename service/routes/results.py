@@ -7,11 +7,10 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Header, Path, Query, Response
 
-from service.compute import result_response
+from service.compute import CACHE_HEADERS, result_response
 from service.deps import RunnerDep, StoreDep
 from service.problems import ProblemError, responses
 from service.routes.exports import TABLE_DESCRIPTION, Table, csv_response, wants_csv
-from service.routes.simulations import CACHE_HEADERS
 from service.schemas import KEY_PATTERN, CompareResponse, SimulationResponse
 from service.stability_schemas import (
     BetaMapResponse,
@@ -74,7 +73,8 @@ async def get_result(
         body = await asyncio.to_thread(store.get_result, key)
         if body is None:
             raise ProblemError(404, f"no result {key}", slug="unknown-key")
-        return csv_response(key, body, table)
+        # parse the stored JSON and write the table off the event loop: results can be MBs
+        return await asyncio.to_thread(csv_response, key, body, table)
     if if_none_match is not None and _matches(if_none_match, key):
         if await asyncio.to_thread(store.has_result, key):
             return Response(status_code=304, headers={"ETag": f'"{key}"'})
