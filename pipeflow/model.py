@@ -41,6 +41,7 @@ from pipeflow.basis import (
     gauss_legendre_unit,
     mode_shapes,
     paper_scale,
+    tip_values,
 )
 from pipeflow.profiles import Profile
 
@@ -381,7 +382,7 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     S_v2 = balanced(zero, -Minv @ K_v2, False)
     S_w2 = balanced(zero, -Minv @ K_w2, False)
     f_wdot = np.concatenate([(Minv @ F_wdot) / omega_ref, np.zeros(n)])
-    tip = mode_shapes(n, np.array([1.0]))[:, 0]
+    tip = tip_values(n)
     arrays = [M, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref]
     arrays += [S_0, S_v, S_vdot, S_v2, S_w2, f_wdot, tip]
     for a in arrays:

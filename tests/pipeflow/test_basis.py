@@ -9,6 +9,7 @@ from pipeflow.basis import (
     gauss_legendre_unit,
     mode_shapes,
     paper_scale,
+    tip_values,
 )
 
 
@@ -79,3 +80,10 @@ def test_paper_shape_scale() -> None:
         eq3 = np.sin(zx) - np.sinh(zx) + r * (np.cosh(zx) - np.cos(zx))
         assert np.allclose(eq3, paper_scale(3)[j] * ours[j], atol=1e-12)
     assert abs(paper_scale(1)[0] * 2.0 - 2.7244) < 1e-4
+
+
+def test_tip_values_alternate() -> None:
+    """phi_j(1) = 2 (-1)^(j+1): the closed-form tip value of the unit-norm cantilever mode
+    cosh - cos - s_j (sinh - sin), s_j = (cosh + cos)/(sinh + sin) at lambda_j; to 1e-12."""
+    j = np.arange(1, 41)
+    assert np.allclose(tip_values(40), 2.0 * (-1.0) ** (j + 1), atol=1e-12)
