@@ -214,7 +214,8 @@ def _field_from_message(body: Any, base: list[Any], msg: str) -> list[Any]:
     """Model-level validators name the field at the start of their message; resolve it.
 
     ``"output.eigen_modes cannot exceed modes"`` raised on the whole body points at
-    ``output.eigen_modes``; ``"M1 + M2 must be > 0"`` raised on ``pipe`` at ``pipe.M1``.
+    ``output.eigen_modes``; ``"M1 + M2 must be > 0"`` raised on ``pipe`` at ``pipe.M1``;
+    ``"methods.1: unknown method"`` raised on ``methods`` at ``methods.1``.
     """
     m = _LEADING_FIELD.match(msg)
     if not m:
@@ -223,6 +224,9 @@ def _field_from_message(body: Any, base: list[Any], msg: str) -> list[Any]:
     for part in base:
         node = node[part] if isinstance(node, dict | list) else None
     parts = m.group(1).split(".")
+    if base and parts[0] == str(base[-1]):
+        # a field validator naming its own field: "methods.1: ..." raised on ``methods``
+        return base + parts[1:]
     if len(parts) > 1 or (isinstance(node, dict) and parts[0] in node):
         return base + parts
     return base

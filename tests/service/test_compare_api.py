@@ -74,3 +74,12 @@ def test_compare_errors_name_the_field(
     assert r.headers["content-type"] == "application/problem+json"
     fields = [e["field"] for e in r.json()["errors"]]
     assert any(f is not None and f.startswith(field) for f in fields), fields
+
+
+def test_unknown_method_points_at_its_index(client: TestClient) -> None:
+    """The field validator's "methods.1: ..." on ``methods`` is ``methods.1``, not
+    ``methods.methods.1``."""
+    r = client.post("/v1/compare", json=_body(methods=["cma", "bogus"]))
+    assert r.status_code == 422
+    error = r.json()["errors"][0]
+    assert (error["field"], error["pointer"]) == ("methods.1", "#/methods/1")
