@@ -162,6 +162,11 @@ def validate(sim: Simulation) -> None:
         raise InvalidInput("samples must be >= 2", field="time.samples")
     if not 1 <= sim.modes <= 40:
         raise InvalidInput("modes must be between 1 and 40", field="modes")
+    if sim.initial_shape not in ("paper", "tip"):
+        raise InvalidInput(
+            f"unknown initial shape {sim.initial_shape!r}; use 'paper' or 'tip'",
+            field="initial.shape",
+        )
     if sim.eigen_modes < 1:
         raise InvalidInput("eigen_modes must be >= 1", field="output.eigen_modes")
     for name, prof in (("flow.velocity", sim.flow), ("rotation.omega0", sim.spin)):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
@@ -9,6 +10,7 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow.errors import InvalidInput
 from pipeflow.model import Loading, PipeModel
 
 FloatArray = NDArray[np.float64]
@@ -40,6 +42,14 @@ class Options:
     integrator: str = "DOP853"
     tolerance: float = 1e-8
     condition_limit: float = 1e8
+
+
+def given_step(options: Options) -> float | None:
+    """``options.step`` [s] if given, after checking it is finite and > 0 (InvalidInput)."""
+    step = options.step
+    if step is not None and not (math.isfinite(step) and step > 0):
+        raise InvalidInput("options.step must be finite and > 0 s", field="options.step")
+    return step
 
 
 @dataclass(frozen=True)

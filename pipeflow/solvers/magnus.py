@@ -50,6 +50,7 @@ from pipeflow.solvers.base import (
     FloatArray,
     Problem,
     SolverOutput,
+    given_step,
     register,
 )
 
@@ -250,10 +251,9 @@ class Magnus:
         invariant = loading.is_time_invariant
         uniform = bool(np.allclose(dt, dt[0], rtol=1e-9, atol=0.0))
         budget = min(opts.max_steps, MAX_STEPS_CEILING)
-        if opts.step is not None:
-            if not (math.isfinite(opts.step) and opts.step > 0):
-                raise InvalidInput("options.step must be finite and > 0 s", field="options.step")
-            h0 = opts.step
+        step = given_step(opts)
+        if step is not None:
+            h0 = step
         else:
             if not (0 < opts.tolerance < 1):
                 raise InvalidInput("options.tolerance must be in (0, 1)", field="options.tolerance")

@@ -23,6 +23,7 @@ from pipeflow.solvers.base import (
     Problem,
     SolverOutput,
     frozen_eigenvalues,
+    given_step,
     register,
 )
 
@@ -76,17 +77,18 @@ class RK4:
         t0 = time.perf_counter()
         model, loading, t = problem.model, problem.loading, problem.t
         opts = problem.options
+        step = given_step(opts)
         h_stable = largest_stable_step(frozen_eigenvalues(model, loading, float(t[-1])))
-        if opts.step is not None:
-            if opts.step > h_stable:
+        if step is not None:
+            if step > h_stable:
                 raise UnstableStep(
-                    f"RK4 step {opts.step:.6g} s is outside the stability region for this "
+                    f"RK4 step {step:.6g} s is outside the stability region for this "
                     f"run (largest stable step {h_stable:.6g} s, from the spectral radius "
                     "of the state matrix; paper eq. 32)",
                     field="options.step",
                     largest_stable_step=h_stable,
                 )
-            h_target = opts.step
+            h_target = step
         else:
             h_target = SAFETY * h_stable
         dt = np.diff(t)

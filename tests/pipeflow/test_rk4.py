@@ -1,9 +1,11 @@
 """Classical RK4: stability-limited step, order 4, agreement with the reference."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from pipeflow.errors import BudgetExceeded, UnstableStep
+from pipeflow.errors import BudgetExceeded, InvalidInput, UnstableStep
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import simulate
 from pipeflow.solvers import Options
@@ -89,3 +91,14 @@ def test_rk4_observed_order_four() -> None:
         errors.append(np.max(np.abs(rk.tip_displacement - ref.tip_displacement)))
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(np.abs(orders - 4.0) < 0.3), orders
+
+
+@pytest.mark.parametrize("method", ["rk4", "magnus"])
+@pytest.mark.parametrize("step", [-1e-5, 0.0, float("nan")])
+def test_non_positive_step_is_refused(method: str, step: float) -> None:
+    """A step <= 0 or NaN is an error naming options.step (rk4 used to run with one step
+    per output interval instead)."""
+    sim = paper_sim(Constant(0.4), method, modes=2, t_end=0.01, samples=11)
+    with pytest.raises(InvalidInput) as err:
+        simulate(replace(sim, options=Options(step=step)))
+    assert err.value.field == "options.step"

@@ -41,6 +41,7 @@ def test_divergence_time_is_when_bound_is_passed() -> None:
         ({"samples": 1}, "time.samples"),
         ({"modes": 41}, "modes"),
         ({"positions": (0.5,)}, "positions.0"),
+        ({"initial_shape": "mode2"}, "initial.shape"),
         ({"flow": table([0, 0.5], [0.1, 0.2])}, "flow.velocity"),
     ],
 )
