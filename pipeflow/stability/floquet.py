@@ -42,6 +42,7 @@ from pipeflow.stability.core import (
     check_modes,
     check_range,
     eigenvalues,
+    frozen_matrices,
 )
 
 MIN_STEPS = 16
@@ -49,16 +50,6 @@ MIN_STEPS = 16
 MAX_STEPS = 65_536
 #: ceiling on (grid points) x (steps per period) x (2n)^3 for one chart
 MAX_CHART_WORK = 2e11
-
-
-def _matrices(model: PipeModel, v: FloatArray, vdot: FloatArray, w2: FloatArray) -> FloatArray:
-    return np.asarray(
-        model.S_0
-        + v[..., None, None] * model.S_v
-        + vdot[..., None, None] * model.S_vdot
-        + (v * v)[..., None, None] * model.S_v2
-        + w2[..., None, None] * model.S_w2
-    )
 
 
 def _monodromy_steps(
@@ -70,7 +61,8 @@ def _monodromy_steps(
     """Monodromy matrices for a batch: ``coefficients(t)`` -> (v, vdot, w2), each (B, len(t))."""
     h = period / steps
     t0 = np.arange(steps) * h
-    A1, A2 = (_matrices(model, *coefficients(t0 + g * h)) for g in GAUSS_NODES)  # (B, N, m, m)
+    # (B, N, m, m) at each Gauss point
+    A1, A2 = (frozen_matrices(model, *coefficients(t0 + g * h)) for g in GAUSS_NODES)
     return product_of_steps(expm_stack(magnus4_omega(A1, A2, h)))
 
 
