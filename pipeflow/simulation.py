@@ -21,6 +21,7 @@ from pipeflow.model import Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
+from pipeflow.stability.core import REVERSE_FLOW_CAVEAT
 
 FloatArray = NDArray[np.float64]
 
@@ -230,11 +231,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
             f"{divergence_time:.6g} s: the linear model no longer describes the pipe"
         )
     if np.any(sim.flow.value(eigen_t) < 0):
-        warnings.append(
-            "reverse flow (v < 0, aspirating pipe): in this undamped model the spectrum at -v "
-            "is the conjugate of that at +v, so any v < 0 is predicted unstable; experiments "
-            "do not show this flutter (Paidoussis & Luu 1985)"
-        )
+        warnings.append(REVERSE_FLOW_CAVEAT)
     diagnostics = {"method": sim.method, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,
