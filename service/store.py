@@ -134,10 +134,22 @@ class Store:
         self._conn.executescript(_SCHEMA)
         self._lock = threading.Lock()
         self._memory = _MemoryLRU(memory_cache_bytes)
+        # memory hits not yet written to results.accessed: written before evicting
+        self._touched: dict[str, float] = {}
 
     def close(self) -> None:
         with self._lock:
+            self._write_touched()
             self._conn.close()
+
+    def _write_touched(self) -> None:
+        """Record the memory front's hits in ``accessed`` (one statement, under the lock)."""
+        if self._touched:
+            self._conn.executemany(
+                "UPDATE results SET accessed = ? WHERE key = ?",
+                [(t, k) for k, t in self._touched.items()],
+            )
+            self._touched.clear()
 
     # -- results -------------------------------------------------------------------------
 
@@ -145,6 +157,7 @@ class Store:
         with self._lock:
             body = self._memory.get(key)
             if body is not None:
+                self._touched[key] = time.time()
                 return body
             row = self._conn.execute("SELECT body FROM results WHERE key = ?", (key,)).fetchone()
             if row is None:
@@ -167,6 +180,7 @@ class Store:
         with self._lock:
             self._conn.execute("BEGIN IMMEDIATE")
             try:
+                self._write_touched()
                 self._conn.execute(
                     "INSERT OR REPLACE INTO results (key, kind, body, size, created, accessed) "
                     "VALUES (?, ?, ?, ?, ?, ?)",

@@ -29,6 +29,19 @@ def test_disk_bound_evicts_least_recently_used(tmp_path: Path) -> None:
     assert store.get_result("b") is not None and store.get_result("d") is not None
 
 
+def test_memory_hits_count_for_disk_eviction(tmp_path: Path) -> None:
+    """A result served from the memory front is recently used on disk too: the disk
+    bound evicts the result nobody asked for, not the hot one."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=250, memory_cache_bytes=1000)
+    body = b"{" + b" " * 98 + b"}"  # 100 bytes
+    store.put_result("a", "simulation", body)
+    store.put_result("b", "simulation", body)
+    assert store.get_result("a") == body  # a memory hit: a is now more recent than b
+    store.put_result("c", "simulation", body)
+    assert store.get_result("b") is None
+    assert store.get_result("a") == body and store.get_result("c") == body
+
+
 def test_memory_front_is_bounded() -> None:
     lru = _MemoryLRU(max_bytes=10)
     lru.put("a", b"12345")
