@@ -26,7 +26,7 @@ from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec, StrictMode
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, resonance_chart
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
-from pipeflow.stability.sweeps import sweep
+from pipeflow.stability.sweeps import Parameter, sweep
 
 Progress = Callable[[float], None]
 
@@ -139,6 +139,26 @@ class _TrackedSweep(StrictModel):
             raise ValueError("max_points must be >= points")
         return self
 
+    def _sweep(
+        self,
+        parameter: Parameter,
+        value_range: tuple[float, float],
+        fixed: float,
+        progress: Progress | None,
+    ) -> dict[str, Any]:
+        return sweep(
+            self.pipe.to_pipe(),
+            parameter,
+            value_range,
+            fixed=fixed,
+            modes=self.modes,
+            tracked=self.tracked_modes,
+            points=self.points,
+            min_confidence=self.min_confidence,
+            max_points=self.max_points,
+            progress=progress,
+        ).to_dict()
+
 
 class ArgandSweep(_TrackedSweep):
     """Eigenvalues against flow velocity at constant spin (Argand diagram)."""
@@ -152,6 +172,10 @@ class ArgandSweep(_TrackedSweep):
         _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
         return self
 
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """:func:`~pipeflow.stability.sweeps.sweep` over flow velocity (``to_dict`` form)."""
+        return self._sweep("velocity", self.velocity_range, self.rotation.omega0.value, progress)
+
 
 class CampbellSweep(_TrackedSweep):
     """Eigenvalues against spin at constant flow velocity (Campbell diagram)."""
@@ -164,6 +188,10 @@ class CampbellSweep(_TrackedSweep):
     def _ranges(self) -> CampbellSweep:
         _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
         return self
+
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """:func:`~pipeflow.stability.sweeps.sweep` over spin (``to_dict`` form)."""
+        return self._sweep("spin", self.spin_range, self.flow.velocity.value, progress)
 
 
 class SpinMapSweep(StrictModel):
@@ -185,6 +213,18 @@ class SpinMapSweep(StrictModel):
             check_map_work, self.velocity_points * self.spin_points, self.modes, "spin_points"
         )
         return self
+
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """:func:`~pipeflow.stability.maps.spin_map` (``to_dict`` form)."""
+        return spin_map(
+            self.pipe.to_pipe(),
+            self.velocity_range,
+            self.spin_range,
+            modes=self.modes,
+            velocity_points=self.velocity_points,
+            spin_points=self.spin_points,
+            progress=progress,
+        ).to_dict()
 
 
 class BetaMapSweep(StrictModel):
@@ -212,6 +252,18 @@ class BetaMapSweep(StrictModel):
             raise ValueError("u_range must be >= 0 (reverse flow has no critical velocity)")
         _within_budget(check_map_work, self.beta_points * self.u_points, self.modes, "u_points")
         return self
+
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """:func:`~pipeflow.stability.maps.beta_map` (``to_dict`` form)."""
+        return beta_map(
+            self.beta_range,
+            self.u_range,
+            gamma=self.gamma,
+            modes=self.modes,
+            beta_points=self.beta_points,
+            u_points=self.u_points,
+            progress=progress,
+        ).to_dict()
 
 
 class ResonanceChartSweep(StrictModel):
@@ -254,6 +306,21 @@ class ResonanceChartSweep(StrictModel):
         )
         return self
 
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """:func:`~pipeflow.stability.floquet.resonance_chart` (``to_dict`` form)."""
+        return resonance_chart(
+            self.pipe.to_pipe(),
+            self.mean_velocity,
+            self.amplitude_range,
+            self.frequency_range,
+            omega0=self.rotation.omega0.value,
+            modes=self.modes,
+            amplitude_points=self.amplitude_points,
+            frequency_points=self.frequency_points,
+            tolerance=self.tolerance,
+            progress=progress,
+        ).to_dict()
+
 
 class PeriodicFlow(StrictModel):
     velocity: ConstantProfile | HarmonicProfile = Field(
@@ -294,7 +361,26 @@ class FloquetSweep(StrictModel):
             raise ValueError("harmonic flow and spin must share one frequency")
         return self
 
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """:func:`~pipeflow.stability.floquet.floquet` (``to_dict`` form)."""
+        return floquet(
+            self.pipe.to_pipe(),
+            self.flow.velocity.to_profile(),
+            self.rotation.omega0.to_profile(),
+            modes=self.modes,
+            tolerance=self.tolerance,
+            progress=progress,
+        ).to_dict()
 
+
+SWEEP_KINDS = (
+    ArgandSweep,
+    CampbellSweep,
+    SpinMapSweep,
+    BetaMapSweep,
+    ResonanceChartSweep,
+    FloquetSweep,
+)
 SweepSpec = Annotated[
     ArgandSweep | CampbellSweep | SpinMapSweep | BetaMapSweep | ResonanceChartSweep | FloquetSweep,
     Field(discriminator="kind"),
@@ -343,72 +429,8 @@ def run_stability(spec: StabilitySpec, progress: Progress | None = None) -> dict
 
 
 def run_sweep(spec: Any, progress: Progress | None = None) -> dict[str, Any]:
-    """Run any :data:`SweepSpec` kind: JSON-ready dict (SI units), ``kind`` echoed."""
-    out: dict[str, Any]
-    if isinstance(spec, ArgandSweep | CampbellSweep):
-        argand = isinstance(spec, ArgandSweep)
-        res = sweep(
-            spec.pipe.to_pipe(),
-            "velocity" if argand else "spin",
-            spec.velocity_range if isinstance(spec, ArgandSweep) else spec.spin_range,
-            fixed=(
-                spec.rotation.omega0.value
-                if isinstance(spec, ArgandSweep)
-                else spec.flow.velocity.value
-            ),
-            modes=spec.modes,
-            tracked=spec.tracked_modes,
-            points=spec.points,
-            min_confidence=spec.min_confidence,
-            max_points=spec.max_points,
-            progress=progress,
-        )
-        out = res.to_dict()
-    elif isinstance(spec, SpinMapSweep):
-        out = spin_map(
-            spec.pipe.to_pipe(),
-            spec.velocity_range,
-            spec.spin_range,
-            modes=spec.modes,
-            velocity_points=spec.velocity_points,
-            spin_points=spec.spin_points,
-            progress=progress,
-        ).to_dict()
-    elif isinstance(spec, BetaMapSweep):
-        out = beta_map(
-            spec.beta_range,
-            spec.u_range,
-            gamma=spec.gamma,
-            modes=spec.modes,
-            beta_points=spec.beta_points,
-            u_points=spec.u_points,
-            progress=progress,
-        ).to_dict()
-    elif isinstance(spec, ResonanceChartSweep):
-        out = resonance_chart(
-            spec.pipe.to_pipe(),
-            spec.mean_velocity,
-            spec.amplitude_range,
-            spec.frequency_range,
-            omega0=spec.rotation.omega0.value,
-            modes=spec.modes,
-            amplitude_points=spec.amplitude_points,
-            frequency_points=spec.frequency_points,
-            tolerance=spec.tolerance,
-            progress=progress,
-        ).to_dict()
-    elif isinstance(spec, FloquetSweep):
-        out = {
-            "kind": "floquet",
-            **floquet(
-                spec.pipe.to_pipe(),
-                spec.flow.velocity.to_profile(),
-                spec.rotation.omega0.to_profile(),
-                modes=spec.modes,
-                tolerance=spec.tolerance,
-                progress=progress,
-            ).to_dict(),
-        }
-    else:
+    """Run any :data:`SweepSpec` kind (its ``run`` method): JSON-ready dict (SI units),
+    ``kind`` echoed first."""
+    if not isinstance(spec, SWEEP_KINDS):
         raise TypeError(f"not a sweep spec: {type(spec).__name__}")
-    return dict(json_safe(out))
+    return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))
