@@ -15,13 +15,16 @@ cache key.  The run functions return JSON-ready dicts (every float finite) and t
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field, TypeAdapter, model_validator
 
+from pipeflow.basis import MAX_MODES
 from pipeflow.errors import BudgetExceeded
+from pipeflow.model import PAPER_PIPE
 from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec, StrictModel
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, resonance_chart
@@ -30,9 +33,8 @@ from pipeflow.stability.sweeps import Parameter, sweep
 
 Progress = Callable[[float], None]
 
-MAX_MODES = 40
 #: the paper's section-5 pipe, for the schema examples
-PAPER_PIPE_JSON: Any = {"E": 7.8e9, "I": 1.21e-17, "L": 0.025, "M1": 1.884e-5, "M2": 1.6485e-5}
+PAPER_PIPE_JSON: Any = dataclasses.asdict(PAPER_PIPE)
 MAX_SWEEP_POINTS = 2001
 MAX_MAP_SIDE = 200
 MAX_CHART_SIDE = 101

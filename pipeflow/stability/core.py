@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq, minimize_scalar
 
+from pipeflow.basis import MAX_MODES
 from pipeflow.eigen import assign, decompose
 from pipeflow.errors import InvalidInput
 from pipeflow.model import Coefficients, Pipe, PipeModel
@@ -46,8 +47,6 @@ REVERSE_FLOW_CAVEAT = (
     "model predicts flutter for any v < 0. Experiments do not show this flutter (Paidoussis "
     "& Luu 1985), so no critical velocity is given for v < 0."
 )
-
-MAX_MODES = 40
 
 
 def check_modes(modes: int, field: str = "modes") -> None:
