@@ -26,6 +26,11 @@ MAX_TABLE_POINTS = 10_000
 MAX_POSITIONS = 64
 MAX_EIGEN_SAMPLES = 2001
 MAX_POLY_DEGREE = 8
+#: bounds on profile values (m/s for v, rad/s for w0) and on total mass per length [kg/m]
+MAX_PROFILE_VALUE = 1e7
+MAX_COEFFICIENT = 1e9
+MIN_MASS = 1e-15
+BoundedValue = Annotated[float, Field(ge=-MAX_PROFILE_VALUE, le=MAX_PROFILE_VALUE)]
 
 
 class StrictModel(BaseModel):
@@ -46,16 +51,21 @@ class StrictModel(BaseModel):
 class PipeSpec(StrictModel):
     """Pipe and fluid properties (the paper's section 5 values are the example)."""
 
-    E: float = Field(gt=0, description="Young's modulus of the pipe wall [Pa].")
-    I: float = Field(gt=0, description="Second moment of area of the cross-section [m^4].")
-    L: float = Field(gt=0, description="Pipe length, hub (clamped) to free tip [m].")
-    M1: float = Field(ge=0, description="Mass of the pipe per unit length [kg/m].")
-    M2: float = Field(ge=0, description="Mass of the conveyed fluid per unit length [kg/m].")
+    # upper bounds: every engineering pipe fits with orders of magnitude to spare, and the
+    # numerics stay within double precision (1e308 overflowed); vanishing values that still
+    # overflow are answered by the service's numerical-range problem
+    E: float = Field(gt=0, le=1e13, description="Young's modulus of the pipe wall [Pa].")
+    I: float = Field(gt=0, le=10.0, description="Second moment of area of the cross-section [m^4].")
+    L: float = Field(gt=0, le=1e4, description="Pipe length, hub (clamped) to free tip [m].")
+    M1: float = Field(ge=0, le=1e6, description="Mass of the pipe per unit length [kg/m].")
+    M2: float = Field(
+        ge=0, le=1e6, description="Mass of the conveyed fluid per unit length [kg/m]."
+    )
 
     @model_validator(mode="after")
     def _mass(self) -> PipeSpec:
-        if self.M1 + self.M2 <= 0:
-            raise ValueError("M1 + M2 must be > 0 kg/m")
+        if self.M1 + self.M2 < MIN_MASS:
+            raise ValueError(f"M1 + M2 must be >= {MIN_MASS:g} kg/m")
         return self
 
     def to_pipe(self) -> Pipe:
@@ -66,7 +76,12 @@ class ConstantProfile(StrictModel):
     """p(t) = value."""
 
     kind: Literal["constant"] = "constant"
-    value: float = Field(0.0, description="Value, in the unit of the quantity (m/s or rad/s).")
+    value: float = Field(
+        0.0,
+        ge=-MAX_PROFILE_VALUE,
+        le=MAX_PROFILE_VALUE,
+        description="Value, in the unit of the quantity (m/s or rad/s).",
+    )
 
     def to_profile(self) -> profiles.Profile:
         return profiles.Constant(self.value)
@@ -76,7 +91,7 @@ class PolynomialProfile(StrictModel):
     """p(t) = sum_k coefficients[k] t^k with t in seconds (the paper's a, a t, a t^2)."""
 
     kind: Literal["polynomial"] = "polynomial"
-    coefficients: list[float] = Field(
+    coefficients: list[Annotated[float, Field(ge=-MAX_COEFFICIENT, le=MAX_COEFFICIENT)]] = Field(
         min_length=1,
         max_length=MAX_POLY_DEGREE + 1,
         description="c_0, c_1, ...: c_k in (unit of the quantity)/s^k, e.g. m/s^(k+1) for v.",
@@ -90,8 +105,18 @@ class HarmonicProfile(StrictModel):
     """p(t) = mean + amplitude sin(frequency t + phase): pulsating flow, oscillating spin."""
 
     kind: Literal["harmonic"] = "harmonic"
-    mean: float = Field(0.0, description="Mean value (m/s for v, rad/s for w0).")
-    amplitude: float = Field(0.0, description="Amplitude (m/s for v, rad/s for w0).")
+    mean: float = Field(
+        0.0,
+        ge=-MAX_PROFILE_VALUE,
+        le=MAX_PROFILE_VALUE,
+        description="Mean value (m/s for v, rad/s for w0).",
+    )
+    amplitude: float = Field(
+        0.0,
+        ge=-MAX_PROFILE_VALUE,
+        le=MAX_PROFILE_VALUE,
+        description="Amplitude (m/s for v, rad/s for w0).",
+    )
     frequency: float = Field(0.0, ge=0, le=1e7, description="Angular frequency [rad/s].")
     phase: float = Field(0.0, ge=-1e3, le=1e3, description="Phase at t = 0 [rad].")
 
@@ -106,7 +131,7 @@ class TableProfile(StrictModel):
     t: list[float] = Field(
         min_length=2, max_length=MAX_TABLE_POINTS, description="Strictly increasing times [s]."
     )
-    values: list[float] = Field(
+    values: list[BoundedValue] = Field(
         min_length=2, max_length=MAX_TABLE_POINTS, description="Values at those times."
     )
     interpolation: Literal["linear", "cubic", "pchip"] = Field(

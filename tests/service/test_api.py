@@ -219,3 +219,22 @@ def test_workers_pin_blas_threads(client: TestClient) -> None:
     assert info["threads"]["OMP_NUM_THREADS"] == "1"
     assert info["threads"]["OPENBLAS_NUM_THREADS"] == "1"
     assert info["numpy_loaded"]
+
+
+def test_out_of_range_magnitudes_name_the_field(client: TestClient) -> None:
+    """Pipe properties and profile values outside the documented ranges (far beyond any
+    engineering pipe, where double precision would overflow) are refused by the schema,
+    naming the field, before any numerics run."""
+    pipe = SMALL["pipe"]
+    cases = {
+        "pipe.L": _small(pipe={**pipe, "L": 1e308}),
+        "pipe.E": _small(pipe={**pipe, "E": 1e14}),
+        "pipe.M1": _small(pipe={**pipe, "M1": 1e308}),
+        "rotation.omega0.value": _small(rotation={"omega0": {"kind": "constant", "value": 1e308}}),
+        "flow.velocity.coefficients.0": _small(
+            flow={"velocity": {"kind": "polynomial", "coefficients": [1e308]}}
+        ),
+    }
+    for field, body in cases.items():
+        doc = _problem(client.post("/v1/simulations", json=body), 422)
+        assert field in _fields(doc), (field, doc)
