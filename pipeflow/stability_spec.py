@@ -23,11 +23,11 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, TypeAdapter, model_validator
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.errors import BudgetExceeded
+from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
 from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec, StrictModel
 from pipeflow.stability.critical import critical_velocities
-from pipeflow.stability.floquet import check_chart_work, floquet, resonance_chart
+from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
 from pipeflow.stability.sweeps import Parameter, sweep
 
@@ -211,7 +211,7 @@ class SpinMapSweep(StrictModel):
     def _ranges(self) -> SpinMapSweep:
         _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
         _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
-        _within_budget(
+        _library_check(
             check_map_work, self.velocity_points * self.spin_points, self.modes, "spin_points"
         )
         return self
@@ -252,7 +252,7 @@ class BetaMapSweep(StrictModel):
         _check_range(self.u_range, "u_range", 1e3, "")
         if self.u_range[0] < 0:
             raise ValueError("u_range must be >= 0 (reverse flow has no critical velocity)")
-        _within_budget(check_map_work, self.beta_points * self.u_points, self.modes, "u_points")
+        _library_check(check_map_work, self.beta_points * self.u_points, self.modes, "u_points")
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
@@ -298,7 +298,7 @@ class ResonanceChartSweep(StrictModel):
             raise ValueError("amplitude_range must be >= 0 m/s")
         if self.frequency_range[0] <= 0:
             raise ValueError("frequency_range must be > 0 rad/s")
-        _within_budget(
+        _library_check(
             check_chart_work,
             self.pipe.to_pipe(),
             self.modes,
@@ -352,15 +352,9 @@ class FloquetSweep(StrictModel):
 
     @model_validator(mode="after")
     def _periodic(self) -> FloquetSweep:
-        profs = [self.flow.velocity, self.rotation.omega0]
-        harm = [p for p in profs if isinstance(p, HarmonicProfile) and p.frequency > 0]
-        if not harm:
-            raise ValueError(
-                "flow.velocity or rotation.omega0 must be harmonic with frequency > 0 rad/s"
-            )
-        moving = [p.frequency for p in harm if p.amplitude != 0]
-        if len(moving) == 2 and not math.isclose(moving[0], moving[1], rel_tol=1e-12):
-            raise ValueError("harmonic flow and spin must share one frequency")
+        _library_check(
+            period_of, self.flow.velocity.to_profile(), self.rotation.omega0.to_profile()
+        )
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
@@ -395,12 +389,12 @@ def parse_sweep(data: Any) -> Any:
     return SWEEP_ADAPTER.validate_python(data)
 
 
-def _within_budget(check: Callable[..., None], *args: Any) -> None:
-    """Run a library budget check at validation time, so an over-budget request is a 422
-    naming the field at submission rather than a job that fails later."""
+def _library_check(check: Callable[..., object], *args: Any) -> None:
+    """Run a library check (budget, common period) at validation time, so a request the
+    library would refuse is a 422 naming the field at submission, not a job that fails later."""
     try:
         check(*args)
-    except BudgetExceeded as exc:
+    except PipeflowError as exc:
         raise ValueError(f"{exc.field}: {exc.message}") from None
 
 

@@ -207,8 +207,8 @@ def period_of(flow: Profile, spin: Profile) -> float:
     """Common period T = 2 pi / frequency [s] of harmonic flow and/or spin."""
     harmonic = [p for p in (flow, spin) if isinstance(p, Harmonic) and p.frequency > 0]
     # a zero-amplitude harmonic still sets the period (the check against exp(S T))
-    freqs = [p.frequency for p in harmonic if p.amplitude != 0] or [p.frequency for p in harmonic][
-        :1
+    freqs = [p.frequency for p in harmonic if p.amplitude != 0] or [
+        p.frequency for p in harmonic[:1]
     ]
     for name, p in (("flow.velocity", flow), ("rotation.omega0", spin)):
         if not isinstance(p, Harmonic | Constant):
