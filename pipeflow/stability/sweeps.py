@@ -152,8 +152,10 @@ def sweep(
     check_modes(modes)
     if not 1 <= tracked <= modes:
         raise InvalidInput(f"tracked modes must be between 1 and {modes}", field="tracked_modes")
+    if parameter not in ("velocity", "spin"):
+        raise InvalidInput(f"unknown sweep parameter {parameter!r}", field="parameter")
     lo, hi = float(value_range[0]), float(value_range[1])
-    check_range(lo, hi, "range")
+    check_range(lo, hi, "velocity_range" if parameter == "velocity" else "spin_range")
     if points < 2:
         raise InvalidInput("points must be >= 2", field="points")
     if not 0 <= min_confidence <= 1:
@@ -170,15 +172,13 @@ def sweep(
 
         if lo < 0:
             warnings.append(REVERSE_FLOW_CAVEAT)
-    elif parameter == "spin":
+    else:
 
         def matrices(p: FloatArray) -> FloatArray:
             return state_matrices(model, fixed, p)
 
         if fixed < 0:
             warnings.append(REVERSE_FLOW_CAVEAT)
-    else:
-        raise InvalidInput(f"unknown sweep parameter {parameter!r}", field="parameter")
     if progress is not None:
         progress(0.0)
     br = follow(

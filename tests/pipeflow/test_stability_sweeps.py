@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pipeflow.eigen import track
+from pipeflow.errors import InvalidInput
 from pipeflow.model import PAPER_PIPE, build_model
 from pipeflow.stability.core import nondimensional_pipe, state_matrices
 from pipeflow.stability.sweeps import sweep
@@ -61,3 +62,14 @@ def test_campbell_diagram_rpm_and_rotating_beam_limit():
     np.testing.assert_allclose(d["parameter"]["values_rpm"], s.values * 60 / (2 * math.pi))
     np.testing.assert_allclose(d["modes"][0]["frequency_rpm"], s.omega[:, 0] * 60 / (2 * math.pi))
     assert np.all(np.abs(s.sigma) < 1e-9 * np.abs(s.xi).max())  # v = 0: conservative
+
+
+def test_bad_sweep_input_names_the_field():
+    """A decreasing range is refused naming the request field of that sweep kind."""
+    for parameter, field in (("velocity", "velocity_range"), ("spin", "spin_range")):
+        with pytest.raises(InvalidInput) as exc:
+            sweep(PAPER_PIPE, parameter, (1.0, 0.0), modes=3, tracked=2, points=5)
+        assert exc.value.field == field
+    with pytest.raises(InvalidInput) as exc:
+        sweep(PAPER_PIPE, "pressure", (0.0, 1.0), modes=3, tracked=2, points=5)  # type: ignore[arg-type]
+    assert exc.value.field == "parameter"
