@@ -118,6 +118,16 @@ class Pipe:
         return np.asarray(gamma, dtype=float) / (self.L**2 * math.sqrt(self.mass / self.EI))
 
 
+#: What every result with reverse flow says (physics notes sec. 4; one text for all analyses).
+REVERSE_FLOW_CAVEAT = (
+    "reverse flow (v < 0, the aspirating pipe): in this undamped model reversing the flow is "
+    "time reversal, so the spectrum at -v is the spectrum at +v reflected through the "
+    "imaginary axis (xi -> -conj(xi)); every mode that is damped at +v grows at -v and the "
+    "model predicts flutter for any v < 0. Experiments do not show this flutter (Paidoussis "
+    "& Luu 1985), so no critical velocity is given for v < 0."
+)
+
+
 #: The worked example of the paper, section 5 (A = 1.57e-8 m^2 is not needed by the model).
 PAPER_PIPE = Pipe(E=7.8e9, I=1.21e-17, L=0.025, M1=1.884e-5, M2=1.6485e-5)
 

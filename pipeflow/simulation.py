@@ -17,11 +17,10 @@ from numpy.typing import NDArray
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.eigen import Traces, track
 from pipeflow.errors import InvalidInput
-from pipeflow.model import Loading, Pipe, PipeModel, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
-from pipeflow.stability.core import REVERSE_FLOW_CAVEAT
 
 FloatArray = NDArray[np.float64]
 

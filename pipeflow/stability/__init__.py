@@ -7,7 +7,8 @@ and Floquet analysis of pulsating flow or spin.  All quantities in SI units.
 - :func:`floquet`, :func:`resonance_chart`: monodromy/multipliers; parametric resonance
 """
 
-from pipeflow.stability.core import REVERSE_FLOW_CAVEAT, eigenvalues, growth_rate, state_matrices
+from pipeflow.model import REVERSE_FLOW_CAVEAT
+from pipeflow.stability.core import eigenvalues, growth_rate, state_matrices
 from pipeflow.stability.critical import CriticalVelocity, Crossing, critical_velocities
 from pipeflow.stability.floquet import Floquet, ResonanceChart, floquet, resonance_chart
 from pipeflow.stability.maps import BetaMap, SpinMap, beta_map, spin_map

@@ -40,14 +40,6 @@ Progress = Callable[[float], None]
 #: sigma below this fraction of the spectral radius is rounding, not growth
 MARGINAL_RTOL = 1e-11
 
-REVERSE_FLOW_CAVEAT = (
-    "reverse flow (v < 0, the aspirating pipe): in this undamped model reversing the flow is "
-    "time reversal, so the spectrum at -v is the spectrum at +v reflected through the "
-    "imaginary axis (xi -> -conj(xi)); every mode that is damped at +v grows at -v and the "
-    "model predicts flutter for any v < 0. Experiments do not show this flutter (Paidoussis "
-    "& Luu 1985), so no critical velocity is given for v < 0."
-)
-
 
 def check_modes(modes: int, field: str = "modes") -> None:
     if not 1 <= int(modes) <= MAX_MODES:

@@ -24,9 +24,8 @@ from typing import Any, Literal
 import numpy as np
 
 from pipeflow.errors import InvalidInput
-from pipeflow.model import Pipe, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
 from pipeflow.stability.core import (
-    REVERSE_FLOW_CAVEAT,
     Branches,
     FloatArray,
     Progress,

@@ -31,11 +31,10 @@ import numpy as np
 from scipy import ndimage
 
 from pipeflow.errors import BudgetExceeded, InvalidInput
-from pipeflow.model import Loading, Pipe, PipeModel, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
 from pipeflow.solvers.magnus import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.stability.core import (
-    REVERSE_FLOW_CAVEAT,
     ComplexArray,
     FloatArray,
     Progress,

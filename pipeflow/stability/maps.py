@@ -18,9 +18,8 @@ from typing import Any
 import numpy as np
 
 from pipeflow.errors import BudgetExceeded, InvalidInput
-from pipeflow.model import Pipe, PipeModel, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, build_model
 from pipeflow.stability.core import (
-    REVERSE_FLOW_CAVEAT,
     FloatArray,
     Progress,
     check_modes,

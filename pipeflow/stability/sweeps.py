@@ -19,9 +19,8 @@ from numpy.typing import NDArray
 
 from pipeflow.eigen import order_lowest
 from pipeflow.errors import BudgetExceeded, InvalidInput
-from pipeflow.model import Pipe, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
 from pipeflow.stability.core import (
-    REVERSE_FLOW_CAVEAT,
     ComplexArray,
     FloatArray,
     Progress,
