@@ -122,7 +122,7 @@ class Result:
             },
             "cma_exponents": {"t": _finite(self.eigen_t), "modes": traces(self.exponents)},
             "dimensionless": self.dimensionless,
-            "diagnostics": _clean(self.diagnostics),
+            "diagnostics": json_safe(self.diagnostics),
             "warnings": list(self.warnings),
         }
         if modal:
@@ -137,16 +137,18 @@ def _finite(a: Any) -> Any:
     return arr.tolist()
 
 
-def _clean(d: dict[str, Any]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, float) and not math.isfinite(v):
-            out[k] = None if math.isnan(v) else ("inf" if v > 0 else "-inf")
-        elif isinstance(v, np.generic):
-            out[k] = v.item()
-        else:
-            out[k] = v
-    return out
+def json_safe(data: Any) -> Any:
+    """JSON-ready copy: non-finite floats become null (JSON has no Inf/NaN), numpy scalars
+    Python numbers, nested dicts, lists and tuples are walked.  The one rule for every result."""
+    if isinstance(data, dict):
+        return {k: json_safe(v) for k, v in data.items()}
+    if isinstance(data, list | tuple):
+        return [json_safe(v) for v in data]
+    if hasattr(data, "item") and not isinstance(data, str):
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
 
 
 def validate(sim: Simulation) -> None:

@@ -16,7 +16,6 @@ cache key.  The run functions return JSON-ready dicts (every float finite) and t
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
@@ -25,6 +24,7 @@ from pydantic import ConfigDict, Field, TypeAdapter, model_validator
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
+from pipeflow.simulation import json_safe
 from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec, StrictModel
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
@@ -396,19 +396,6 @@ def _library_check(check: Callable[..., object], *args: Any) -> None:
         check(*args)
     except PipeflowError as exc:
         raise ValueError(f"{exc.field}: {exc.message}") from None
-
-
-def json_safe(data: Any) -> Any:
-    """Replace non-finite floats by None (JSON has no Inf/NaN); numpy scalars to Python."""
-    if isinstance(data, dict):
-        return {k: json_safe(v) for k, v in data.items()}
-    if isinstance(data, list | tuple):
-        return [json_safe(v) for v in data]
-    if hasattr(data, "item") and not isinstance(data, str):
-        data = data.item()
-    if isinstance(data, float) and not math.isfinite(data):
-        return None
-    return data
 
 
 def run_stability(spec: StabilitySpec, progress: Progress | None = None) -> dict[str, Any]:
