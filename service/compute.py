@@ -17,9 +17,9 @@ from fastapi import Query, Response
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel
 
+from service.engine import ComputationCancelled, ComputationFailed, QueueFull, Runner
 from service.kinds import JobKind
 from service.problems import ProblemError
-from service.runner import ComputationCancelled, ComputationFailed, QueueFull, Runner
 from service.schemas import JobStatus
 from service.store import Job, Store
 

@@ -6,6 +6,8 @@ variables ``PIPEFLOW_*``); the module-level ``app`` uses the environment's setti
 
 from __future__ import annotations
 
+import asyncio
+import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -15,6 +17,7 @@ from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
 from service import problems
+from service.engine import Runner
 from service.middleware import BodyLimit
 from service.routes import (
     compare,
@@ -27,9 +30,10 @@ from service.routes import (
     sweeps,
     viewer,
 )
-from service.runner import Runner
 from service.settings import Settings, get_settings
-from service.store import Store
+from service.store import Store, StoreRefused
+
+log = logging.getLogger("service")
 
 DESCRIPTION = """\
 Vibration of a rotating cantilevered pipe conveying fluid with time-varying flow
@@ -45,7 +49,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        store = Store(settings.db_path, settings.cache_max_bytes, settings.memory_cache_bytes)
+        try:
+            store = await asyncio.to_thread(
+                Store, settings.db_url, settings.cache_max_bytes, settings.memory_cache_bytes
+            )
+        except StoreRefused as exc:
+            log.critical("refusing to start: %s", exc)
+            raise
         runner = Runner(settings, store)
         app.state.store = store
         app.state.runner = runner
@@ -54,7 +64,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             await runner.stop()
-            store.close()
+            await asyncio.to_thread(store.close)
 
     app = FastAPI(
         title="pipeflow",

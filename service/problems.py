@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from pipeflow.errors import PipeflowError
+from service.store.errors import StorageError
 
 log = logging.getLogger("service")
 
@@ -35,6 +36,7 @@ _TITLES = {
     422: "Invalid input",
     500: "Internal server error",
     503: "Service unavailable",
+    507: "Insufficient storage",
 }
 
 
@@ -267,6 +269,21 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
 # -- handlers ------------------------------------------------------------------------------
 
 
+def storage_problem(exc: StorageError, instance: str | None = None) -> dict[str, Any]:
+    """507 when the store's disk is full, else 503: nothing was lost, retry later."""
+    return problem(
+        507 if exc.full else 503,
+        f"{exc}; the request was not done, and the service recovers by itself once the "
+        "store is writable again: retry later",
+        slug="storage",
+        instance=instance,
+    )
+
+
+def storage_headers(app: FastAPI) -> dict[str, str]:
+    return {"Retry-After": str(app.state.settings.retry_after_s)}
+
+
 def install(app: FastAPI) -> None:
     """Register the problem+json exception handlers on ``app``."""
 
@@ -287,6 +304,10 @@ def install(app: FastAPI) -> None:
     @app.exception_handler(ProblemError)
     async def _problem(request: Request, exc: ProblemError) -> JSONResponse:
         return response(exc.document(request.url.path), exc.headers)
+
+    @app.exception_handler(StorageError)
+    async def _storage(request: Request, exc: StorageError) -> JSONResponse:
+        return response(storage_problem(exc, request.url.path), storage_headers(request.app))
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:

@@ -18,6 +18,16 @@ class Settings(BaseSettings):
     data_dir: Path = Field(
         Path("./var"), description="Directory of the SQLite store (results cache and jobs)."
     )
+    database_url: str | None = Field(
+        None,
+        description="SQLAlchemy URL of the store, e.g. postgresql+psycopg://user@host/db "
+        "(several replicas); default: sqlite:/// file pipeflow.sqlite3 in data_dir.",
+    )
+    scheduler_address: str | None = Field(
+        None,
+        description="Dask scheduler to use, e.g. tcp://host:8786; default: an embedded "
+        "LocalCluster of `workers` processes.",
+    )
     workers: int = Field(
         default_factory=lambda: max(1, min(2, os.cpu_count() or 1)),
         ge=1,
@@ -47,12 +57,27 @@ class Settings(BaseSettings):
         7 * 86400.0, gt=0, description="Finished job records older than this are pruned [s]."
     )
     progress_interval_s: float = Field(
-        0.25, gt=0, description="How often a worker records progress and checks for cancel [s]."
+        0.25,
+        gt=0,
+        le=60,
+        description="How often a running computation heartbeats, records progress and "
+        "checks for cancel [s].",
+    )
+    stale_after_s: float = Field(
+        10.0,
+        gt=0,
+        description="A job whose heartbeat is older than this is taken to be dead (its "
+        "worker, replica or the scheduler died) and is submitted again [s].",
     )
 
     @property
     def db_path(self) -> Path:
         return self.data_dir / "pipeflow.sqlite3"
+
+    @property
+    def db_url(self) -> str:
+        """The store's SQLAlchemy URL (``database_url``, else the SQLite file in data_dir)."""
+        return self.database_url or f"sqlite:///{self.db_path.resolve()}"
 
 
 @lru_cache(maxsize=1)

@@ -26,13 +26,20 @@ async def healthz() -> Health:
     responses=responses(503),
 )
 async def readyz(runner: RunnerDep) -> Readiness:
-    """200 when the worker processes are up and the queue has room, else 503."""
+    """200 when the workers are up, the store is writable and the queue has room, else 503."""
     if not runner.ready:
         raise ProblemError(
             503,
             "worker processes are starting",
             slug="not-ready",
             headers={"Retry-After": "1"},
+        )
+    if not runner.store.healthy:
+        raise ProblemError(
+            503,
+            f"the store is failing ({runner.store.last_error}); retrying by itself",
+            slug="storage",
+            headers={"Retry-After": str(runner.settings.retry_after_s)},
         )
     if runner.saturated:
         raise ProblemError(

@@ -212,7 +212,7 @@ def test_health_and_ready(client: TestClient) -> None:
 
 
 def test_workers_pin_blas_threads(client: TestClient) -> None:
-    from service import worker
+    from service.engine import worker
 
     runner = client.app.state.runner  # type: ignore[attr-defined]
     info = client.portal.call(runner.call, worker.ping)  # type: ignore[union-attr]

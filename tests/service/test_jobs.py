@@ -130,7 +130,7 @@ def test_watchdog_fails_silent_job(tight: TestClient) -> None:
     assert job["status"] == "failed"
     assert "runtime limit" in job["error"]["detail"]
     quick = tight.post("/test/sleep", json={"seconds": 0.01, "tag": "after-watchdog"})
-    assert quick.status_code == 200, quick.text
+    assert quick.status_code == 200, (quick.text, tight.get("/v1/jobs/" + key).json())
 
 
 def test_saturated_503(tight: TestClient) -> None:

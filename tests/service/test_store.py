@@ -1,10 +1,18 @@
-"""The SQLite store: persistence, bounded size with LRU eviction, the memory front."""
+"""The store (SQLAlchemy Core on SQLite here): persistence, compression, bounded size with
+LRU eviction, the memory front, job records, leases, migrations and the integrity check."""
 
 from __future__ import annotations
 
+import random
+import sqlite3
+import time
 from pathlib import Path
 
-from service.store import Store, _MemoryLRU
+import pytest
+from sqlalchemy import event
+
+from service.store import MemoryLRU as _MemoryLRU
+from service.store import StorageError, Store, StoreRefused
 
 
 def test_results_survive_reopening(tmp_path: Path) -> None:
@@ -16,15 +24,20 @@ def test_results_survive_reopening(tmp_path: Path) -> None:
     assert again.get_result("b") is None
 
 
+def _incompressible(seed: int) -> bytes:
+    """100 random bytes: zlib stores them in about 111 bytes (the bound counts stored size)."""
+    return random.Random(seed).randbytes(100)
+
+
 def test_disk_bound_evicts_least_recently_used(tmp_path: Path) -> None:
     store = Store(tmp_path / "db.sqlite3", cache_max_bytes=250, memory_cache_bytes=0)
-    for key in "abc":
-        store.put_result(key, "simulation", b"{" + b" " * 98 + b"}")  # 100 bytes each
+    for i, key in enumerate("abc"):
+        store.put_result(key, "simulation", _incompressible(i))
     assert store.result_bytes() <= 250
     assert store.get_result("a") is None  # oldest went first
     assert store.get_result("c") is not None
     store.get_result("b")  # b is now more recent than c
-    store.put_result("d", "simulation", b"{" + b" " * 98 + b"}")
+    store.put_result("d", "simulation", _incompressible(3))
     assert store.get_result("c") is None
     assert store.get_result("b") is not None and store.get_result("d") is not None
 
@@ -33,13 +46,13 @@ def test_memory_hits_count_for_disk_eviction(tmp_path: Path) -> None:
     """A result served from the memory front is recently used on disk too: the disk
     bound evicts the result nobody asked for, not the hot one."""
     store = Store(tmp_path / "db.sqlite3", cache_max_bytes=250, memory_cache_bytes=1000)
-    body = b"{" + b" " * 98 + b"}"  # 100 bytes
+    body = _incompressible(0)
     store.put_result("a", "simulation", body)
-    store.put_result("b", "simulation", body)
+    store.put_result("b", "simulation", _incompressible(1))
     assert store.get_result("a") == body  # a memory hit: a is now more recent than b
-    store.put_result("c", "simulation", body)
+    store.put_result("c", "simulation", _incompressible(2))
     assert store.get_result("b") is None
-    assert store.get_result("a") == body and store.get_result("c") == body
+    assert store.get_result("a") == body and store.get_result("c") == _incompressible(2)
 
 
 def test_memory_front_is_bounded() -> None:
@@ -66,3 +79,114 @@ def test_job_records(tmp_path: Path) -> None:
     assert store.get_job("k").status == "failed"  # type: ignore[union-attr]
     assert store.prune_jobs(older_than=job.updated + 1) == 1
     assert store.get_job("k") is None
+
+
+def test_results_are_stored_compressed(tmp_path: Path) -> None:
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**6, memory_cache_bytes=0)
+    body = b'{"t":[' + b",".join(b"%.6f" % (i * 1e-3) for i in range(2000)) + b"]}"
+    store.put_result("a", "simulation", body)
+    assert store.get_result("a") == body  # byte-exact round trip through zlib
+    assert store.result_bytes() < len(body) / 2  # a time axis compresses well over 2x
+
+
+def _old_schema(path: Path) -> None:
+    """The database the hand-written sqlite3 store (before alembic) wrote."""
+    conn = sqlite3.connect(path)
+    conn.executescript(
+        """
+        CREATE TABLE results (key TEXT PRIMARY KEY, kind TEXT NOT NULL, body BLOB NOT NULL,
+            size INTEGER NOT NULL, created REAL NOT NULL, accessed REAL NOT NULL);
+        CREATE INDEX results_accessed ON results (accessed);
+        CREATE TABLE jobs (key TEXT PRIMARY KEY, kind TEXT NOT NULL, spec TEXT NOT NULL,
+            status TEXT NOT NULL, progress REAL NOT NULL DEFAULT 0, error TEXT,
+            created REAL NOT NULL, started REAL, finished REAL, updated REAL NOT NULL,
+            cancel INTEGER NOT NULL DEFAULT 0);
+        CREATE INDEX jobs_status ON jobs (status);
+        INSERT INTO results VALUES ('old', 'simulation', CAST('{"x":1}' AS BLOB), 7, 1.0, 1.0);
+        INSERT INTO jobs (key, kind, spec, status, created, updated)
+            VALUES ('j', 'simulation', '{}', 'queued', 1.0, 1.0);
+        """
+    )
+    conn.commit()
+    conn.close()
+
+
+def test_migrates_a_pre_alembic_database(tmp_path: Path) -> None:
+    """The old file keeps its data: stamped 0001, migrated to head (codec, attempts, ...)."""
+    path = tmp_path / "db.sqlite3"
+    _old_schema(path)
+    store = Store(path, cache_max_bytes=10_000, memory_cache_bytes=0)
+    assert store.get_result("old") == b'{"x":1}'  # stored uncompressed: codec 'identity'
+    job = store.get_job("j")
+    assert job is not None and job.status == "queued" and job.attempts == 0
+    assert job.refresh is False and job.last_retry_reason is None
+    conn = sqlite3.connect(path)
+    assert conn.execute("SELECT version_num FROM alembic_version").fetchone() == ("0002",)
+    conn.close()
+
+
+def test_zero_length_file_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "db.sqlite3"
+    path.touch()
+    with pytest.raises(StoreRefused, match=r"empty \(0 bytes\).*backup.*move the file away"):
+        Store(path, cache_max_bytes=1000, memory_cache_bytes=0)
+    assert path.stat().st_size == 0  # left as found, not reinitialised
+
+
+def test_damaged_file_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "db.sqlite3"
+    store = Store(path, cache_max_bytes=10**6, memory_cache_bytes=0)
+    for i in range(50):
+        store.put_result(f"k{i}", "simulation", random.Random(i).randbytes(4000))
+    store.close()
+    data = bytearray(path.read_bytes())
+    data[4096 * 3 : 4096 * 6] = b"\xa5" * (4096 * 3)  # overwrite pages 4-6 (b-tree pages)
+    path.write_bytes(bytes(data))
+    with pytest.raises(StoreRefused, match=r"damaged|not a readable") as info:
+        Store(path, cache_max_bytes=1000, memory_cache_bytes=0)
+    assert ".recover" in str(info.value) and "backup" in str(info.value)
+
+
+def test_lease_claim_heartbeat_takeover(tmp_path: Path) -> None:
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=1000, memory_cache_bytes=0)
+    store.enqueue_job("k", "simulation", {})
+    assert store.claim("k", "a1", "w1", stale_after_s=60).outcome == "claimed"
+    # a second attempt respects the live lease
+    assert store.claim("k", "a2", "w2", stale_after_s=60).outcome == "elsewhere"
+    assert store.heartbeat("k", "a1", 0.5) == "ok"
+    assert store.get_job("k").progress == 0.5  # type: ignore[union-attr]
+    # a stale lease (heartbeat older than stale_after_s = 0) is taken over, with the reason
+    time.sleep(0.01)
+    claim = store.claim("k", "a2", "w2", stale_after_s=0.0)
+    assert claim.outcome == "claimed" and claim.job is not None
+    assert claim.job.attempts == 2 and claim.job.owner == "a2"
+    assert "attempt 1 on w1 stopped heartbeating" in (claim.job.last_retry_reason or "")
+    assert store.heartbeat("k", "a1", 0.9) == "lost"  # the old attempt learns it lost it
+    assert store.finish_job("k", "succeeded", owner="a1") is False  # and cannot finish it
+    store.request_cancel("k")
+    assert store.heartbeat("k", "a2") == "cancelled"
+    assert store.claim("k", "a3", "w3", stale_after_s=0.0).outcome == "done"
+    # a finished job accepted again is a new generation with fresh attempts
+    job = store.enqueue_job("k", "simulation", {}, refresh=True)
+    assert (job.status, job.generation, job.attempts, job.refresh) == ("queued", 2, 0, True)
+
+
+def test_full_database_raises_storage_error_and_probe_recovers(tmp_path: Path) -> None:
+    """SQLITE_FULL (a page limit here, a full disk in tests/service/test_faults.py) is a
+    StorageError with ``full``; the store is unhealthy until a probe write succeeds."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**8, memory_cache_bytes=0)
+    limit = {"pages": 20}
+
+    @event.listens_for(store.engine, "connect")
+    def _cap(dbapi_conn: sqlite3.Connection, _: object) -> None:
+        dbapi_conn.execute(f"PRAGMA max_page_count = {limit['pages']}")
+
+    store.engine.dispose()
+    with pytest.raises(StorageError) as info:
+        store.put_result("big", "simulation", random.Random(0).randbytes(200_000))
+    assert info.value.full and not store.healthy
+    assert not store.probe()
+    limit["pages"] = 1_000_000
+    store.engine.dispose()
+    assert store.probe() and store.healthy
+    store.put_result("big", "simulation", random.Random(0).randbytes(200_000))

@@ -1,0 +1,412 @@
+"""The engine: computations as Dask tasks, driven to a terminal job record.
+
+Embedded mode (default): the app's lifespan starts a ``distributed.LocalCluster`` of
+``PIPEFLOW_WORKERS`` worker processes (one thread and one BLAS thread each).  Distributed
+mode: ``PIPEFLOW_SCHEDULER_ADDRESS=tcp://host:8786`` makes the service a client of an
+existing cluster (``dask scheduler`` + ``dask worker --nthreads 1 --preload
+service.engine.worker``).
+
+One computation is one Dask task (:func:`service.engine.task.run_job`) keyed by the
+parameter hash (plus the job's generation and attempt): identical requests from any
+replica share it.  The task owns the job record while it runs (a lease in the store), so
+the replica that submitted it may die.  Here, per replica:
+
+- :meth:`Runner.submit` writes the job record, then returns the one in-flight
+  :class:`asyncio.Task` per key that drives it to a terminal state (single flight);
+- a monitor loop wakes flights whose job finished or was cancelled, keeps the heartbeat
+  of queued jobs this replica waits for, probes a failed store until it is writable
+  again, and resubmits any job whose heartbeat went stale (its worker, its replica or the
+  scheduler died): nothing accepted is lost.
+
+Limits: at most ``workers + queue_size`` distinct computations are in flight per replica
+(:class:`QueueFull` beyond, answered with 503); a job whose computation started
+:data:`MAX_ATTEMPTS` times without finishing is failed with the reason.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from service.engine.task import TaskConfig, run_job
+from service.engine.worker import WORKER_ENV
+from service.kinds import KINDS, JobKind
+from service.settings import Settings
+from service.store import Job, StorageError, Store
+
+log = logging.getLogger("service.engine")
+
+#: extra time past the runtime limit before a silent computation's worker is killed [s]
+WATCHDOG_GRACE_S = 5.0
+#: starts of one computation (worker deaths under it) before its job is failed
+MAX_ATTEMPTS = 3
+
+
+class QueueFull(Exception):
+    """No room for another computation."""
+
+
+class ComputationFailed(Exception):
+    """The computation ended in a failure; ``problem`` is its RFC 9457 document."""
+
+    def __init__(self, problem: dict[str, Any]) -> None:
+        super().__init__(problem.get("detail", "failed"))
+        self.problem = problem
+
+
+class ComputationCancelled(Exception):
+    """The computation was cancelled (DELETE on its job)."""
+
+
+@dataclass
+class Flight:
+    kind: JobKind
+    key: str
+    task: asyncio.Task[bytes] | None = None
+    accepted: asyncio.Event = field(default_factory=asyncio.Event)
+    changed: asyncio.Event = field(default_factory=asyncio.Event)
+    resubmits: int = 0
+
+
+def _internal(detail: str) -> dict[str, Any]:
+    from service.problems import problem
+
+    return problem(500, detail, slug="internal")
+
+
+class Runner:
+    """The replica's side of the engine (the name is the routes' seam: ``RunnerDep``)."""
+
+    def __init__(self, settings: Settings, store: Store) -> None:
+        self.settings = settings
+        self.store = store
+        self.capacity = settings.workers + settings.queue_size
+        self.computations = 0  # Dask tasks this replica submitted (tests check single flight)
+        self.ready = False
+        self.watchdog_grace_s = WATCHDOG_GRACE_S
+        self.client: Any = None
+        self._cluster: Any = None
+        self._connected = asyncio.Event()
+        self._flights: dict[str, Flight] = {}
+        self._background: set[asyncio.Task[Any]] = set()
+        self.poll_s = min(settings.progress_interval_s, 0.5)
+
+    # -- lifecycle -----------------------------------------------------------------------
+
+    async def start(self) -> None:
+        """Start (or connect to) the cluster, then recover jobs left active."""
+        from distributed import Client, LocalCluster
+
+        address = self.settings.scheduler_address
+        if address:
+            self.client = await Client(address, asynchronous=True, timeout="60s")
+        else:
+            self._cluster = await LocalCluster(
+                n_workers=self.settings.workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                asynchronous=True,
+                env=WORKER_ENV,
+                preload=["service.engine.worker"],
+                silence_logs=logging.WARNING,
+            )
+            self.client = await Client(self._cluster, asynchronous=True)
+        self._connected.set()
+        pruned = await asyncio.to_thread(
+            self.store.prune_jobs, time.time() - self.settings.job_retention_s
+        )
+        if pruned:
+            log.info("pruned %d old job records", pruned)
+        for job in await asyncio.to_thread(self.store.active_jobs):
+            await self._recover(job)
+        self._spawn(self._warm_up())
+        self._spawn(self._monitor())
+
+    async def stop(self) -> None:
+        for task in list(self._background):
+            task.cancel()
+        for flight in list(self._flights.values()):
+            if flight.task is not None:
+                flight.task.cancel()  # records stay active: a live replica recovers them
+        self.ready = False
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self.client.close(), 10)
+        if self._cluster is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._cluster.close(), 10)
+
+    def _spawn(self, coro: Any) -> None:
+        task = asyncio.create_task(coro)
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
+
+    async def _warm_up(self) -> None:
+        """Ready once a worker is connected (the embedded cluster: all of them)."""
+        wanted = 1 if self.settings.scheduler_address else self.settings.workers
+        await self.client.wait_for_workers(wanted)
+        self.ready = True
+
+    @property
+    def workers(self) -> int:
+        """Workers connected to the scheduler now."""
+        if self.client is None:
+            return 0
+        try:
+            return len(self.client.scheduler_info().get("workers", {}))
+        except Exception:
+            return 0
+
+    async def call(self, fn: Any, *args: Any) -> Any:
+        """Run a picklable function on a worker (tests and diagnostics)."""
+        return await self.client.submit(fn, *args, pure=False)
+
+    # -- state ---------------------------------------------------------------------------
+
+    @property
+    def in_flight(self) -> int:
+        return len(self._flights)
+
+    @property
+    def saturated(self) -> bool:
+        return len(self._flights) >= self.capacity
+
+    def is_active(self, key: str) -> bool:
+        return key in self._flights
+
+    # -- submission ----------------------------------------------------------------------
+
+    async def submit(
+        self,
+        kind: JobKind,
+        key: str,
+        spec: dict[str, Any],
+        *,
+        force: bool = False,
+        recover: bool = False,
+    ) -> asyncio.Task[bytes]:
+        """The in-flight task for ``key``, started if needed, once its job record is written.
+
+        ``spec`` is the canonical JSON form; ``force`` recomputes even if a result is
+        stored; ``recover`` drives a record that is already active and bypasses the bound.
+        Raises :class:`QueueFull`, or :class:`StorageError` when the record cannot be written.
+        """
+        flight = self._flights.get(key)
+        if flight is None:
+            if not recover and self.saturated:
+                raise QueueFull(f"{self.in_flight} computations in flight")
+            flight = Flight(kind, key)
+            self._flights[key] = flight
+            flight.task = asyncio.create_task(self._drive(flight, spec, force, recover))
+            flight.task.add_done_callback(functools.partial(self._done, flight))
+        elif not recover:
+            # joining: a cancelled or finished record is accepted again (a new generation)
+            await asyncio.to_thread(self.store.enqueue_job, key, kind.name, spec, refresh=force)
+            flight.changed.set()
+        await flight.accepted.wait()
+        assert flight.task is not None
+        if flight.task.done() and not flight.task.cancelled():
+            exc = flight.task.exception()
+            if isinstance(exc, StorageError):
+                raise exc
+        return flight.task
+
+    def _done(self, flight: Flight, task: asyncio.Task[bytes]) -> None:
+        if self._flights.get(flight.key) is flight:
+            del self._flights[flight.key]
+        if not task.cancelled():
+            task.exception()  # retrieved here so an unobserved job failure is not logged twice
+
+    async def _recover(self, job: Job) -> None:
+        kind = KINDS.get(job.kind)
+        if kind is None:
+            await asyncio.to_thread(
+                self.store.finish_job,
+                job.key,
+                "failed",
+                _internal(f"unknown job kind {job.kind!r} after restart"),
+            )
+            return
+        log.info("recovering %s job %s (%s)", job.kind, job.key, job.status)
+        await self.submit(kind, job.key, job.spec, recover=True)
+
+    def _config(self) -> TaskConfig:
+        s = self.settings
+        return TaskConfig(
+            db_url=s.db_url,
+            cache_max_bytes=s.cache_max_bytes,
+            timeout_s=s.job_timeout_s,
+            progress_interval_s=s.progress_interval_s,
+            stale_after_s=s.stale_after_s,
+            grace_s=max(self.watchdog_grace_s, 0.1 * s.job_timeout_s),
+        )
+
+    def _submit_task(self, flight: Flight, job: Job) -> Any:
+        from distributed import fire_and_forget
+
+        dask_key = f"{job.kind}-{job.key}-g{job.generation}-a{job.attempts}"
+        if flight.resubmits:
+            dask_key += f"-r{flight.resubmits}"
+        fut = self.client.submit(
+            run_job,
+            flight.kind.function,
+            flight.kind.spec,
+            flight.kind.name,
+            job.key,
+            job.spec,
+            self._config(),
+            key=dask_key,
+            pure=False,
+        )
+        fire_and_forget(fut)  # runs to the end even if this replica goes away
+        self.computations += 1
+        return fut
+
+    async def _wait(self, flight: Flight, waiter: asyncio.Future[Any] | None) -> None:
+        """Until ``waiter`` is done, the monitor flags a change, or one poll interval."""
+        changed = asyncio.ensure_future(flight.changed.wait())
+        pending = {changed} | ({waiter} if waiter is not None else set())
+        timeout = None if waiter is not None else self.settings.stale_after_s / 4
+        try:
+            await asyncio.wait(pending, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            changed.cancel()
+        flight.changed.clear()
+
+    async def _drive(
+        self, flight: Flight, spec: dict[str, Any], force: bool, recover: bool
+    ) -> bytes:
+        key, kind = flight.key, flight.kind
+        try:
+            if not recover:
+                await asyncio.to_thread(self.store.enqueue_job, key, kind.name, spec, refresh=force)
+        finally:
+            flight.accepted.set()
+        await self._connected.wait()
+        waiter: asyncio.Future[Any] | None = None
+        tag: tuple[int, int] | None = None
+        while True:
+            try:
+                job = await asyncio.to_thread(self.store.get_job, key)
+            except StorageError:
+                await asyncio.sleep(self.settings.retry_after_s)
+                continue
+            if job is None:
+                raise ComputationFailed(_internal(f"the record of job {key} disappeared"))
+            if not job.active:
+                return await self._outcome(job)
+            if waiter is not None and not waiter.done():
+                await self._wait(flight, waiter)
+                continue
+            if waiter is not None:
+                outcome = waiter.result()
+                waiter = None
+                if outcome[0] == "storage":
+                    await self._storage_failure(key, *outcome[1])
+                if outcome[0] == "exception":
+                    log.warning("task of job %s ended abnormally: %s", key, outcome[1])
+                    flight.resubmits += 1  # a fresh Dask key: the old one may be erred
+                    tag = None
+                    await asyncio.sleep(self.poll_s)
+                    continue
+            stale = (
+                job.heartbeat is None or time.time() - job.heartbeat >= self.settings.stale_after_s
+            )
+            if job.owner is not None and not stale:
+                await self._wait(flight, None)  # a live attempt holds the lease
+                continue
+            if job.owner is not None and job.attempts >= MAX_ATTEMPTS:
+                await asyncio.to_thread(
+                    self.store.finish_job,
+                    key,
+                    "failed",
+                    _internal(
+                        f"the computation started {job.attempts} times and its worker died each "
+                        f"time (last: attempt {job.attempts} on {job.worker} stopped "
+                        "heartbeating)"
+                    ),
+                )
+                continue
+            if tag == (job.generation, job.attempts) and job.owner is None and not stale:
+                await self._wait(flight, None)  # our task ran and left it queued: wait
+                continue
+            tag = (job.generation, job.attempts)
+            waiter = asyncio.ensure_future(self._result_of(self._submit_task(flight, job)))
+
+    @staticmethod
+    async def _result_of(fut: Any) -> tuple[str, Any]:
+        try:
+            outcome: tuple[str, Any] = await fut
+            return outcome
+        except asyncio.CancelledError:
+            return ("exception", "cancelled by the scheduler (restarted or lost)")
+        except Exception as exc:
+            return ("exception", f"{type(exc).__name__}: {exc}")
+
+    async def _storage_failure(self, key: str, message: str, full: bool) -> None:
+        """The task could not store its result: fail the job with the reason (if the store
+        takes that write) and answer the waiting request with the storage error."""
+        from service.problems import problem
+
+        status = 507 if full else 503
+        doc = problem(status, f"the result could not be stored: {message}", slug="storage")
+        with contextlib.suppress(StorageError):
+            await asyncio.to_thread(self.store.finish_job, key, "failed", doc)
+        raise StorageError(message, full=full)
+
+    async def _outcome(self, job: Job) -> bytes:
+        if job.status == "succeeded":
+            body = await asyncio.to_thread(self.store.get_result, job.key)
+            if body is None:
+                raise ComputationFailed(_internal(f"the result of job {job.key} was evicted"))
+            return body
+        if job.status == "cancelled":
+            raise ComputationCancelled(str((job.error or {}).get("detail", "cancelled")))
+        raise ComputationFailed(job.error or _internal("failed"))
+
+    # -- the monitor -----------------------------------------------------------------------
+
+    async def _monitor(self) -> None:
+        """Wake flights on changes, heartbeat queued jobs, probe the store, recover stale jobs."""
+        stale_after = self.settings.stale_after_s
+        last_touch = last_recovery = 0.0
+        while True:
+            await asyncio.sleep(self.poll_s)
+            try:
+                if not self.store.healthy:
+                    await asyncio.to_thread(self.store.probe)
+                    continue
+                now = time.time()
+                keys = list(self._flights)
+                records = await asyncio.to_thread(self.store.jobs_by_key, keys)
+                for key in keys:
+                    job = records.get(key)
+                    flight = self._flights.get(key)
+                    if flight is None:
+                        continue
+                    lease_dead = (
+                        job is not None
+                        and job.owner is not None
+                        and (job.heartbeat is None or now - job.heartbeat >= stale_after)
+                    )
+                    if job is None or not job.active or lease_dead:
+                        flight.changed.set()
+                if now - last_touch >= stale_after / 3:
+                    last_touch = now
+                    queued = [k for k, j in records.items() if j.status == "queued"]
+                    await asyncio.to_thread(self.store.touch, queued)
+                if now - last_recovery >= stale_after / 2:
+                    last_recovery = now
+                    for job in await asyncio.to_thread(self.store.stale_jobs, stale_after):
+                        if job.key not in self._flights:
+                            await self._recover(job)
+            except StorageError:
+                continue
+            except Exception:
+                log.exception("engine monitor")

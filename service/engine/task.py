@@ -1,0 +1,233 @@
+"""The Dask task of one computation: self-contained and idempotent, on any worker.
+
+:func:`run_job` takes the job's lease in the store, computes, stores the compressed
+result and finishes the job record itself, so it does not depend on the replica that
+submitted it staying alive.  While it runs, a heartbeat thread renews the lease, records
+progress and reads the cancel flag every ``progress_interval_s``; the kind's function
+stops at its next progress callback (cooperative cancel and runtime limit).  A function
+that stops reporting is still held to the runtime limit: past it plus a grace period the
+heartbeat thread fails the job with the reason and kills its own worker process (the
+nanny starts a fresh one).
+
+The return value is small (the body goes to the store): ``(outcome, detail)`` with
+outcome ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
+already) | ``elsewhere`` (a live attempt holds the lease) | ``lost`` (another attempt took
+the lease) | ``storage`` (the store refused a write; detail = (message, full)).
+Errors travel as problem dicts, never as pickled exceptions.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import socket
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from service.store import StorageError, Store
+
+log = logging.getLogger("service.engine.task")
+
+Outcome = tuple[str, Any]
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """What a task needs to know of the service's settings (times in seconds)."""
+
+    db_url: str
+    cache_max_bytes: int
+    timeout_s: float  # runtime limit of one attempt [s]
+    progress_interval_s: float  # heartbeat, progress and cancel-check period [s]
+    stale_after_s: float  # a lease without heartbeat for this long is dead [s]
+    grace_s: float  # past timeout_s + grace_s a silent computation is killed [s]
+
+
+_STORES: dict[str, Store] = {}
+_STORES_LOCK = threading.Lock()
+
+
+def _store(cfg: TaskConfig) -> Store:
+    """One store per worker process and database (no migrations: the service ran them)."""
+    with _STORES_LOCK:
+        store = _STORES.get(cfg.db_url)
+        if store is None:
+            store = _STORES[cfg.db_url] = Store(cfg.db_url, cfg.cache_max_bytes, 0, migrate=False)
+        return store
+
+
+def _worker_address() -> str:
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().address)
+    except (ImportError, ValueError):
+        return f"{socket.gethostname()}:{os.getpid()}"
+
+
+class _Heartbeat(threading.Thread):
+    """Renews the lease and records progress; sets ``stop`` on cancel or a lost lease;
+    kills the process when the computation overruns the limit without stopping."""
+
+    def __init__(self, store: Store, key: str, owner: str, cfg: TaskConfig) -> None:
+        super().__init__(name=f"heartbeat-{key[:8]}", daemon=True)
+        self.store, self.key, self.owner, self.cfg = store, key, owner, cfg
+        self.progress: float | None = None
+        self.stop: str | None = None
+        self.deadline = time.monotonic() + cfg.timeout_s
+        self._done = threading.Event()
+
+    def finish(self) -> None:
+        self._done.set()
+        self.join(timeout=5.0)
+
+    def run(self) -> None:
+        while not self._done.wait(self.cfg.progress_interval_s):
+            if time.monotonic() > self.deadline + self.cfg.grace_s:
+                self._kill_overdue()
+            try:
+                state = self.store.heartbeat(self.key, self.owner, self.progress)
+            except StorageError:
+                continue  # the store recovers by itself; the lease may go stale meanwhile
+            if state != "ok":
+                self.stop = "cancelled by request" if state == "cancelled" else state
+
+    def _kill_overdue(self) -> None:
+        log.error("job %s overran the runtime limit without stopping: killing worker", self.key)
+        try:
+            self.store.finish_job(
+                self.key,
+                "failed",
+                runtime_problem(self.cfg.timeout_s, killed=True),
+                owner=self.owner,
+            )
+        finally:
+            os.kill(os.getpid(), signal.SIGKILL)
+
+
+def run_job(
+    function: Callable[[Any, Callable[[float], None]], dict[str, Any]],
+    spec_model: Any,
+    kind: str,
+    key: str,
+    spec: dict[str, Any],
+    cfg: TaskConfig,
+) -> Outcome:
+    """Compute the job ``key`` of ``kind`` (``function(spec_model(spec), progress)``) once."""
+    store = _store(cfg)
+    owner = uuid.uuid4().hex
+    try:
+        claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
+    except StorageError as exc:
+        return ("storage", (str(exc), exc.full))
+    if claim.outcome != "claimed":
+        return (claim.outcome, claim.job.status if claim.job else None)
+    assert claim.job is not None
+    try:
+        if not claim.job.refresh and store.has_result(key):
+            store.finish_job(key, "succeeded", owner=owner)  # computed by an earlier attempt
+            return ("succeeded", None)
+        beat = _Heartbeat(store, key, owner, cfg)
+        beat.start()
+        try:
+            status, payload = _compute(function, spec_model, spec, beat, cfg)
+        finally:
+            beat.finish()
+        if status == "lost":
+            return ("lost", payload)
+        if status == "ok":
+            store.put_result(key, kind, payload)
+            store.finish_job(key, "succeeded", owner=owner)
+            return ("succeeded", None)
+        if status == "cancelled":
+            store.release(key, owner)  # the record already says cancelled (by the request)
+            return ("cancelled", str(payload))
+        store.finish_job(key, "failed", payload, owner=owner)
+        return ("failed", payload)
+    except StorageError as exc:
+        return ("storage", (str(exc), exc.full))
+
+
+def _compute(
+    function: Callable[[Any, Callable[[float], None]], dict[str, Any]],
+    spec_model: Any,
+    spec: dict[str, Any],
+    beat: _Heartbeat,
+    cfg: TaskConfig,
+) -> tuple[str, Any]:
+    """``("ok", json bytes)`` | ``("error", problem)`` | ``("cancelled" | "lost", why)``."""
+    from numpy.linalg import LinAlgError
+
+    from pipeflow.errors import Cancelled, PipeflowError
+    from service.problems import pipeflow_problem, problem
+
+    def progress(fraction: float) -> None:
+        if time.monotonic() > beat.deadline:
+            raise Cancelled("runtime limit")
+        beat.progress = fraction
+        if beat.stop is not None:
+            raise Cancelled(beat.stop)
+
+    try:
+        result = function(spec_model.model_validate(spec), progress)
+    except Cancelled as exc:
+        if time.monotonic() > beat.deadline:
+            return ("error", runtime_problem(cfg.timeout_s))
+        if beat.stop == "lost":
+            return ("lost", "another attempt took over the job")
+        return ("cancelled", str(exc) or "cancelled")
+    except PipeflowError as exc:
+        return ("error", pipeflow_problem(exc))
+    except (ArithmeticError, LinAlgError) as exc:
+        return ("error", out_of_range_problem(f"{type(exc).__name__}: {exc}"))
+    except Exception as exc:
+        return (
+            "error",
+            problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
+        )
+    try:
+        return ("ok", json.dumps(result, separators=(",", ":"), allow_nan=False).encode())
+    except ValueError:  # Inf or NaN: JSON has neither
+        return ("error", out_of_range_problem("the result holds Inf or NaN"))
+    except Exception as exc:
+        return (
+            "error",
+            problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
+        )
+
+
+def runtime_problem(timeout_s: float, *, killed: bool = False) -> dict[str, Any]:
+    from service.problems import problem
+
+    how = " and stopped reporting, so its worker was restarted" if killed else ""
+    return problem(
+        422,
+        f"the computation exceeded the runtime limit of {timeout_s:g} s{how}; ask for fewer "
+        "modes, samples or a shorter t_end",
+        slug="runtime-limit",
+        title="Runtime limit exceeded",
+    )
+
+
+def out_of_range_problem(cause: str) -> dict[str, Any]:
+    """422 for inputs whose magnitudes take the numerics out of double precision.
+
+    Valid in type and sign but extreme (e.g. ``pipe.L`` = 1e308 m, ``omega0`` = 1e308
+    rad/s): the model overflows or divides by zero.  No single field can be blamed, so
+    the problem names the inputs whose magnitudes set the scales.
+    """
+    from service.problems import problem
+
+    return problem(
+        422,
+        f"the inputs take the computation out of the range of double precision ({cause}); "
+        "check the magnitudes of pipe (E, I, L, M1, M2), rotation.omega0 and flow.velocity",
+        slug="numerical-range",
+        title="Inputs out of numerical range",
+    )

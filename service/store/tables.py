@@ -1,0 +1,70 @@
+"""The tables of the store (SQLAlchemy Core): the shape after the newest migration.
+
+Migrations in ``service/store/migrations/versions`` are how the database gets here; this
+module is what the code reads and writes.  Times are Unix seconds (UTC).
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import (
+    Boolean,
+    Column,
+    Float,
+    Index,
+    Integer,
+    LargeBinary,
+    MetaData,
+    String,
+    Table,
+    Text,
+    false,
+)
+
+metadata = MetaData()
+
+results = Table(
+    "results",
+    metadata,
+    Column("key", String(128), primary_key=True),
+    Column("kind", String(64), nullable=False),
+    Column("body", LargeBinary, nullable=False),  # the result JSON, compressed by `codec`
+    Column("size", Integer, nullable=False),  # stored bytes (what the disk bound counts)
+    Column("created", Float, nullable=False),
+    Column("accessed", Float, nullable=False),
+    Column("codec", String(16), nullable=False, server_default="identity"),
+)
+Index("results_accessed", results.c.accessed)
+
+jobs = Table(
+    "jobs",
+    metadata,
+    Column("key", String(128), primary_key=True),
+    Column("kind", String(64), nullable=False),
+    Column("spec", Text, nullable=False),
+    Column("status", String(16), nullable=False),
+    Column("progress", Float, nullable=False, server_default="0"),
+    Column("error", Text),
+    Column("created", Float, nullable=False),
+    Column("started", Float),
+    Column("finished", Float),
+    Column("updated", Float, nullable=False),
+    Column("cancel", Integer, nullable=False, server_default="0"),
+    # migration 0002: retries, the persisted refresh flag, the lease of the running attempt
+    Column("attempts", Integer, nullable=False, server_default="0"),
+    Column("last_retry_reason", Text),
+    Column("refresh", Boolean, nullable=False, server_default=false()),
+    Column("generation", Integer, nullable=False, server_default="1"),
+    Column("owner", String(64)),  # id of the attempt holding the lease, NULL when none
+    Column("worker", String(256)),  # where that attempt runs (Dask worker address)
+    Column("heartbeat", Float),  # last sign of life of the job's owner or submitter
+)
+Index("jobs_status", jobs.c.status)
+
+#: a scratch row written by the storage probe (is there room for a write again?)
+probe = Table(
+    "probe",
+    metadata,
+    Column("id", Integer, primary_key=True),
+    Column("body", LargeBinary, nullable=False),
+    Column("written", Float, nullable=False),
+)
