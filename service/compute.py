@@ -151,4 +151,6 @@ def job_document(job: Job) -> dict[str, Any]:
         "updated": _time(job.updated),
         "error": job.error,
         "result": f"/v1/results/{job.key}" if job.status == "succeeded" else None,
+        "attempts": job.attempts,
+        "last_retry_reason": job.last_retry_reason,
     }

@@ -101,6 +101,15 @@ class JobStatus(BaseModel):
         description="Why it failed or was cancelled (an RFC 9457 problem document)."
     )
     result: str | None = Field(description="URL path of the result once succeeded.")
+    attempts: int = Field(
+        0,
+        ge=0,
+        description="How often its computation started (1 normally; more when a worker, a "
+        "replica or the scheduler died under it and it was retried).",
+    )
+    last_retry_reason: str | None = Field(
+        None, description="Why the computation was last started again (null: never retried)."
+    )
 
 
 class Health(BaseModel):

@@ -6,11 +6,7 @@ finishes after it (it is re-enqueued from the SQLite job table).
 
 from __future__ import annotations
 
-import os
-import signal
-import socket
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -19,8 +15,7 @@ from pathlib import Path
 import httpx
 
 from pipeflow.spec import PAPER_EXAMPLE
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.service.processes import kill_group, server
 
 #: about 5 s of RK4 on this machine: still queued or running when the server is killed
 SLOW_JOB = {
@@ -31,46 +26,16 @@ SLOW_JOB = {
 }
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
 @contextmanager
 def _server(data_dir: Path) -> Iterator[tuple[subprocess.Popen[bytes], str]]:
-    port = _free_port()
-    env = {**os.environ, "PIPEFLOW_DATA_DIR": str(data_dir), "PIPEFLOW_WORKERS": "1"}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(port)],
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,  # its own process group: the server and its workers
-    )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        end = time.monotonic() + 90
-        while True:
-            assert proc.poll() is None, "uvicorn exited"
-            try:
-                if httpx.get(f"{url}/healthz", timeout=2).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert time.monotonic() < end, "uvicorn did not start"
-            time.sleep(0.1)
-        yield proc, url
-    finally:
-        _kill(proc)
+    with server(
+        data_dir / "server.log", ready=False, PIPEFLOW_DATA_DIR=str(data_dir), PIPEFLOW_WORKERS="1"
+    ) as running:
+        yield running
 
 
 def _kill(proc: subprocess.Popen[bytes]) -> None:
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGKILL)  # the group we started: server and workers
-        proc.wait(timeout=30)
+    kill_group(proc)  # the group we started: server and workers
 
 
 def test_sigkill_and_restart(tmp_path: Path) -> None:
