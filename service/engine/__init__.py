@@ -94,6 +94,8 @@ class Runner:
         self._connected = asyncio.Event()
         self._flights: dict[str, Flight] = {}
         self._background: set[asyncio.Task[Any]] = set()
+        # jobs to fail with their storage error once the store takes writes again
+        self._pending_failures: dict[str, dict[str, Any]] = {}
         self.poll_s = min(settings.progress_interval_s, 0.5)
 
     # -- lifecycle -----------------------------------------------------------------------
@@ -356,8 +358,10 @@ class Runner:
 
         status = 507 if full else 503
         doc = problem(status, f"the result could not be stored: {message}", slug="storage")
-        with contextlib.suppress(StorageError):
+        try:
             await asyncio.to_thread(self.store.finish_job, key, "failed", doc)
+        except StorageError:
+            self._pending_failures[key] = doc  # written by the monitor once writes work
         raise StorageError(message, full=full)
 
     async def _outcome(self, job: Job) -> bytes:
@@ -382,6 +386,10 @@ class Runner:
                 if not self.store.healthy:
                     await asyncio.to_thread(self.store.probe)
                     continue
+                while self._pending_failures:
+                    key, doc = next(iter(self._pending_failures.items()))
+                    await asyncio.to_thread(self.store.finish_job, key, "failed", doc)
+                    del self._pending_failures[key]
                 now = time.time()
                 keys = list(self._flights)
                 records = await asyncio.to_thread(self.store.jobs_by_key, keys)

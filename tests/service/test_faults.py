@@ -25,7 +25,8 @@ from typing import Any
 import httpx
 import pytest
 
-from pipeflow.spec import PAPER_EXAMPLE
+from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+from service.kinds import SIMULATION
 from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
 from tests.service.processes import (
     free_port,
@@ -174,8 +175,15 @@ def test_full_disk_answers_507_then_recovers(tiny_disk: Path) -> None:
         while c.get("/readyz").status_code != 200:
             assert time.monotonic() < end, "did not recover after space came back"
             time.sleep(0.1)
+        # the job that could not store its result is failed with the reason (written as
+        # soon as the store took writes again, if the disk was too full even for that)
+        big_key = SIMULATION.key(SimulationSpec.model_validate(big))
+        job = wait_job(c, big_key, lambda j: j["status"] != "running", timeout=10)
+        assert job["status"] == "failed", job
+        assert job["error"]["status"] == 507 and "could not be stored" in job["error"]["detail"]
         again = c.post("/v1/simulations", json=big)
         assert again.status_code == 200 and len(again.json()["t"]) == 20001
+        assert c.get(f"/v1/jobs/{big_key}").json()["status"] == "succeeded"
 
 
 def _start_refused(data_dir: Path) -> tuple[int, str]:
