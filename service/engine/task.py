@@ -30,6 +30,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from numpy.linalg import LinAlgError
+
+from pipeflow.errors import Cancelled, PipeflowError
+from service.problems import pipeflow_problem, problem
 from service.store import StorageError, Store
 
 log = logging.getLogger("service.engine.task")
@@ -162,10 +166,6 @@ def _compute(
     cfg: TaskConfig,
 ) -> tuple[str, Any]:
     """``("ok", json bytes)`` | ``("error", problem)`` | ``("cancelled" | "lost", why)``."""
-    from numpy.linalg import LinAlgError
-
-    from pipeflow.errors import Cancelled, PipeflowError
-    from service.problems import pipeflow_problem, problem
 
     def progress(fraction: float) -> None:
         if time.monotonic() > beat.deadline:
@@ -175,7 +175,9 @@ def _compute(
             raise Cancelled(beat.stop)
 
     try:
-        result = function(spec_model.model_validate(spec), progress)
+        validated = spec_model.model_validate(spec)
+        beat.deadline = time.monotonic() + cfg.timeout_s  # the limit is on the computation
+        result = function(validated, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:
             return ("error", runtime_problem(cfg.timeout_s))
@@ -203,8 +205,6 @@ def _compute(
 
 
 def runtime_problem(timeout_s: float, *, killed: bool = False) -> dict[str, Any]:
-    from service.problems import problem
-
     how = " and stopped reporting, so its worker was restarted" if killed else ""
     return problem(
         422,
@@ -222,8 +222,6 @@ def out_of_range_problem(cause: str) -> dict[str, Any]:
     rad/s): the model overflows or divides by zero.  No single field can be blamed, so
     the problem names the inputs whose magnitudes set the scales.
     """
-    from service.problems import problem
-
     return problem(
         422,
         f"the inputs take the computation out of the range of double precision ({cause}); "
