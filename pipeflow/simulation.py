@@ -298,4 +298,5 @@ def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, 
         "gamma_max_abs": float(np.max(np.abs(g))),
         "time_scale": pipe.time_scale,
         "tau_end": float(times[-1] / pipe.time_scale),
+        **pipe.dimensionless_groups(),
     }

@@ -128,6 +128,7 @@ class CriticalVelocity:
                 None if p.M2 == 0 else [float(p.flow_number(x)) for x in self.velocity_range]
             ),
             "time_scale": p.time_scale,
+            **p.dimensionless_groups(),
         }
 
     def to_dict(self) -> dict[str, Any]:

@@ -110,6 +110,7 @@ class Sweep:
             "dimensionless": {
                 "beta": p.beta,
                 "time_scale": p.time_scale,
+                **p.dimensionless_groups(),
                 **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
                 **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
             },
