@@ -116,6 +116,12 @@ class Pipe:
         return self.plane == "in-plane"
 
     @property
+    def damped(self) -> bool:
+        """True with any damping: modes are then ordered by natural frequency (an over-damped
+        mode's two real roots are one mode, :func:`pipeflow.eigen.damped_modes`)."""
+        return bool(self.kelvin_voigt or self.viscous)
+
+    @property
     def is_paper_model(self) -> bool:
         """No damping, no tip body, no hub, in-plane: exactly the paper's model."""
         return self.in_plane and not any(getattr(self, n) for n in EXTENSION_FIELDS)

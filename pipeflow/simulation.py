@@ -264,7 +264,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
 
 def frozen_traces(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
     """Tracked eigenvalues of the frozen state matrix S(t) [1/s] at ``times`` [s]."""
-    return track(model.state_matrix(loading.coefficients(times)), modes)
+    return track(model.state_matrix(loading.coefficients(times)), modes, model.pipe.damped)
 
 
 def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
@@ -279,7 +279,7 @@ def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: 
     mats[~pos] = model.state_matrix(loading.coefficients(t[~pos]))
     if pos.any():
         mats[pos] = model.integrated_state_matrix(loading.integrals(t[pos])) / t[pos, None, None]
-    return track(mats, modes)
+    return track(mats, modes, model.pipe.damped)
 
 
 def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, Any]:

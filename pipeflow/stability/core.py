@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq, minimize_scalar
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.eigen import assign, decompose
+from pipeflow.eigen import assign, damped_modes, decompose
 from pipeflow.errors import InvalidInput
 from pipeflow.model import PLANES, Coefficients, Pipe, PipeModel
 
@@ -100,13 +100,21 @@ def damping_ratio(xi: ComplexArray) -> FloatArray:
     return np.asarray(z)
 
 
-def mode_numbers(w: ComplexArray) -> NDArray[np.intp]:
+def mode_numbers(w: ComplexArray, damped: bool = False) -> NDArray[np.intp]:
     """Mode number (1-based, by frequency) of each eigenvalue of one point; pairs share it.
 
     A conjugate pair is one mode, and so is a real pair +-s (a divergent mode of the
     conservative v = 0 system); other real eigenvalues are modes of frequency 0 (they
-    come first).
+    come first).  ``damped``: by natural frequency, an over-damped pair of real roots being
+    one mode (:func:`pipeflow.eigen.damped_modes`).
     """
+    if damped:
+        reps, partner = damped_modes(w)
+        number = np.zeros(w.size, dtype=np.intp)
+        number[reps] = np.arange(1, reps.size + 1)
+        for i, rep in partner.items():
+            number[i] = number[rep]
+        return number
     scale = max(float(np.max(np.abs(w))), 1e-300)
     tol = 1e-9 * scale
     real = np.abs(w.imag) <= tol
@@ -171,6 +179,7 @@ def follow(
     max_points: int = 0,
     max_levels: int = 6,
     progress: Progress | None = None,
+    damped: bool = False,
 ) -> Branches:
     """Follow all eigenvalue branches of ``matrices(p)`` along ``grid``, refining as needed.
 
@@ -211,7 +220,7 @@ def follow(
         p=p,
         xi=xi,
         confidence=conf,
-        mode=mode_numbers(w[0]),
+        mode=mode_numbers(w[0], damped),
         inserted=inserted,
         W=Wb,
         matrices=matrices,

@@ -221,7 +221,7 @@ def critical_velocities(
         progress(0.0)
     br = follow(
         matrices, grid, min_confidence=0.5, max_points=2 * grid.size, max_levels=4,
-        progress=progress,
+        progress=progress, damped=pipe.damped,
     )  # fmt: skip
     tol = rounding_level(br.xi)
     start = int(np.searchsorted(br.p, lo))

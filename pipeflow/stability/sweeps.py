@@ -184,12 +184,13 @@ def sweep(
     br = follow(
         matrices,
         np.linspace(lo, hi, points),
-        watch=lambda w0: order_lowest(w0, tracked),
+        watch=lambda w0: order_lowest(w0, tracked, pipe.damped),
         min_confidence=min_confidence,
         max_points=cap,
         progress=progress,
+        damped=pipe.damped,
     )
-    chosen = order_lowest(br.xi[0], tracked)
+    chosen = order_lowest(br.xi[0], tracked, pipe.damped)
     xi = br.xi[:, chosen]
     xi = xi.real + 1j * np.abs(xi.imag)
     conf = br.confidence[:, chosen]

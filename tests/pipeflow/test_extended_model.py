@@ -364,3 +364,30 @@ def test_dimensionless_groups() -> None:
          "hub_ratio": 0.5},
         rel=1e-15,
     )  # fmt: skip
+
+
+def test_heavily_damped_high_modes_keep_their_numbers() -> None:
+    """Kelvin-Voigt damping over-damps every mode with alpha omega_k > 2 (here modes 6-10 of
+    a unit beam with alpha = 0.01: omega_6 = 298.6 rad/s), each becoming two real roots. The
+    damped mode numbering pairs them (product of the roots = omega_k^2, exactly, from
+    lambda^2 + alpha omega_k^2 lambda + omega_k^2 = 0), so every mode keeps its undamped
+    number and the lowest traced branches stay the fundamental: the natural frequency of the
+    eigenvalues numbered k equals omega_k to 1e-9 relative (rounding of the roots)."""
+    from pipeflow.eigen import order_lowest
+    from pipeflow.stability.core import mode_numbers
+
+    pipe = Pipe(**UNIT, M1=1.0, M2=0.0, kelvin_voigt=0.01)
+    n = 10
+    w = build_model(pipe, n).natural_frequencies()
+    xi = spectrum(pipe, n, 0.0, 0.0)
+    assert np.sum(np.abs(xi.imag) < 1e-9 * np.abs(xi)) == 10  # five over-damped modes
+    number = mode_numbers(xi, damped=True)
+    for k in range(1, n + 1):
+        roots = xi[number == k]
+        assert roots.size == 2
+        assert abs(math.sqrt(abs(roots[0] * roots[1])) - w[k - 1]) < 1e-9 * w[k - 1]
+    low = order_lowest(xi, 3, damped=True)
+    assert np.allclose(np.abs(xi[low]), w[:3], rtol=1e-9)
+    # the simulation's fundamental is mode 1, not an over-damped root of mode 10
+    res = simulate(Simulation(pipe=pipe, modes=n, t_end=0.01, samples=11, eigen_modes=2))
+    assert np.allclose(np.abs(res.frozen.xi[0]), w[:2], rtol=1e-9)
