@@ -112,8 +112,8 @@ def mode_numbers(w: ComplexArray, damped: bool = False) -> NDArray[np.intp]:
         reps, partner = damped_modes(w)
         number = np.zeros(w.size, dtype=np.intp)
         number[reps] = np.arange(1, reps.size + 1)
-        for i, rep in partner.items():
-            number[i] = number[rep]
+        for other, rep in partner.items():
+            number[other] = number[rep]
         return number
     scale = max(float(np.max(np.abs(w))), 1e-300)
     tol = 1e-9 * scale
