@@ -14,8 +14,10 @@ is projected onto ``n`` cantilever modes (eq. 2-3).  The result is
 with constant matrices.  Beyond the paper (issue 14; derivation in ``docs/model.md``):
 Kelvin-Voigt and viscous damping (a constant C_0 in S_0), a tip mass and rotary inertia
 (in M, K_w2 and F_wdot), a hub radius (K_w2, F_wdot) and out-of-plane motion (no
--(M1+M2) w0^2 u, no forcing); all off by default.  We project the PDE itself: the paper's eq. (7) has the w0^2
-integrals with factors 1/2 and 1/4 where eq. (1) gives 1 and 1/2, and only the eq. (1)
+-(M1+M2) w0^2 u, no forcing); all off by default.
+
+We project the PDE itself: the paper's eq. (7) has the w0^2 integrals with factors 1/2
+and 1/4 where eq. (1) gives 1 and 1/2, and only the eq. (1)
 projection reproduces the rotating-beam tables (Wright et al. 1982).
 
 State form (eq. 13-14) in *balanced* coordinates

@@ -428,3 +428,24 @@ def test_spin_up_forcing_against_the_static_beam_formulas(fields: dict, tol: flo
     assert abs(tip - exact) < tol * abs(exact)
     flap = build_model(dataclasses.replace(pipe, plane="out-of-plane"), 40)
     assert not flap.F_wdot.any()
+
+
+def test_readme_nozzle_example() -> None:
+    """The README's section 'Beyond the paper' quotes these numbers (10 modes): the damped
+    paper pipe with a nozzle on a hub at 100 rad/s flutters in mode 2 at 16.04 m/s in plane
+    and 16.25 m/s out of plane (to the quoted 4 digits: tolerance 0.005 m/s)."""
+    from pipeflow.stability import critical_velocities
+
+    nozzle = dataclasses.replace(
+        PAPER_PIPE, kelvin_voigt=5e-5, viscous=2e-4, tip_mass=2e-7, hub_radius=0.01
+    )
+    for plane, v_cr in (("in-plane", 16.04), ("out-of-plane", 16.25)):
+        res = critical_velocities(
+            dataclasses.replace(nozzle, plane=plane),
+            omega0=100.0,
+            velocity_range=(0.0, 60.0),
+            modes=10,
+        )
+        assert res.critical_velocity is not None
+        assert abs(res.critical_velocity - v_cr) < 0.005
+        assert res.crossings[0].mode == 2 and res.crossings[0].kind == "flutter"
