@@ -449,3 +449,21 @@ def test_readme_nozzle_example() -> None:
         assert res.critical_velocity is not None
         assert abs(res.critical_velocity - v_cr) < 0.005
         assert res.crossings[0].mode == 2 and res.crossings[0].kind == "flutter"
+
+
+def test_floquet_of_the_extended_pipe_at_vanishing_pulsation() -> None:
+    """Floquet analysis takes the extended model: with a pulsation amplitude of 1e-9 m/s the
+    monodromy matrix is exp(S T) of the constant damped state matrix (nozzle, hub, both
+    dampings, v = 5 m/s, w0 = 100 rad/s, 6 modes, T = 2 pi/1000 s), so the multipliers' moduli
+    are exp(sigma_k T) of the frozen eigenvalues: identity, tolerance 1e-8 relative (the
+    pulsation's first-order effect and the monodromy tolerance 1e-8); seen 6e-14."""
+    from pipeflow.profiles import Harmonic
+    from pipeflow.stability import floquet
+
+    pipe = extended_paper_pipe("in-plane")
+    f = floquet(pipe, Harmonic(5.0, 1e-9, 1000.0), Constant(100.0), modes=6)
+    xi = spectrum(pipe, 6, 5.0, 100.0)
+    expected = np.sort(np.exp(xi.real * 2 * math.pi / 1000.0))
+    got = np.sort(np.asarray(f.to_dict()["multipliers"]["modulus"]))
+    assert np.allclose(got, expected, rtol=1e-8, atol=0)
+    assert f.verdict == "stable"
