@@ -15,7 +15,6 @@ cache key.  The run functions return JSON-ready dicts (every float finite) and t
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
@@ -41,9 +40,8 @@ from pipeflow.stability.sweeps import Parameter, sweep
 Progress = Callable[[float], None]
 
 #: the paper's section-5 pipe, for the schema examples
-PAPER_PIPE_JSON: Any = {
-    f.name: getattr(PAPER_PIPE, f.name) for f in dataclasses.fields(PAPER_PIPE)[:5]
-}  # E, I, L, M1, M2: the paper's pipe needs none of the fields beyond its model
+#: (E, I, L, M1, M2 only: the paper's pipe needs none of the fields beyond its model)
+PAPER_PIPE_JSON: Any = {name: getattr(PAPER_PIPE, name) for name in ("E", "I", "L", "M1", "M2")}
 MAX_SWEEP_POINTS = 2001
 MAX_MAP_SIDE = 200
 MAX_CHART_SIDE = 101
