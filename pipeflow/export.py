@@ -36,6 +36,8 @@ import io
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from pipeflow.optional import require
+
 #: table name -> one-line description (units in the column headers)
 TABLES: dict[str, str] = {
     "history": "time history: t [s], tip displacement [m], stations [m], modal coordinates",
@@ -155,8 +157,8 @@ def to_parquet(result: dict[str, Any], name: str = "history") -> bytes:
     each field's metadata ``{"unit": ...}`` (SI), the table's name and description in the
     schema metadata.  Needs the optional ``pyarrow`` (``pip install 'pipeflow[parquet]'``)."""
     header, columns = table(result, name)
-    pa = _pyarrow()
-    import pyarrow.parquet as pq
+    pa = require("pyarrow", "parquet", "Parquet export")
+    pq = require("pyarrow.parquet", "parquet", "Parquet export")
 
     fields, arrays = [], []
     for label, values in zip(header, columns, strict=True):
@@ -168,11 +170,3 @@ def to_parquet(result: dict[str, Any], name: str = "history") -> bytes:
     buf = pa.BufferOutputStream()
     pq.write_table(pa.Table.from_arrays(arrays, schema=schema), buf)
     return bytes(buf.getvalue().to_pybytes())
-
-
-def _pyarrow() -> Any:
-    try:
-        import pyarrow
-    except ImportError as exc:
-        raise ImportError("Parquet export needs pyarrow: pip install 'pipeflow[parquet]'") from exc
-    return pyarrow

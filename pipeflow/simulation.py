@@ -25,6 +25,7 @@ from pipeflow.modeshapes import (
     ModeShapes,
     frozen_mode_shapes,
 )
+from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
@@ -78,8 +79,12 @@ class Simulation:
 
 
 @dataclass
-class Result:
-    """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form)."""
+class Result(NotebookViews):
+    """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form).
+
+    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot` (from
+    :class:`pipeflow.notebook.NotebookViews`; xarray/pandas are the ``notebook`` extra).
+    """
 
     simulation: Simulation
     t: FloatArray  # [s]
@@ -101,6 +106,9 @@ class Result:
     @property
     def fundamental(self) -> Traces:
         return Traces(self.frozen.xi[:, :1], self.frozen.confidence[:, :1])
+
+    def _document(self) -> dict[str, Any]:
+        return self.to_dict()
 
     def to_dict(self, include_modal: bool | None = None) -> dict[str, Any]:
         """JSON-ready dictionary: lists of floats, every number finite."""
