@@ -227,8 +227,8 @@ class MethodOptions(StrictModel):
 
 
 class ModeShapesSpec(StrictModel):
-    """Complex mode shapes of the frozen spectrum (:mod:`pipeflow.modeshapes`), one per traced
-    eigenvalue branch (``output.eigen_modes``) at each time."""
+    """Complex mode shapes of the frozen spectrum (pipeflow.modeshapes), one per traced
+    eigenvalue branch (output.eigen_modes) at each time, normalised to max |Phi| = 1."""
 
     times: list[float] = Field(
         min_length=1,

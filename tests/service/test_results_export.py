@@ -192,3 +192,17 @@ def test_mode_shape_times_outside_the_run_name_the_field(tc: Any) -> None:
     r = tc.post("/v1/simulations", json=dict(SMALL, output=bad_points))
     assert r.status_code == 422
     assert r.json()["errors"][0]["field"] == "output.mode_shapes.points"
+
+
+def test_openapi_declares_the_table_formats(tc: Any) -> None:
+    op = tc.get("/openapi.json").json()["paths"]["/v1/results/{key}"]["get"]
+    content = op["responses"]["200"]["content"]
+    assert content["application/vnd.apache.parquet"]["schema"] == {
+        "type": "string",
+        "format": "binary",
+    }
+    assert "text/csv" in content and "application/json" in content
+    fmt = next(p for p in op["parameters"] if p["name"] == "format")
+    assert "parquet" in fmt["schema"]["anyOf"][0]["enum"]
+    tables = next(p for p in op["parameters"] if p["name"] == "table")
+    assert tables["schema"]["enum"] == list(TABLES)
