@@ -55,7 +55,7 @@ def _matches(if_none_match: str, key: str) -> bool:
     response_model=ResultDocument,
     responses={
         200: {"headers": CACHE_HEADERS, "content": TABLE_CONTENT},
-        **responses(304, 404, 422),
+        **responses(304, 404, 406, 422),
     },
 )
 async def get_result(

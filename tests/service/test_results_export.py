@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import sys
 from collections.abc import Iterator
 from typing import Any, get_args
 
@@ -206,3 +207,16 @@ def test_openapi_declares_the_table_formats(tc: Any) -> None:
     assert "parquet" in fmt["schema"]["anyOf"][0]["enum"]
     tables = next(p for p in op["parameters"] if p["name"] == "table")
     assert tables["schema"]["enum"] == list(TABLES)
+
+
+def test_parquet_without_pyarrow_on_the_server_is_406_naming_format(
+    tc: Any, stored: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """pyarrow is an optional extra of the server too: without it the answer says so (and
+    that CSV works) instead of failing with 500."""
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # the server's import now fails
+    r = tc.get(f"/v1/results/{stored['key']}", params={"format": "parquet"})
+    assert r.status_code == 406
+    assert r.headers["content-type"] == "application/problem+json"
+    assert r.json()["errors"][0]["field"] == "format"
+    assert "pip install 'pipeflow[parquet]'" in r.json()["detail"]
