@@ -68,8 +68,14 @@ def test_shapes_with_flow_and_spin_solve_the_second_order_eigenproblem(flow: obj
         mode_shape_times=t_shapes,
         mode_shape_points=101,
     )
-    shapes = simulate(sim).mode_shapes
+    result = simulate(sim)
+    shapes = result.mode_shapes
     assert shapes is not None
+    # branch j of the shapes is branch j of the result's tracked spectrum (the shape times
+    # lie on the eigenvalue grid here, up to the rounding of linspace)
+    for i, t in enumerate(t_shapes):
+        k = int(np.argmin(np.abs(result.eigen_t - t)))
+        np.testing.assert_allclose(shapes.xi[i], result.frozen.xi[k], rtol=1e-9)
     model = build_model(PAPER_PIPE, 8)
     c = Loading(flow, spin).coefficients(np.asarray(t_shapes))  # type: ignore[arg-type]
     phi = cantilever_shapes(8, shapes.x / L)
