@@ -388,9 +388,16 @@ def test_heavily_damped_high_modes_keep_their_numbers() -> None:
         assert abs(math.sqrt(abs(roots[0] * roots[1])) - w[k - 1]) < 1e-9 * w[k - 1]
     low = order_lowest(xi, 3, damped=True)
     assert np.allclose(np.abs(xi[low]), w[:3], rtol=1e-9)
-    # the simulation's fundamental is mode 1, not an over-damped root of mode 10
-    res = simulate(Simulation(pipe=pipe, modes=n, t_end=0.01, samples=11, eigen_modes=2))
+    # the simulation's fundamental is mode 1, not an over-damped root of mode 10, and its
+    # mode shapes are those of the same branches
+    res = simulate(
+        Simulation(
+            pipe=pipe, modes=n, t_end=0.01, samples=11, eigen_modes=2, mode_shape_times=(0.0,)
+        )
+    )
     assert np.allclose(np.abs(res.frozen.xi[0]), w[:2], rtol=1e-9)
+    assert res.mode_shapes is not None
+    assert np.array_equal(res.mode_shapes.xi[0], res.frozen.xi[0])
 
 
 @pytest.mark.parametrize(
