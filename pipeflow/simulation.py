@@ -17,7 +17,14 @@ from numpy.typing import NDArray
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.eigen import Traces, track
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
+from pipeflow.model import (
+    REVERSE_FLOW_CAVEAT,
+    Loading,
+    Pipe,
+    PipeModel,
+    basis_caveats,
+    build_model,
+)
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -281,6 +288,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         )
     if np.any(sim.flow.value(eigen_t) < 0):
         warnings.append(REVERSE_FLOW_CAVEAT)
+    warnings.extend(basis_caveats(sim.pipe))
     diagnostics = {"method": sim.method, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,

@@ -24,7 +24,7 @@ from typing import Any, Literal
 import numpy as np
 
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats, build_model
 from pipeflow.stability.core import (
     Branches,
     FloatArray,
@@ -180,7 +180,7 @@ def critical_velocities(
     if points < 3:
         raise InvalidInput("points must be >= 3", field="points")
     model = build_model(pipe, modes)
-    warnings: list[str] = []
+    warnings: list[str] = basis_caveats(pipe)
     reverse: dict[str, Any] | None = None
     if v_min < 0:
         rate = float(growth_rate(model, v_min, omega0)[0])

@@ -523,3 +523,18 @@ def test_tip_body_frequency_equation(mu: float, j: float) -> None:
     e20, e40 = error(20), error(40)
     assert e40 < 3e-4
     assert 1.8 < e20 / e40 < 2.8
+
+
+def test_results_with_tip_inertia_warn_about_its_convergence() -> None:
+    """The 1/modes convergence of the rotary inertia (test_tip_inertia_converges_like_one_over
+    _modes) is said in the simulation's and the critical-velocity analysis's warnings, and
+    only when tip_inertia > 0."""
+    from pipeflow.stability import critical_velocities
+
+    with_j = Pipe(**UNIT, M1=0.7, M2=0.3, tip_inertia=0.01)
+    without = Pipe(**UNIT, M1=0.7, M2=0.3, tip_mass=0.1)
+    for pipe, expected in ((with_j, True), (without, False)):
+        sim = simulate(Simulation(pipe=pipe, modes=4, t_end=0.01, samples=11))
+        crit = critical_velocities(pipe, velocity_range=(0.0, 5.0), modes=4, points=21)
+        for warnings in (sim.warnings, crit.warnings):
+            assert any("pipe.tip_inertia" in w for w in warnings) is expected
