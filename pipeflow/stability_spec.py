@@ -22,10 +22,16 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, TypeAdapter, model_validator
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
 from pipeflow.simulation import json_safe
-from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec, StrictModel
+from pipeflow.spec import (
+    ConstantProfile,
+    HarmonicProfile,
+    PipeSpec,
+    StrictModel,
+    library_check,
+    request_fields,
+)
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
@@ -43,6 +49,15 @@ MAX_FLOQUET_MODES = 20
 #: |v| [m/s] and |w0| [rad/s] bounds (far beyond any physical pipe; they keep numbers finite)
 MAX_SPEED = 1e6
 MAX_SPIN = 1e7
+
+
+#: library parameter -> request field where they differ (the stability specs otherwise use
+#: the library's names: modes, velocity_range, points, tolerance...)
+STABILITY_FIELDS: dict[str, str] = {
+    "flow": "flow.velocity",
+    "spin": "rotation.omega0",
+    "omega0": "rotation.omega0",
+}
 
 
 def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
@@ -390,24 +405,21 @@ def parse_sweep(data: Any) -> Any:
 
 
 def _library_check(check: Callable[..., object], *args: Any) -> None:
-    """Run a library check (budget, common period) at validation time, so a request the
-    library would refuse is a 422 naming the field at submission, not a job that fails later."""
-    try:
-        check(*args)
-    except PipeflowError as exc:
-        raise ValueError(f"{exc.field}: {exc.message}") from None
+    """:func:`pipeflow.spec.library_check` with :data:`STABILITY_FIELDS`."""
+    library_check(check, STABILITY_FIELDS, *args)
 
 
 def run_stability(spec: StabilitySpec, progress: Progress | None = None) -> dict[str, Any]:
     """Critical velocities for a :class:`StabilitySpec`: JSON-ready dict (SI units)."""
-    res = critical_velocities(
-        spec.pipe.to_pipe(),
-        omega0=spec.rotation.omega0.value,
-        velocity_range=spec.velocity_range,
-        modes=spec.modes,
-        points=spec.points,
-        progress=progress,
-    )
+    with request_fields(STABILITY_FIELDS):
+        res = critical_velocities(
+            spec.pipe.to_pipe(),
+            omega0=spec.rotation.omega0.value,
+            velocity_range=spec.velocity_range,
+            modes=spec.modes,
+            points=spec.points,
+            progress=progress,
+        )
     return {"kind": "stability", **json_safe(res.to_dict())}
 
 
@@ -416,4 +428,5 @@ def run_sweep(spec: Any, progress: Progress | None = None) -> dict[str, Any]:
     ``kind`` echoed first."""
     if not isinstance(spec, SWEEP_KINDS):
         raise TypeError(f"not a sweep spec: {type(spec).__name__}")
-    return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))
+    with request_fields(STABILITY_FIELDS):
+        return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from pipeflow.eigen import track
 from pipeflow.errors import InvalidInput
 from pipeflow.model import PAPER_PIPE, build_model
+from pipeflow.spectra import track
 from pipeflow.stability.core import nondimensional_pipe, state_matrices
 from pipeflow.stability.sweeps import sweep
 
@@ -17,7 +17,7 @@ from pipeflow.stability.sweeps import sweep
 def test_argand_matches_core_tracker_and_locates_flutter():
     """beta = 0.2: the tracked second branch of the Argand sweep crosses sigma = 0 near
     u = 5.59 (the critical velocity), and on a grid without refinement the sweep equals
-    pipeflow.eigen.track on the same matrices (one tracking algorithm, not two)."""
+    pipeflow.spectra.track on the same matrices (one tracking algorithm, not two)."""
     beta = 0.2
     pipe = nondimensional_pipe(beta)
     vmax = 8.0 / math.sqrt(beta)

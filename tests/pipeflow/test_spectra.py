@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from pipeflow.eigen import track
+from pipeflow.spectra import track
 
 
 def oscillators(w1: np.ndarray, w2: np.ndarray, coupling: float = 0.0) -> np.ndarray:
