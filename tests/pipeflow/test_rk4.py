@@ -39,7 +39,7 @@ def test_user_step_outside_region_is_refused_with_largest_stable_step() -> None:
                 options=Options(step=1.5 * h_max),
             )
         )
-    assert err.value.field == "options.step"
+    assert err.value.parameter == "step"
     assert abs(err.value.largest_stable_step - h_max) < 1e-15
     assert f"{h_max:.6g}" in str(err.value)
     # and a step just inside is accepted; the solution stays bounded
@@ -61,7 +61,7 @@ def test_step_budget_is_enforced() -> None:
         simulate(
             paper_sim(Constant(0.4), "rk4", modes=10, t_end=1.0, options=Options(max_steps=1000))
         )
-    assert err.value.field == "options.max_steps"
+    assert err.value.parameter == "max_steps"
     assert "step budget" in str(err.value)
 
 
@@ -101,4 +101,4 @@ def test_non_positive_step_is_refused(method: str, step: float) -> None:
     sim = paper_sim(Constant(0.4), method, modes=2, t_end=0.01, samples=11)
     with pytest.raises(InvalidInput) as err:
         simulate(replace(sim, options=Options(step=step)))
-    assert err.value.field == "options.step"
+    assert err.value.parameter == "step"

@@ -6,10 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from pipeflow.errors import InvalidInput
+from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
 from pipeflow.profiles import Constant, table
 from pipeflow.simulation import Simulation, simulate
+from pipeflow.solvers import Options
+from pipeflow.spec import SIMULATION_FIELDS, request_fields
 from tests.pipeflow.cases import paper_sim
 
 
@@ -33,20 +35,29 @@ def test_divergence_time_is_when_bound_is_passed() -> None:
 
 
 @pytest.mark.parametrize(
-    ("kw", "field"),
+    ("kw", "parameter", "field"),
     [
-        ({"method": "nope"}, "method"),
-        ({"t_end": -1.0}, "time.t_end"),
-        ({"t_end": math.inf}, "time.t_end"),
-        ({"samples": 1}, "time.samples"),
-        ({"modes": 41}, "modes"),
-        ({"positions": (0.5,)}, "positions.0"),
-        ({"initial_shape": "mode2"}, "initial.shape"),
-        ({"flow": table([0, 0.5], [0.1, 0.2])}, "flow.velocity"),
+        ({"method": "nope"}, "method", "method"),
+        ({"t_end": -1.0}, "t_end", "time.t_end"),
+        ({"t_end": math.inf}, "t_end", "time.t_end"),
+        ({"samples": 1}, "samples", "time.samples"),
+        ({"modes": 41}, "modes", "modes"),
+        ({"positions": (0.5,)}, "positions", "output.positions"),
+        ({"initial_shape": "mode2"}, "initial_shape", "initial.shape"),
+        ({"flow": table([0, 0.5], [0.1, 0.2])}, "flow", "flow.velocity"),
+        ({"method": "rk4", "options": Options(step=1e-300)}, "step", "options.step"),
     ],
 )
-def test_invalid_input_names_the_field(kw: dict[str, object], field: str) -> None:
-    with pytest.raises(InvalidInput) as err:
+def test_invalid_input_names_the_parameter(
+    kw: dict[str, object], parameter: str, field: str
+) -> None:
+    """The library names its own parameter (no JSON path); the schema layer's one mapping
+    (pipeflow.spec.SIMULATION_FIELDS) turns it into the request field."""
+    with pytest.raises(PipeflowError) as err:
+        simulate(Simulation(PAPER_PIPE, **kw))  # type: ignore[arg-type]
+    assert err.value.parameter == parameter
+    assert err.value.field is None
+    with pytest.raises(PipeflowError) as err, request_fields(SIMULATION_FIELDS):
         simulate(Simulation(PAPER_PIPE, **kw))  # type: ignore[arg-type]
     assert err.value.field == field
 

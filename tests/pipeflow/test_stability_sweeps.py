@@ -69,7 +69,7 @@ def test_bad_sweep_input_names_the_field():
     for parameter, field in (("velocity", "velocity_range"), ("spin", "spin_range")):
         with pytest.raises(InvalidInput) as exc:
             sweep(PAPER_PIPE, parameter, (1.0, 0.0), modes=3, tracked=2, points=5)
-        assert exc.value.field == field
+        assert exc.value.parameter == field
     with pytest.raises(InvalidInput) as exc:
         sweep(PAPER_PIPE, "pressure", (0.0, 1.0), modes=3, tracked=2, points=5)  # type: ignore[arg-type]
-    assert exc.value.field == "parameter"
+    assert exc.value.parameter == "parameter"
