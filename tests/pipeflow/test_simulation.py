@@ -8,7 +8,7 @@ import pytest
 
 from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
-from pipeflow.profiles import Constant, table
+from pipeflow.profiles import Constant, polynomial, table
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
 from pipeflow.spec import SIMULATION_FIELDS, request_fields
@@ -69,3 +69,105 @@ def test_table_profile_matches_polynomial() -> None:
     a = simulate(paper_sim(polynomial(0, 0.4), modes=3, t_end=0.1, samples=101))
     b = simulate(paper_sim(table([0.0, 0.1], [0.0, 0.04]), modes=3, t_end=0.1, samples=101))
     assert np.allclose(a.tip_displacement, b.tip_displacement, rtol=0, atol=1e-14)
+
+
+#: the paper pipe's critical flow velocity at w0 = 100 rad/s, 10 modes [m/s] (the
+#: stability test suite checks it against the published 27.69 m/s / u_cr = 9.15)
+V_CR = 27.69
+
+
+@pytest.mark.parametrize(("v", "unstable"), [(20.0, False), (40.0, True)])
+def test_growth_rate_comes_from_the_whole_spectrum(v: float, unstable: bool) -> None:
+    """Paper pipe, w0 = 100 rad/s, 10 modes, below and above v_cr = 27.69 m/s.  Above it
+    the flutter branch (mode 5 at v = 40: two over-damped real modes come first) grows;
+    before the fix the three lowest branches were traced and max_growth_rate was -925 1/s.
+    Now max_growth_rate is the largest sigma of the whole frozen spectrum (the same
+    eigenvalues as pipeflow.stability.growth_rate, to rounding: 1e-9 relative), its sign
+    says stable/unstable, the branch that carries it is traced and flagged least_stable,
+    and first_unstable_time is 0 (constant v) or null."""
+    from pipeflow.model import build_model
+    from pipeflow.stability import growth_rate
+
+    r = simulate(Simulation(PAPER_PIPE, flow=Constant(v), spin=Constant(100.0), t_end=0.05))
+    rate = r.diagnostics["max_growth_rate"]
+    expected = float(growth_rate(build_model(PAPER_PIPE, 10), v, 100.0)[0])
+    assert rate == pytest.approx(expected, rel=1e-9)
+    assert (rate > 0) is unstable
+    modes = r.to_dict()["eigenvalues"]["modes"]
+    flagged = [m for m in modes if m["least_stable"]]
+    assert len(flagged) == 1
+    assert max(flagged[0]["sigma"]) == pytest.approx(rate, rel=1e-12)
+    assert r.first_unstable_time == (0.0 if unstable else None)
+    assert (r.status != "ok") is unstable
+    if unstable:
+        assert len(modes) == 4 and modes[-1]["least_stable"] and modes[-1]["mode"] == 5
+
+
+def test_first_unstable_time_of_a_ramp_through_the_critical_velocity() -> None:
+    """v = 20 + 100 t m/s passes v_cr = 27.69 m/s at t = 0.0769 s: first_unstable_time is
+    the first eigenvalue time after it (grid step 1 ms), and the growing branch is traced."""
+    r = simulate(
+        Simulation(
+            PAPER_PIPE,
+            flow=polynomial(20.0, 100.0),
+            spin=Constant(100.0),
+            t_end=0.1,
+            samples=101,
+            eigen_samples=101,
+        )
+    )
+    t_cr = (V_CR - 20.0) / 100.0
+    assert r.first_unstable_time is not None
+    assert 0.0 <= r.first_unstable_time - t_cr <= 0.001 + 1e-4  # 1e-4: v_cr to 4 digits
+    j = r.frozen.least_stable
+    assert j is not None
+    k = int(np.searchsorted(r.eigen_t, r.first_unstable_time))
+    assert r.frozen.sigma[k, j] > 0 > r.frozen.sigma[k - 1, j]
+    assert r.diagnostics["max_growth_rate"] == pytest.approx(float(r.frozen.sigma[:, j].max()))
+
+
+def test_auto_runs_cma_where_exact_and_magnus_otherwise() -> None:
+    """method 'auto' (the default): cma for constant v and w0, magnus for v = 0.4 t; the
+    result says which ran and why; cma chosen by auto equals cma asked for, bit for bit."""
+    const = simulate(paper_sim(Constant(0.4), method="auto", modes=3, t_end=0.05, samples=51))
+    assert (const.simulation.method, const.method_used) == ("auto", "cma")
+    assert "exact" in const.method_reason
+    direct = simulate(paper_sim(Constant(0.4), method="cma", modes=3, t_end=0.05, samples=51))
+    np.testing.assert_array_equal(const.tip_displacement, direct.tip_displacement)
+    ramp = simulate(paper_sim(polynomial(0, 0.4), method="auto", modes=3, t_end=0.05, samples=51))
+    assert ramp.method_used == "magnus" and "time-variant" in ramp.method_reason
+    d = ramp.to_dict()
+    assert (d["method"], d["method_used"]) == ("auto", "magnus")
+    assert d["diagnostics"]["method_used"] == "magnus"
+    assert Simulation(PAPER_PIPE).method == "auto"
+
+
+def test_paper_example_by_default_is_right_to_1e_8() -> None:
+    """The README / `pipeflow example` case (v = 0.4 t, w0 = 100 rad/s, 10 modes, 2001
+    samples per second) with the default method runs without a warning, estimates its own
+    error below 1e-8, and is within 1e-8 of the tight reference (DOP853, rtol 1e-12,
+    whose own error is ~3e-10) on the balanced state and the tip.  The reference costs
+    ~80 s over the full second (stiff: the 10th mode is at 8e4 rad/s), so it is compared
+    on the first 0.1 s at the example's sample spacing; measured over the full second:
+    6.8e-9 (state) and 6.0e-9 (tip)."""
+    from pipeflow.model import build_model
+    from pipeflow.solvers.base import relative_difference
+    from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+
+    spec = SimulationSpec.model_validate(PAPER_EXAMPLE)
+    assert spec.method == "auto"
+    full = simulate(spec.to_simulation())
+    assert full.warnings == [] and full.status == "ok" and full.method_used == "magnus"
+    assert full.diagnostics["estimated_relative_error"] <= 1e-8
+    sim = spec.to_simulation()
+    short = Simulation(**{**sim.__dict__, "t_end": 0.1, "samples": 201})  # the same grid
+    ref = simulate(
+        Simulation(
+            **{**short.__dict__, "method": "reference", "options": Options(rtol=1e-12, atol=1e-16)}
+        )
+    )
+    np.testing.assert_allclose(ref.t, full.t[:201], rtol=0, atol=1e-15)
+    model = build_model(PAPER_PIPE, 10)
+    z = model.to_balanced(full.d[:201], full.ddot[:201])
+    assert relative_difference(z, model.to_balanced(ref.d, ref.ddot)) < 1e-8
+    assert relative_difference(full.tip_displacement[:201], ref.tip_displacement) < 1e-8
