@@ -210,8 +210,8 @@ def step_counts(
     :class:`BudgetExceeded` names ``step`` if the step was the user's (``user_step``),
     else ``max_steps``, and says the smallest step the budget allows.
     """
-    counts = np.maximum(1.0, np.ceil(dt / h * (1 - 1e-12)))
     with np.errstate(over="ignore", invalid="ignore"):
+        counts = np.maximum(1.0, np.ceil(dt / h * (1 - 1e-12)))
         total = float(np.sum(counts)) + extra
     if not total <= budget:  # also catches inf and nan
         per_interval = budget // dt.size if dt.size else 0
