@@ -58,7 +58,7 @@ def compare(
     Returns a JSON-ready dictionary::
 
         {"baseline": name of the most accurate method (smallest estimated error),
-         "methods": [{"method", "status", "solve_seconds" [s], "wall_seconds" [s],
+         "methods": [{"method", "method_used", "status", "solve_seconds" [s], "wall_seconds" [s],
                       "speedup_vs_slowest" [-], "estimated_relative_error" [-],
                       "difference_from_baseline" [-] (balanced state),
                       "tip_difference_from_baseline" [-], "warnings", "diagnostics"}, ...],
@@ -106,6 +106,7 @@ def compare(
         rows.append(
             {
                 "method": result.simulation.method,
+                "method_used": result.method_used,
                 "status": result.status,
                 "solve_seconds": solve_s,
                 "wall_seconds": wall,

@@ -128,6 +128,7 @@ class Readiness(BaseModel):
 
 class MethodComparison(BaseModel):
     method: str = Field(description="Method name.")
+    method_used: str = Field(description="Solver that ran ('auto' resolves to cma or magnus).")
     status: str = Field(description="'ok', 'diverging' or 'overflow' (see simulations).")
     solve_seconds: float = Field(description="Time inside the solver [s].")
     wall_seconds: float = Field(description="Whole run incl. eigenvalue traces [s].")
