@@ -89,7 +89,7 @@ class Result:
     divergence_time: float | None  # [s]
     method_used: str = ""  # the solver that ran ("auto" resolves to "cma" or "magnus")
     method_reason: str = ""  # one line: why that solver
-    first_unstable_time: float | None = None  # [s] first eigen_t with a frozen sigma > 0
+    first_unstable_time: float | None = None  # [s] first output time with a frozen sigma > 0
 
     @property
     def fundamental(self) -> Traces:
@@ -235,7 +235,11 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     # the whole frozen spectrum decides growth, not only the traced branches
     sigma_max = spec[0].real.max(axis=1)  # per eigen_t [1/s]
     unstable = np.flatnonzero(sigma_max > rounding_level(spec[0]))
-    first_unstable = float(eigen_t[unstable[0]]) if unstable.size else None
+    first_unstable = (
+        first_unstable_time(model, loading, eigen_t, int(unstable[0]), problem.t)
+        if unstable.size
+        else None
+    )
 
     initial_tip = float(d0 @ model.tip)
     bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
@@ -293,6 +297,24 @@ def frozen_spectrum(
         xi, conf, mode = spectrum(model.state_matrix(loading.coefficients(times[:1])))
         return np.repeat(xi, times.size, axis=0), np.repeat(conf, times.size, axis=0), mode
     return spectrum(model.state_matrix(loading.coefficients(times)))
+
+
+def first_unstable_time(
+    model: PipeModel, loading: Loading, eigen_t: FloatArray, k: int, t: FloatArray
+) -> float:
+    """The first output time [s] (of ``t``) at which the frozen spectrum has a sigma above
+    rounding, given that eigenvalue time ``eigen_t[k]`` is the first such one: the output
+    times in (eigen_t[k-1], eigen_t[k]] are checked (eigenvalues only), the earliest
+    unstable one returned (``eigen_t[k]`` itself if none of them is)."""
+    if k == 0:
+        return float(t[0])
+    inside = t[(t > eigen_t[k - 1]) & (t < eigen_t[k])]
+    if inside.size:
+        xi = np.linalg.eigvals(model.state_matrix(loading.coefficients(inside)))
+        over = np.flatnonzero(xi.real.max(axis=1) > rounding_level(xi))
+        if over.size:
+            return float(inside[over[0]])
+    return float(eigen_t[k])
 
 
 def frozen_traces(

@@ -65,7 +65,7 @@ class SimulationResponse(BaseModel):
     method_used: str = Field(description="Solver that ran ('auto' resolves to cma or magnus).")
     method_reason: str = Field(description="One line: why that solver.")
     first_unstable_time: float | None = Field(
-        description="First eigenvalue time [s] at which any branch of the frozen spectrum "
+        description="First output time [s] at which any branch of the frozen spectrum "
         "has sigma > 0 (beyond rounding), or null if none."
     )
     t: list[float] = Field(description="Output times [s].")
