@@ -6,6 +6,7 @@ command line build a :class:`Simulation` from their JSON spec and call it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -17,6 +18,14 @@ from numpy.typing import NDArray
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
+from pipeflow.modeshapes import (
+    DEFAULT_SHAPE_POINTS,
+    MAX_SHAPE_POINTS,
+    MAX_SHAPE_TIMES,
+    ModeShapes,
+    frozen_mode_shapes,
+)
+from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
@@ -47,6 +56,9 @@ class Simulation:
     divergence_bound : tip amplitude [m] beyond which the run is flagged as diverging
         (default: the pipe length, where the linear model has long stopped meaning anything).
     quadrature_order : Gauss-Legendre points for the Galerkin integrals (None: automatic).
+    mode_shape_times : times [s] (0..t_end) at which the complex mode shapes of the frozen
+        spectrum are returned (:mod:`pipeflow.modeshapes`); empty: none.
+    mode_shape_points : stations from x = 0 to L at which each mode shape is evaluated.
     """
 
     pipe: Pipe
@@ -66,11 +78,17 @@ class Simulation:
     include_modal: bool = False
     divergence_bound: float | None = None
     quadrature_order: int | None = None
+    mode_shape_times: tuple[float, ...] = ()
+    mode_shape_points: int = DEFAULT_SHAPE_POINTS
 
 
 @dataclass
-class Result:
-    """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form)."""
+class Result(NotebookViews):
+    """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form).
+
+    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot` (from
+    :class:`pipeflow.notebook.NotebookViews`; xarray/pandas are the ``notebook`` extra).
+    """
 
     simulation: Simulation
     t: FloatArray  # [s]
@@ -90,10 +108,14 @@ class Result:
     method_used: str = ""  # the solver that ran ("auto" resolves to "cma" or "magnus")
     method_reason: str = ""  # one line: why that solver
     first_unstable_time: float | None = None  # [s] first output time with a frozen sigma > 0
+    mode_shapes: ModeShapes | None = None  # when ``simulation.mode_shape_times`` asks
 
     @property
     def fundamental(self) -> Traces:
         return Traces(self.frozen.xi[:, :1], self.frozen.confidence[:, :1])
+
+    def _document(self) -> dict[str, Any]:
+        return self.to_dict()
 
     def to_dict(self, include_modal: bool | None = None) -> dict[str, Any]:
         """JSON-ready dictionary: lists of floats, every number finite."""
@@ -135,6 +157,8 @@ class Result:
             "diagnostics": json_safe(self.diagnostics),
             "warnings": list(self.warnings),
         }
+        if self.mode_shapes is not None:
+            out["mode_shapes"] = json_safe(self.mode_shapes.to_dict())
         if modal:
             out["modal"] = {"d": _finite(self.d), "ddot": _finite(self.ddot)}
         return out
@@ -190,6 +214,17 @@ def validate(sim: Simulation) -> None:
     for i, x in enumerate(sim.positions):
         if not 0.0 <= x <= sim.pipe.L:
             raise InvalidInput(f"positions[{i}] = {x} m is outside [0, L]", parameter="positions")
+    if len(sim.mode_shape_times) > MAX_SHAPE_TIMES:
+        raise InvalidInput(f"at most {MAX_SHAPE_TIMES} mode-shape times", "mode_shape_times")
+    for i, t in enumerate(sim.mode_shape_times):
+        if not 0.0 <= t <= sim.t_end:
+            raise InvalidInput(
+                f"mode_shape_times[{i}] = {t} s is outside [0, t_end]", "mode_shape_times"
+            )
+    if not 2 <= sim.mode_shape_points <= MAX_SHAPE_POINTS:
+        raise InvalidInput(
+            f"mode-shape points must be between 2 and {MAX_SHAPE_POINTS}", "mode_shape_points"
+        )
 
 
 def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Result:
@@ -241,6 +276,18 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         else None
     )
 
+    shapes = None
+    if sim.mode_shape_times:
+        shapes = frozen_mode_shapes(
+            model,
+            loading,
+            np.asarray(sim.mode_shape_times, dtype=float),
+            frozen.branch if frozen.branch is not None else n_eig,
+            sim.mode_shape_points,
+            track_times=eigen_t,
+        )
+        shapes = dataclasses.replace(shapes, mode=frozen.mode)
+
     initial_tip = float(d0 @ model.tip)
     bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
     over = np.flatnonzero(np.abs(tip) > bound)
@@ -285,6 +332,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         method_used=solver.name,
         method_reason=reason,
         first_unstable_time=first_unstable,
+        mode_shapes=shapes,
     )
 
 
@@ -310,7 +358,9 @@ def first_unstable_time(
         return float(t[0])
     inside = t[(t > eigen_t[k - 1]) & (t < eigen_t[k])]
     if inside.size:
-        xi = np.linalg.eigvals(model.state_matrix(loading.coefficients(inside)))
+        xi = np.asarray(
+            np.linalg.eigvals(model.state_matrix(loading.coefficients(inside))), complex
+        )
         over = np.flatnonzero(xi.real.max(axis=1) > rounding_level(xi))
         if over.size:
             return float(inside[over[0]])

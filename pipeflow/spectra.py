@@ -48,13 +48,16 @@ class Traces:
     flags a point where the branch identity is uncertain (coalescence or too coarse a grid).
     ``mode[j]`` is the mode number of branch j (:func:`mode_numbers` at the first point);
     ``least_stable`` the column of the least stable branch of the whole spectrum (largest
-    sigma over the points), when it was asked for.
+    sigma over the points), when it was asked for; ``branch[j]`` the index of column j's
+    eigenvalue at the first point (its identity for anything else that follows the same
+    branches, e.g. :func:`pipeflow.modeshapes.frozen_mode_shapes`).
     """
 
     xi: ComplexArray
     confidence: FloatArray
     mode: NDArray[np.intp] | None = None
     least_stable: int | None = None
+    branch: NDArray[np.intp] | None = None
 
     @property
     def sigma(self) -> FloatArray:
@@ -201,7 +204,11 @@ def select(
             chosen = np.append(chosen, j)
             flagged = chosen.size - 1
     return Traces(
-        xi=xi[:, chosen], confidence=confidence[:, chosen], mode=mode[chosen], least_stable=flagged
+        xi=xi[:, chosen],
+        confidence=confidence[:, chosen],
+        mode=mode[chosen],
+        least_stable=flagged,
+        branch=chosen,
     )
 
 
