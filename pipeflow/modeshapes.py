@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from pipeflow.basis import mode_shapes as cantilever_shapes
 from pipeflow.model import Loading, PipeModel
-from pipeflow.spectra import assign, decompose, order_lowest
+from pipeflow.spectra import assign, decompose, match_branches, order_lowest
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -81,12 +81,12 @@ def frozen_mode_shapes(
     model: PipeModel,
     loading: Loading,
     times: FloatArray,
-    branches: int | NDArray[np.intp],
+    branches: int | ComplexArray,
     points: int = DEFAULT_SHAPE_POINTS,
     track_times: FloatArray | None = None,
 ) -> ModeShapes:
     """Mode shapes of frozen branches at ``times`` [s]: the ``branches`` lowest, or the
-    branches whose eigenvalue indices at t = 0 are given (``Traces.branch`` of a result).
+    branches whose eigenvalues at t = 0 are given (``Result.frozen.xi[0]``).
 
     ``points`` evenly spaced stations from x = 0 to x = L [m] (both included).  Branches
     are followed from t = 0 through ``track_times`` [s] (the result's eigenvalue times) and
@@ -98,7 +98,10 @@ def frozen_mode_shapes(
     S = model.state_matrix(loading.coefficients(grid))
     w, V, W = decompose(S)
     perm, _ = assign(w, V, W)
-    chosen = order_lowest(w[0], branches) if isinstance(branches, int) else np.asarray(branches)
+    if isinstance(branches, int):
+        chosen = order_lowest(w[0], branches)
+    else:
+        chosen = match_branches(w[0], branches)
     at = np.searchsorted(grid, times)
     cols = perm[at][:, chosen]  # (T, B): eigenvector index of branch j at each time
     xi = np.take_along_axis(w[at], cols, axis=1)

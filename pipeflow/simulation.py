@@ -263,10 +263,12 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     n_eig = min(sim.eigen_modes, sim.modes)  # more branches than modes do not exist
     spec = frozen_spectrum(model, loading, eigen_t)
     frozen = select(*spec, n_eig, least_stable=True)
+    # the same branches of P(t)/t (P(t)/t -> S(0) at t = 0: the same first point)
+    branches = frozen.xi[0]
     if loading.is_time_invariant:
-        exponents = select(*spec, n_eig)  # P(t)/t = S: the same spectrum
+        exponents = select(*spec, branches)  # P(t)/t = S: the same spectrum
     else:
-        exponents = cma_exponents(model, loading, eigen_t, n_eig)
+        exponents = cma_exponents(model, loading, eigen_t, branches)
     # the whole frozen spectrum decides growth, not only the traced branches
     sigma_max = spec[0].real.max(axis=1)  # per eigen_t [1/s]
     unstable = np.flatnonzero(sigma_max > rounding_level(spec[0]))
@@ -282,7 +284,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
             model,
             loading,
             np.asarray(sim.mode_shape_times, dtype=float),
-            frozen.branch if frozen.branch is not None else n_eig,
+            branches,
             sim.mode_shape_points,
             track_times=eigen_t,
         )
@@ -375,11 +377,14 @@ def frozen_traces(
     return select(*frozen_spectrum(model, loading, times), modes, least_stable)
 
 
-def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
+def cma_exponents(
+    model: PipeModel, loading: Loading, times: FloatArray, modes: int | NDArray[np.complex128]
+) -> Traces:
     """Tracked eigenvalues of P(t)/t [1/s], the exponents the paper's CMA applies.
 
     At t = 0 the limit P(t)/t -> S(0) is used.  For constant coefficients these equal the
-    frozen eigenvalues; for varying ones they are the time-averaged spectrum.
+    frozen eigenvalues; for varying ones they are the time-averaged spectrum.  ``modes``:
+    how many of the lowest branches, or their eigenvalues at t = 0 (``Traces.xi[0]``).
     """
     t = np.asarray(times, dtype=float)
     mats = np.empty((t.size, model.size, model.size))

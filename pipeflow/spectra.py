@@ -49,8 +49,7 @@ class Traces:
     ``mode[j]`` is the mode number of branch j (:func:`mode_numbers` at the first point);
     ``least_stable`` the column of the least stable branch of the whole spectrum (largest
     sigma over the points), when it was asked for; ``branch[j]`` the index of column j's
-    eigenvalue at the first point (its identity for anything else that follows the same
-    branches, e.g. :func:`pipeflow.modeshapes.frozen_mode_shapes`).
+    eigenvalue at the first point.
     """
 
     xi: ComplexArray
@@ -164,6 +163,16 @@ def least_stable_branch(xi: ComplexArray, candidates: NDArray[np.intp]) -> int:
     return int(candidates[np.flatnonzero(peak >= peak.max() - level)[0]])
 
 
+def match_branches(w: ComplexArray, targets: ComplexArray) -> NDArray[np.intp]:
+    """Indices into the eigenvalues ``w`` of one point of the ones nearest ``targets``
+    (optimal assignment on |w_i - target_j|): how another decomposition of the same matrix,
+    or of the same first point, finds the branches a selection traced."""
+    rows, cols = linear_sum_assignment(np.abs(w[:, None] - np.asarray(targets)[None, :]))
+    out = np.empty(cols.size, dtype=np.intp)
+    out[cols] = rows
+    return out
+
+
 def track(S: NDArray[np.float64], modes: int, least_stable: bool = False) -> Traces:
     """Eigenvalues of each ``S[k]`` (shape ``(N, m, m)``), the ``modes`` lowest tracked.
 
@@ -188,12 +197,18 @@ def select(
     xi: ComplexArray,
     confidence: FloatArray,
     mode: NDArray[np.intp],
-    modes: int,
+    modes: int | ComplexArray,
     least_stable: bool = False,
 ) -> Traces:
-    """The ``modes`` lowest branches of a followed spectrum (and the least stable one)."""
+    """Branches of a followed spectrum: the ``modes`` lowest (and, with ``least_stable``,
+    the least stable one), or the branches whose first-point eigenvalues ``modes`` gives
+    (``Traces.xi[0]`` of another selection, e.g. the same branches of P(t)/t; matched by
+    :func:`match_branches`)."""
     representatives = _numbering(xi[0])[1]
-    chosen = representatives[:modes]
+    if isinstance(modes, int):
+        chosen = representatives[:modes]
+    else:
+        chosen = match_branches(xi[0], np.asarray(modes))
     flagged: int | None = None
     if least_stable:
         j = least_stable_branch(xi, representatives)

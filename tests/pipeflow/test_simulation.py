@@ -132,6 +132,14 @@ def test_first_unstable_time_of_a_ramp_through_the_critical_velocity() -> None:
     k = int(np.searchsorted(r.eigen_t, r.first_unstable_time))
     assert r.frozen.sigma[k, j] > 0 > r.frozen.sigma[k - 1, j]
     assert r.diagnostics["max_growth_rate"] == pytest.approx(float(r.frozen.sigma[:, j].max()))
+    # the CMA exponents follow the same branches: P(t)/t = S(0) at t = 0
+    assert r.exponents.xi.shape == r.frozen.xi.shape
+    np.testing.assert_allclose(r.exponents.xi[0], r.frozen.xi[0], rtol=1e-13)
+    d = r.to_dict()
+    assert [m["mode"] for m in d["cma_exponents"]["modes"]] == [
+        m["mode"] for m in d["eigenvalues"]["modes"]
+    ]
+    assert "least_stable" not in d["cma_exponents"]["modes"][0]
 
 
 def test_auto_runs_cma_where_exact_and_magnus_otherwise() -> None:
