@@ -99,7 +99,7 @@ def frozen_mode_shapes(
     w, V, W = decompose(S)
     perm, _ = assign(w, V, W)
     if isinstance(branches, int):
-        chosen = order_lowest(w[0], branches)
+        chosen = order_lowest(w[0], branches, model.pipe.damped)
     else:
         chosen = match_branches(w[0], branches)
     at = np.searchsorted(grid, times)

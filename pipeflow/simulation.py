@@ -17,7 +17,14 @@ from numpy.typing import NDArray
 
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
+from pipeflow.model import (
+    REVERSE_FLOW_CAVEAT,
+    Loading,
+    Pipe,
+    PipeModel,
+    basis_caveats,
+    build_model,
+)
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -262,7 +269,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     eigen_t = np.linspace(0.0, sim.t_end, max(2, min(sim.eigen_samples, sim.samples)))
     n_eig = min(sim.eigen_modes, sim.modes)  # more branches than modes do not exist
     spec = frozen_spectrum(model, loading, eigen_t)
-    frozen = select(*spec, n_eig, least_stable=True)
+    frozen = select(*spec, n_eig, least_stable=True, damped=sim.pipe.damped)
     # the same branches of P(t)/t (P(t)/t -> S(0) at t = 0: the same first point)
     branches = frozen.xi[0]
     if loading.is_time_invariant:
@@ -305,6 +312,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         )
     if np.any(sim.flow.value(eigen_t) < 0):
         warnings.append(REVERSE_FLOW_CAVEAT)
+    warnings.extend(basis_caveats(sim.pipe))
     diagnostics = {"method": sim.method, "method_used": solver.name, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,
@@ -342,11 +350,14 @@ def frozen_spectrum(
     model: PipeModel, loading: Loading, times: FloatArray
 ) -> tuple[NDArray[np.complex128], FloatArray, NDArray[np.intp]]:
     """Every branch of the frozen state matrix S(t) [1/s] at ``times`` [s], followed
-    (:func:`pipeflow.spectra.spectrum`): one decomposition when S is constant."""
+    (:func:`pipeflow.spectra.spectrum`; a damped pipe's modes numbered by natural
+    frequency): one decomposition when S is constant."""
+    damped = model.pipe.damped
     if loading.is_time_invariant:
-        xi, conf, mode = spectrum(model.state_matrix(loading.coefficients(times[:1])))
+        S = model.state_matrix(loading.coefficients(times[:1]))
+        xi, conf, mode = spectrum(S, damped)
         return np.repeat(xi, times.size, axis=0), np.repeat(conf, times.size, axis=0), mode
-    return spectrum(model.state_matrix(loading.coefficients(times)))
+    return spectrum(model.state_matrix(loading.coefficients(times)), damped)
 
 
 def first_unstable_time(
@@ -374,7 +385,7 @@ def frozen_traces(
 ) -> Traces:
     """Tracked eigenvalues of the frozen state matrix S(t) [1/s] at ``times`` [s]: the
     ``modes`` lowest branches (and the least stable one, flagged)."""
-    return select(*frozen_spectrum(model, loading, times), modes, least_stable)
+    return select(*frozen_spectrum(model, loading, times), modes, least_stable, model.pipe.damped)
 
 
 def cma_exponents(
@@ -392,7 +403,7 @@ def cma_exponents(
     mats[~pos] = model.state_matrix(loading.coefficients(t[~pos]))
     if pos.any():
         mats[pos] = model.integrated_state_matrix(loading.integrals(t[pos])) / t[pos, None, None]
-    return select(*spectrum(mats), modes)
+    return select(*spectrum(mats, model.pipe.damped), modes, damped=model.pipe.damped)
 
 
 def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, Any]:
@@ -411,4 +422,5 @@ def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, 
         "gamma_max_abs": float(np.max(np.abs(g))),
         "time_scale": pipe.time_scale,
         "tau_end": float(times[-1] / pipe.time_scale),
+        **pipe.dimensionless_groups(),
     }

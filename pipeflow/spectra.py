@@ -24,6 +24,7 @@ Conventions
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -119,8 +120,51 @@ def assign(
     return perm, conf
 
 
-def _numbering(w: ComplexArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+def damped_modes(w: ComplexArray) -> tuple[NDArray[np.intp], dict[int, int]]:
+    """Modes of a damped spectrum at one point, by natural frequency.
+
+    Returns one representative eigenvalue index per mode, ordered by the mode's natural
+    frequency, and ``partner`` (index -> representative) for the other eigenvalue of each
+    mode. A damped mode's two eigenvalues solve lambda^2 + 2 zeta w lambda + w^2 = 0, so
+    its natural frequency is w = |lambda| for a complex pair (representative: omega > 0) and
+    w = sqrt(s1 s2) for an over-damped pair of real roots -s1, -s2 (representative: the
+    slower root). Decaying real roots are paired smallest with largest, which is exact when
+    over-damping comes from one mechanism (Kelvin-Voigt: high modes, roots near 1/alpha and
+    alpha w^2; viscous: low modes); any other real root is a mode of frequency 0 (first).
+    """
+    scale = max(float(np.max(np.abs(w))), 1e-300)
+    tol = 1e-9 * scale
+    real = np.abs(w.imag) <= tol
+    key: dict[int, float] = {}
+    partner: dict[int, int] = {}
+    for i in np.flatnonzero(w.imag > tol):
+        key[int(i)] = float(abs(w[i]))
+        lower = np.flatnonzero(w.imag < -tol)
+        if lower.size:
+            j = int(lower[np.argmin(np.abs(w[lower] - np.conj(w[i])))])
+            partner.setdefault(j, int(i))
+    decaying = np.flatnonzero(real & (w.real < 0))
+    decaying = decaying[np.argsort(-w.real[decaying])]  # slowest first
+    k = decaying.size // 2
+    for a, b in zip(decaying[:k], decaying[::-1][:k], strict=True):
+        key[int(a)] = math.sqrt(float(w[a].real * w[b].real))
+        partner[int(b)] = int(a)
+    for i in np.flatnonzero(real):
+        if int(i) not in key and int(i) not in partner:
+            key[int(i)] = 0.0
+    reps = np.array(sorted(key, key=lambda i: (key[i], w[i].real)), dtype=np.intp)
+    return reps, partner
+
+
+def _numbering(w: ComplexArray, damped: bool = False) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """(mode number of each eigenvalue, representatives in mode order): see :func:`mode_numbers`."""
+    if damped:
+        reps, partners = damped_modes(w)
+        numbers = np.zeros(w.size, dtype=np.intp)
+        numbers[reps] = np.arange(1, reps.size + 1)
+        for other, rep in partners.items():
+            numbers[other] = numbers[rep]
+        return numbers, reps
     scale = max(float(np.max(np.abs(w))), 1e-300)
     tol = 1e-9 * scale
     real = np.abs(w.imag) <= tol
@@ -139,20 +183,22 @@ def _numbering(w: ComplexArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     return number, order
 
 
-def mode_numbers(w: ComplexArray) -> NDArray[np.intp]:
+def mode_numbers(w: ComplexArray, damped: bool = False) -> NDArray[np.intp]:
     """Mode number (1-based, by frequency) of each eigenvalue of one point; pairs share it.
 
     A conjugate pair is one mode, and so is a real pair +-s (a divergent mode of the
     conservative v = 0 system); other real eigenvalues are modes of frequency 0 (they
-    come first).
+    come first).  ``damped``: by natural frequency, an over-damped pair of real roots being
+    one mode (:func:`damped_modes`), so that the heavily damped high modes of Kelvin-Voigt
+    damping do not displace the fundamental.
     """
-    return _numbering(w)[0]
+    return _numbering(w, damped)[0]
 
 
-def order_lowest(w: ComplexArray, count: int) -> NDArray[np.intp]:
+def order_lowest(w: ComplexArray, count: int, damped: bool = False) -> NDArray[np.intp]:
     """Indices of the ``count`` lowest-numbered modes at one point (:func:`mode_numbers`),
     one eigenvalue per mode: omega >= 0 of a conjugate pair, +s of a real pair +-s."""
-    return _numbering(w)[1][:count]
+    return _numbering(w, damped)[1][:count]
 
 
 def least_stable_branch(xi: ComplexArray, candidates: NDArray[np.intp]) -> int:
@@ -173,24 +219,29 @@ def match_branches(w: ComplexArray, targets: ComplexArray) -> NDArray[np.intp]:
     return out
 
 
-def track(S: NDArray[np.float64], modes: int, least_stable: bool = False) -> Traces:
+def track(
+    S: NDArray[np.float64], modes: int, least_stable: bool = False, damped: bool = False
+) -> Traces:
     """Eigenvalues of each ``S[k]`` (shape ``(N, m, m)``), the ``modes`` lowest tracked.
 
     Branches are chosen at the first point (lowest mode numbers, one per mode) and
     followed by optimal assignment of left/right eigenvector overlaps.  With
     ``least_stable`` the least stable branch of the whole spectrum
     (:func:`least_stable_branch`) is traced too, as an extra column when it is not among
-    the lowest, and its column recorded in ``Traces.least_stable``.
+    the lowest, and its column recorded in ``Traces.least_stable``.  ``damped``: modes
+    numbered by natural frequency (:func:`mode_numbers`).
     """
-    return select(*spectrum(S), modes, least_stable)
+    return select(*spectrum(S, damped), modes, least_stable, damped)
 
 
-def spectrum(S: NDArray[np.float64]) -> tuple[ComplexArray, FloatArray, NDArray[np.intp]]:
+def spectrum(
+    S: NDArray[np.float64], damped: bool = False
+) -> tuple[ComplexArray, FloatArray, NDArray[np.intp]]:
     """Every branch of ``S[k]`` followed: ``(xi, confidence, mode)`` with ``xi[k, j]``
     branch j at point k [1/s] and ``mode[j]`` its mode number at the first point."""
     w, V, W = decompose(S)
     perm, conf = assign(w, V, W)
-    return np.take_along_axis(w, perm, axis=1), conf, mode_numbers(w[0])
+    return np.take_along_axis(w, perm, axis=1), conf, mode_numbers(w[0], damped)
 
 
 def select(
@@ -199,12 +250,13 @@ def select(
     mode: NDArray[np.intp],
     modes: int | ComplexArray,
     least_stable: bool = False,
+    damped: bool = False,
 ) -> Traces:
     """Branches of a followed spectrum: the ``modes`` lowest (and, with ``least_stable``,
     the least stable one), or the branches whose first-point eigenvalues ``modes`` gives
     (``Traces.xi[0]`` of another selection, e.g. the same branches of P(t)/t; matched by
-    :func:`match_branches`)."""
-    representatives = _numbering(xi[0])[1]
+    :func:`match_branches`); ``damped``: numbered as :func:`mode_numbers` says."""
+    representatives = _numbering(xi[0], damped)[1]
     if isinstance(modes, int):
         chosen = representatives[:modes]
     else:
@@ -273,6 +325,7 @@ def follow(
     max_points: int = 0,
     max_levels: int = 6,
     progress: Progress | None = None,
+    damped: bool = False,
 ) -> Branches:
     """Follow all eigenvalue branches of ``matrices(p)`` along ``grid``, refining as needed.
 
@@ -281,7 +334,8 @@ def follow(
     midpoint is inserted, up to ``max_levels`` halvings and ``max_points`` points in all.
     Near a coalescence of eigenvalues (exceptional point) the eigenvectors become parallel
     and the confidence stays low however fine the grid: the refinement stops there and the
-    low confidence is reported.  Without refinement this is :func:`spectrum`.
+    low confidence is reported.  Without refinement this is :func:`spectrum`.  ``damped``:
+    modes numbered by natural frequency (:func:`mode_numbers`).
     """
     p = np.asarray(grid, dtype=float)
     inserted = np.zeros(p.size, dtype=bool)
@@ -313,7 +367,7 @@ def follow(
         p=p,
         xi=xi,
         confidence=conf,
-        mode=mode_numbers(w[0]),
+        mode=mode_numbers(w[0], damped),
         inserted=inserted,
         W=Wb,
         matrices=matrices,

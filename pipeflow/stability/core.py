@@ -23,7 +23,7 @@ Conventions used by the whole :mod:`pipeflow.stability` package
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -31,7 +31,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidInput
-from pipeflow.model import Coefficients, Pipe, PipeModel
+from pipeflow.model import PLANES, Coefficients, Pipe, PipeModel
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -94,12 +94,40 @@ def damping_ratio(xi: ComplexArray) -> FloatArray:
     return np.asarray(z)
 
 
-def nondimensional_pipe(beta: float) -> Pipe:
+#: the :class:`Pipe` field that carries each group of :meth:`Pipe.dimensionless_groups` on
+#: the unit pipe of :func:`nondimensional_pipe`, where group and field are equal
+GROUP_FIELDS = {
+    "alpha": "kelvin_voigt",
+    "sigma": "viscous",
+    "tip_mass_ratio": "tip_mass",
+    "tip_inertia_ratio": "tip_inertia",
+    "hub_ratio": "hub_radius",
+}
+
+
+def nondimensional_pipe(
+    beta: float, groups: Mapping[str, float] | None = None, plane: str = "in-plane"
+) -> Pipe:
     """A pipe with E = I = L = 1, M1 + M2 = 1, M2 = beta: then v = u / sqrt(beta), w0 = gamma
-    and time is tau (Paidoussis' non-dimensional groups, physics notes section 1)."""
+    and time is tau (Paidoussis' non-dimensional groups, physics notes section 1).
+
+    ``groups``: the extended model's groups (keys of :data:`GROUP_FIELDS`: alpha, sigma,
+    tip_mass_ratio, tip_inertia_ratio, hub_ratio; missing ones are 0), ``plane`` its plane.
+    """
     if not 0 < beta < 1:
         raise InvalidInput(f"beta must be in (0, 1), got {beta}", parameter="beta")
-    return Pipe(E=1.0, I=1.0, L=1.0, M1=1.0 - beta, M2=beta)
+    extra: dict[str, float] = {}
+    for name, value in (groups or {}).items():
+        if name not in GROUP_FIELDS:
+            raise InvalidInput(
+                f"unknown group {name!r}; use {', '.join(GROUP_FIELDS)}", parameter="groups"
+            )
+        if not (math.isfinite(value) and value >= 0):
+            raise InvalidInput(f"{name} must be finite and >= 0, got {value}", parameter=name)
+        extra[GROUP_FIELDS[name]] = float(value)
+    if plane not in PLANES:
+        raise InvalidInput(f"unknown plane {plane!r}", parameter="plane")
+    return Pipe(E=1.0, I=1.0, L=1.0, M1=1.0 - beta, M2=beta, plane=plane, **extra)
 
 
 def sign_changes(

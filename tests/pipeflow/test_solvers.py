@@ -120,9 +120,9 @@ def test_constant_coefficients_decompose_the_frozen_spectrum_once(
 
     sizes: list[int] = []
 
-    def counting(S: np.ndarray) -> object:
+    def counting(S: np.ndarray, damped: bool = False) -> object:
         sizes.append(int(S.shape[0]))
-        return spectrum(S)
+        return spectrum(S, damped)
 
     monkeypatch.setattr(simulation, "spectrum", counting)
     r = simulate(paper_sim(Constant(0.4), modes=10, t_end=1.0, samples=2001))
