@@ -202,8 +202,9 @@ def order_lowest(w: ComplexArray, count: int, damped: bool = False) -> NDArray[n
 
 
 def least_stable_branch(xi: ComplexArray, candidates: NDArray[np.intp]) -> int:
-    """The branch among ``candidates`` (columns of ``xi``, in mode order) whose largest
-    sigma over the points is largest; within rounding of the maximum, the lowest mode."""
+    """The branch among ``candidates`` (columns of ``xi``, in order of preference: the
+    modes' representatives by mode number first) whose largest sigma over the points is
+    largest; within rounding of the maximum, the first candidate."""
     peak = xi[:, candidates].real.max(axis=0)
     level = float(np.max(rounding_level(xi)))
     return int(candidates[np.flatnonzero(peak >= peak.max() - level)[0]])
@@ -263,7 +264,10 @@ def select(
         chosen = match_branches(xi[0], np.asarray(modes))
     flagged: int | None = None
     if least_stable:
-        j = least_stable_branch(xi, representatives)
+        # every branch is a candidate: after a pair splits on the real axis the growing
+        # root may be followed by the member that was not its mode's representative
+        others = np.setdiff1d(np.arange(xi.shape[1]), representatives)
+        j = least_stable_branch(xi, np.concatenate([representatives, others]))
         hit = np.flatnonzero(chosen == j)
         if hit.size:
             flagged = int(hit[0])
