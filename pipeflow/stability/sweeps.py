@@ -278,7 +278,9 @@ def sweep(
     """
     check_modes(modes)
     if any(not (math.isfinite(n) and n > 0) for n in orders):
-        raise InvalidInput(f"excitation orders must be positive, got {list(orders)}", field="orders")
+        raise InvalidInput(
+            f"excitation orders must be positive, got {list(orders)}", field="orders"
+        )
     if not 1 <= tracked <= modes:
         raise InvalidInput(f"tracked modes must be between 1 and {modes}", field="tracked_modes")
     if parameter not in ("velocity", "spin"):
@@ -330,8 +332,8 @@ def sweep(
             "point cap was reached): branch identities there are uncertain"
         )
     orders = tuple(float(n) for n in orders) if parameter == "spin" else ()
-    excitation = excitation_crossings(br, chosen, orders)
-    zeros = zero_crossings(br, chosen)
+    excitation = excitation_crossings(br, chosen.tolist(), orders)
+    zeros = zero_crossings(br, chosen.tolist())
     if progress is not None:
         progress(1.0)
     return Sweep(
