@@ -43,37 +43,67 @@
   }
 
   function tick(v) {
-    // short labels that stay readable from 1e-6 to 1e300: 3 significant digits
+    // labels that stay short and readable from 1e-9 to 1e300 (the exponent form beyond
+    // 1e4 and below 1e-2), never "Infinity" or a 300-digit number
     if (v === null || !Number.isFinite(v)) return "";
     if (v === 0) return "0";
     const a = Math.abs(v);
     if (a >= 1e4 || a < 1e-2) return v.toExponential(1).replace("e+", "e");
-    return String(+v.toPrecision(3));
+    return String(+v.toPrecision(6));
   }
 
-  function drawChart(id, xLabel, yLabel, x, series, opts) {
+  // The symmetric-log (asinh) tip scale: the data are drawn as asinh(u / u_lin) on a
+  // linear axis (u_lin: the initial tip amplitude, below which the axis is linear), with
+  // ticks placed at 0 and +-10^k and labelled with u itself.  uPlot's own asinh scale finds
+  // no ticks for ranges beyond about 1e3, which a diverging tip (1e304 m) far exceeds.
+  function symlog(linear, peak) {
+    const fwd = (v) => (v === null ? null : Math.asinh(v / linear));
+    const back = (y) => Math.sinh(y) * linear;
+    const top = Math.max(peak, linear);
+    const range = () => [-1.05 * fwd(top), 1.05 * fwd(top)];
+    const splits = (u, axis, min, max) => {
+      const kmax = Math.floor(Math.log10(top));
+      const kmin = Math.min(kmax, Math.ceil(Math.log10(linear)));
+      const stride = Math.max(1, Math.ceil((kmax - kmin + 1) / 4));
+      const out = [0];
+      for (let k = kmax; k >= kmin; k -= stride) {
+        const y = fwd(Math.pow(10, k));
+        if (y <= max) out.push(y);
+        if (-y >= min) out.push(-y);
+      }
+      return out.sort((a, b) => a - b);
+    };
+    return { fwd, back, splits, range, linear };
+  }
+
+  function drawChart(id, xLabel, yLabel, x, series, log) {
     const chartHost = document.getElementById(id);
     if (charts[id]) { charts[id].destroy(); delete charts[id]; }
     const width = Math.max(320, Math.min(chartHost.clientWidth || 800, 1000));
-    const y = { auto: true };
-    if (opts && opts.asinh) Object.assign(y, { distr: 4, asinh: opts.asinh });
+    const label = (y) => tick(log ? log.back(y) : y);
+    const yAxis = { label: log ? yLabel + " (sym. log)" : yLabel, size: 80, values: (u, splits) => splits.map(label) };
+    if (log) yAxis.splits = log.splits;
     const chart = new uPlot({
       width, height: 260,
-      scales: { x: { time: false }, y },
-      axes: [
-        { label: xLabel, values: (u, splits) => splits.map(tick) },
-        { label: yLabel, size: 80, values: (u, splits) => splits.map(tick) },
-      ],
+      scales: { x: { time: false }, y: log ? { auto: false, range: log.range } : { auto: true } },
+      axes: [{ label: xLabel, values: (u, splits) => splits.map(tick) }, yAxis],
       series: [{ label: xLabel }].concat(series.map((s, i) => ({
         label: s.label, stroke: s.stroke || COLORS[i % COLORS.length], width: s.width || 1.2,
-        value: (u, v) => tick(v),
+        value: (u, v) => (v === null ? "--" : label(v)),
       }))),
       cursor: { drag: { x: true, y: false } },
-    }, [x].concat(series.map((s) => finite(s.y))), chartHost);
+    }, [x].concat(series.map((s) => (log ? finite(s.y).map(log.fwd) : finite(s.y)))), chartHost);
     charts[id] = chart;
     chartHost.dataset.points = String(x.length);
-    chartHost.dataset.scale = opts && opts.asinh ? "asinh" : "linear";
+    chartHost.dataset.scale = log ? "symlog" : "linear";
   }
+
+  function axisLabels(id) {
+    // the y tick labels as drawn (for the page's tests and for a reader of the DOM)
+    const c = charts[id];
+    return c && c.axes[1]._values ? c.axes[1]._values.slice() : [];
+  }
+  window.pipeflowViewer.axisLabels = axisLabels;
 
   function instability(result) {
     // what the result says about growth; keys absent from older results are skipped
@@ -118,8 +148,8 @@
     const start = Math.abs(result.initial_tip_displacement || y[0] || 0) || 1e-9;
     const peak = y.reduce((m, v) => Math.max(m, Math.abs(v)), 0);
     const diverging = instability(result).unstable || peak > 100 * start;
-    const asinh = choice === "asinh" || (choice === "auto" && diverging);
-    return asinh ? { asinh: start } : null;  // linear within the initial amplitude
+    const log = choice === "symlog" || (choice === "auto" && diverging);
+    return log ? symlog(start, peak) : null;
   }
 
   function render(result) {
@@ -142,6 +172,10 @@
       ? "Method: " + result.method + " → " + result.method_used
         + (result.method_reason ? " (" + result.method_reason + ")" : "")
       : result.method ? "Method: " + result.method : "";
+    // a run that grows while every traced branch decays: the growing branch is not traced
+    const note = document.getElementById("damping-note");
+    const traced = ev.modes.some((m) => m.least_stable || m.sigma.some((v) => v > 0));
+    note.hidden = !(instability(result).unstable && !traced);
     const list = document.getElementById("warnings");
     list.textContent = "";
     for (const w of result.warnings || []) {
