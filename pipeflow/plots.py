@@ -126,8 +126,9 @@ def _draw_campbell(ax: Axes, r: dict[str, Any], label: str | None) -> None:
             ax.annotate(f"mode {mode['mode']}", (x[k], y[k]), fontsize=7, ha="right", va="bottom")
     ax.figure.colorbar(lc, ax=ax, label="damping ratio ζ [-] (< 0: growing)")
     exc = r.get("excitation") or {}
-    for n in exc.get("orders", []):
-        ax.plot(x, n * x, "--", lw=0.9, color="0.35", label=f"{n:g}x")
+    styles = ("--", "-.", ":", (0, (5, 1, 1, 1, 1, 1)))
+    for i, n in enumerate(exc.get("orders", [])):
+        ax.plot(x, n * x, ls=styles[i % len(styles)], lw=1.0, color="0.25", label=f"{n:g}x")
     crossings = exc.get("crossings", [])
     if crossings:
         ax.plot([c["spin"] for c in crossings], [c["frequency"] for c in crossings], "o",

@@ -115,9 +115,11 @@
     campbell(r) {
       const exc = r.excitation || { orders: [], crossings: [] };
       const zeros = r.zero_crossings || [];
+      const loss = zeros.find((c) => c.direction === "loss");
       return {
         summary: "Excitation orders " + exc.orders.map((n) => fmt(n) + "x").join(", ") + ": "
-          + exc.crossings.length + " crossings with the tracked branches at v = " + fmt((r.fixed || {}).velocity) + " m/s.",
+          + exc.crossings.length + " crossings with the tracked branches at v = " + fmt((r.fixed || {}).velocity) + " m/s."
+          + (loss ? " Mode " + loss.mode + " loses stability at ω0 = " + fmt(loss.value) + " rad/s." : ""),
         unstable: zeros.some((c) => c.direction === "loss"),
         tables: [table("Crossings of the excitation lines ω = n ω0", [
           ["order n", (c) => c.order], ["mode", (c) => c.mode], ["spin [rad/s]", (c) => c.spin],
@@ -271,7 +273,8 @@
       state.key = result.key;
       render(result);
       share(result.key, spec);
-      statusEl.textContent = "done (" + (result.cached ? "cached" : "computed") + ")";
+      statusEl.textContent = a.job ? "done (job " + result.key.slice(0, 12) + "…)"
+        : "done (" + (result.cached ? "cached" : "computed") + ")";
     } catch (problem) {
       statusEl.textContent = problem && problem.title !== undefined
         ? SF.showProblem(form, problem, formError) : "error: " + String(problem && problem.message || problem);
