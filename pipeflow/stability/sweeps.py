@@ -28,6 +28,7 @@ from pipeflow.stability.core import (
     ComplexArray,
     FloatArray,
     Progress,
+    branch_sigma,
     check_modes,
     check_range,
     damping_ratio,
@@ -131,17 +132,13 @@ def excitation_crossings(
     return sorted(out, key=lambda c: (c.order, c.spin))
 
 
-def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
-    return br.branch_at(j, k, x).real
-
-
 def zero_crossings(br: Branches, chosen: Sequence[int]) -> list[ZeroCrossing]:
     """Where the tracked branches ``chosen`` cross sigma = 0 (the rounding band of
     :func:`~pipeflow.stability.core.rounding_level` counts as zero), by parameter value."""
     tol = rounding_level(br.xi)
     out: list[ZeroCrossing] = []
     for j in chosen:
-        sigma = partial(_branch_sigma, br, int(j))
+        sigma = partial(branch_sigma, br, int(j))
         for x, k, loss in sign_changes(br.p, br.xi[:, j].real, tol, sigma, 0, CROSSING_RTOL):
             xi = br.branch_at(int(j), k, x)
             direction: Literal["loss", "gain"] = "loss" if loss else "gain"

@@ -295,7 +295,39 @@ window.SchemaForm = (function () {
     }
   }
 
+  // ---- page helpers shared by both pages ------------------------------------------------
+
+  async function post(url, body, form, fallback) {
+    // POST JSON; on an error answer, its problem details go next to the fields and null
+    // is returned with the problem's title as ``post.title``
+    const response = await fetch(url, {
+      method: "POST",
+      headers: { "Content-Type": "application/json", Accept: "application/json" },
+      body: JSON.stringify(body),
+    });
+    if (response.ok) return { ok: true, body: await response.json() };
+    return { ok: false, title: showProblem(form, await problemOf(response), fallback) };
+  }
+
+  function showWarnings(list, warnings) {
+    list.textContent = "";
+    for (const w of warnings || []) list.appendChild(el("li", {}, w));
+  }
+
+  function shareLink(link, params) {
+    // the page's own URL with ``params`` (key, spec, ...) as its query: a link to this result
+    const url = new URL(window.location.href);
+    url.search = "";
+    for (const [k, v] of Object.entries(params)) {
+      if (v !== undefined && v !== null) url.searchParams.set(k, typeof v === "string" ? v : JSON.stringify(v));
+    }
+    link.href = url.toString();
+    link.textContent = params.key.slice(0, 12) + "…";
+    window.history.replaceState(null, "", url.toString());
+  }
+
   return {
     deref, requestSchema, render, collect, clearErrors, showProblem, problemOf, show, unitOf,
+    showWarnings, shareLink, post,
   };
 })();

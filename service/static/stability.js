@@ -195,26 +195,12 @@
       fig.append(img, cap);
       plots.appendChild(fig);
     }
-    const list = document.getElementById("warnings");
-    list.textContent = "";
-    for (const w of result.warnings || []) {
-      const li = document.createElement("li");
-      li.textContent = w;
-      list.appendChild(li);
-    }
+    SF.showWarnings(document.getElementById("warnings"), result.warnings);
   }
 
   function share(key, spec) {
-    const url = new URL(window.location.href);
-    url.search = "";
-    url.searchParams.set("analysis", state.analysis);
-    url.searchParams.set("key", key);
-    if (spec) url.searchParams.set("spec", JSON.stringify(spec));
-    const link = document.getElementById("share-link");
-    link.href = url.toString();
-    link.textContent = key.slice(0, 12) + "…";
+    SF.shareLink(document.getElementById("share-link"), { analysis: state.analysis, key, spec });
     document.getElementById("json-link").href = "v1/results/" + encodeURIComponent(key);
-    window.history.replaceState(null, "", url.toString());
   }
 
   // ---- API calls -------------------------------------------------------------------------
@@ -258,17 +244,9 @@
     progressEl.hidden = !a.job;
     progressEl.value = 0;
     try {
-      const response = await fetch(a.endpoint, {
-        method: "POST",
-        headers: { "Content-Type": "application/json", Accept: "application/json" },
-        body: JSON.stringify(spec),
-      });
-      if (!response.ok) {
-        statusEl.textContent = SF.showProblem(form, await SF.problemOf(response), formError);
-        return;
-      }
-      const body = await response.json();
-      const result = a.job ? await follow(body, token) : body;
+      const answer = await SF.post(a.endpoint, spec, form, formError);
+      if (!answer.ok) { statusEl.textContent = answer.title; return; }
+      const result = a.job ? await follow(answer.body, token) : answer.body;
       if (!result) return;
       state.key = result.key;
       render(result);

@@ -176,26 +176,13 @@
     const note = document.getElementById("damping-note");
     const traced = ev.modes.some((m) => m.least_stable || m.sigma.some((v) => v > 0));
     note.hidden = !(instability(result).unstable && !traced);
-    const list = document.getElementById("warnings");
-    list.textContent = "";
-    for (const w of result.warnings || []) {
-      const li = document.createElement("li");
-      li.textContent = w;
-      list.appendChild(li);
-    }
+    SF.showWarnings(document.getElementById("warnings"), result.warnings);
   }
 
   function share(key, spec) {
-    const url = new URL(window.location.href);
-    url.search = "";
-    url.searchParams.set("key", key);
-    if (spec) url.searchParams.set("spec", JSON.stringify(spec));
-    const link = document.getElementById("share-link");
-    link.href = url.toString();
-    link.textContent = key.slice(0, 12) + "…";
+    SF.shareLink(document.getElementById("share-link"), { key, spec });
     document.getElementById("csv-history").href = API.result(key) + "?format=csv";
     document.getElementById("csv-eigen").href = API.result(key) + "?format=csv&table=eigenvalues";
-    window.history.replaceState(null, "", url.toString());
   }
 
   // ---- API calls -------------------------------------------------------------------------
@@ -208,16 +195,9 @@
     statusEl.textContent = "running…";
     const started = performance.now();
     try {
-      const response = await fetch(API.simulate, {
-        method: "POST",
-        headers: { "Content-Type": "application/json", Accept: "application/json" },
-        body: JSON.stringify(spec),
-      });
-      if (!response.ok) {
-        statusEl.textContent = SF.showProblem(form, await SF.problemOf(response), formError);
-        return;
-      }
-      const result = await response.json();
+      const answer = await SF.post(API.simulate, spec, form, formError);
+      if (!answer.ok) { statusEl.textContent = answer.title; return; }
+      const result = answer.body;
       state.key = result.key;
       render(result);
       share(result.key, spec);

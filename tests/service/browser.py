@@ -120,6 +120,12 @@ def page(browser: Any) -> Iterator[Page]:
     assert not [e for e in errors if "Failed to load resource" not in e], errors
 
 
+def open_page(page: Page, url: str) -> None:
+    """Load a viewer page and wait until its schema-generated form is ready."""
+    page.goto(url)
+    page.wait_for_selector("#run:not([disabled])")
+
+
 def screenshot(page: Page, name: str) -> Path:
     """A full-page screenshot ``test-output/browser/<name>.png``; returns its path."""
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)

@@ -16,14 +16,9 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.service.browser import Page, browser, page, screenshot, server
+from tests.service.browser import Page, browser, open_page, page, screenshot, server
 
 __all__ = ["browser", "page", "server"]
-
-
-def _open(page: Page, url: str) -> None:
-    page.goto(url)
-    page.wait_for_selector("#run:not([disabled])")
 
 
 def _run(page: Page) -> dict[str, Any]:
@@ -58,7 +53,7 @@ def test_critical_velocities_every_crossing_and_share(server: str, page: Page) -
     doc = httpx.get(server + "/openapi.json", timeout=10).json()
     content = doc["paths"]["/v1/sweeps"]["post"]["requestBody"]["content"]["application/json"]
     kinds = list(content["schema"]["discriminator"]["mapping"])
-    _open(page, server + "/stability")
+    open_page(page, server + "/stability")
     options = page.eval_on_selector_all("#analysis option", "os => os.map(o => o.value)")
     assert options == ["stability", *kinds]
     result = _run(page)
@@ -74,13 +69,13 @@ def test_critical_velocities_every_crossing_and_share(server: str, page: Page) -
     link = page.get_attribute("#share-link", "href")
     assert link and "key=" in link and "analysis=stability" in link
     page.goto("about:blank")
-    _open(page, link)
+    open_page(page, link)
     page.wait_for_selector("#summary:has-text('27.69')")
     assert page.inner_text("#job-status").startswith("loaded result " + result["key"][:12])
 
 
 def test_campbell_sweep_job_shows_progress_and_crossings(server: str, page: Page) -> None:
-    _open(page, server + "/stability?analysis=campbell")
+    open_page(page, server + "/stability?analysis=campbell")
     assert page.input_value("input[name='orders']") == "1, 2"  # the schema's default
     page.fill("input[name='spin_range']", "0, 1500")
     page.fill("input[name='orders']", "0.5, 1, 2")
@@ -107,14 +102,24 @@ def test_campbell_sweep_job_shows_progress_and_crossings(server: str, page: Page
 @pytest.mark.parametrize(
     ("kind", "fields", "plot", "summary"),
     [
-        ("argand", {"velocity_range": "0, 40", "points": "121"}, "argand", "Critical point: mode 3"),
+        (
+            "argand",
+            {"velocity_range": "0, 40", "points": "121"},
+            "argand",
+            "Critical point: mode 3",
+        ),
         (
             "spin_map",
-            {"velocity_range": "0, 60", "spin_range": "0, 600", "velocity_points": "31",
-             "spin_points": "4", "modes": "6"},
+            {
+                "velocity_range": "0, 60",
+                "spin_range": "0, 600",
+                "velocity_points": "31",
+                "spin_points": "4",
+                "modes": "6",
+            },
             "spin_map",
             "Critical velocity at",
-        ),  # fmt: skip
+        ),
         (
             "beta_map",
             {"beta_range": "0.1, 0.9", "beta_points": "5", "u_points": "61", "modes": "6"},
@@ -126,7 +131,7 @@ def test_campbell_sweep_job_shows_progress_and_crossings(server: str, page: Page
 def test_argand_and_maps(
     server: str, page: Page, kind: str, fields: dict[str, str], plot: str, summary: str
 ) -> None:
-    _open(page, f"{server}/stability?analysis={kind}")
+    open_page(page, f"{server}/stability?analysis={kind}")
     for name, value in fields.items():
         page.fill(f"input[name='{name}']", value)
     result = _run(page)
@@ -146,7 +151,7 @@ def test_argand_and_maps(
 
 
 def test_bad_range_shows_the_api_message_next_to_the_field(server: str, page: Page) -> None:
-    _open(page, server + "/stability?analysis=argand")
+    open_page(page, server + "/stability?analysis=argand")
     page.fill("input[name='velocity_range']", "40, 0")
     page.click("#run")
     slot = page.locator("[data-error-for='velocity_range']")

@@ -13,20 +13,14 @@ from __future__ import annotations
 from typing import Any
 
 import httpx
-import pytest
 
-from tests.service.browser import Page, browser, page, screenshot, server
+from tests.service.browser import Page, browser, open_page, page, screenshot, server
 
 __all__ = ["browser", "page", "server"]
 
 
 def _points(page: Page, chart: str) -> int:
     return int(page.get_attribute(f"#{chart}", "data-points") or 0)
-
-
-def _open(page: Page, url: str) -> None:
-    page.goto(url)
-    page.wait_for_selector("#run:not([disabled])")
 
 
 def _schema(server: str) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -42,7 +36,7 @@ def _ref(doc: dict[str, Any], ref: str) -> dict[str, Any]:
 
 
 def test_run_the_papers_example_and_share_it(server: str, page: Page) -> None:
-    _open(page, server + "/")
+    open_page(page, server + "/")
     assert page.input_value("input[name='pipe.E']") == "7.8e9"
     assert page.input_value("input[name='flow.velocity.coefficients']") == "0, 0.4"
     page.click("#run")
@@ -59,7 +53,7 @@ def test_run_the_papers_example_and_share_it(server: str, page: Page) -> None:
     assert link and "key=" in link
     key = page.evaluate("window.pipeflowViewer.state.key")
     page.goto("about:blank")
-    _open(page, link)
+    open_page(page, link)
     page.wait_for_selector("#chart-tip[data-points='2001']")
     assert key[:12] in page.inner_text("#status")
     assert page.input_value("input[name='pipe.E']") == "7.8e9"
@@ -70,14 +64,14 @@ def test_run_the_papers_example_and_share_it(server: str, page: Page) -> None:
 
     # a link whose spec is mangled still loads the result by its key
     page.goto("about:blank")
-    _open(page, f"{server}/?key={key}&spec=%7Bbroken")
+    open_page(page, f"{server}/?key={key}&spec=%7Bbroken")
     page.wait_for_selector("#chart-tip[data-points='2001']")
     assert page.inner_text("#status").startswith("loaded result " + key[:12])
     screenshot(page, "viewer-paper-example")
 
 
 def test_bad_input_shows_the_api_message_next_to_the_field(server: str, page: Page) -> None:
-    _open(page, server + "/")
+    open_page(page, server + "/")
     page.fill("input[name='pipe.L']", "-0.025")
     page.fill("input[name='flow.velocity.coefficients']", "0, fast")
     page.click("#run")
@@ -103,9 +97,11 @@ def test_form_offers_every_method_and_profile_kind_of_the_schema(server: str, pa
     """The method list, its default and every profile kind (with each kind's fields and
     their descriptions) are the schema's; a table profile and the magnus method run."""
     doc, spec = _schema(server)
-    _open(page, server + "/")
+    open_page(page, server + "/")
     method = spec["properties"]["method"]
-    options = page.eval_on_selector_all("select[name='method'] option", "os => os.map(o => o.value)")
+    options = page.eval_on_selector_all(
+        "select[name='method'] option", "os => os.map(o => o.value)"
+    )
     assert options == method["enum"]
     assert page.input_value("select[name='method']") == method["default"]
     for group, field in (("rotation", "omega0"), ("flow", "velocity")):
@@ -150,7 +146,7 @@ def test_unstable_run_shows_the_banner_and_a_readable_log_axis(server: str, page
     unstable time and growth rate when the result carries them), the tip axis switches to
     symmetric log with decade labels up to the largest value, and the damping chart is
     drawn."""
-    _open(page, server + "/")
+    open_page(page, server + "/")
     page.select_option("select[name='flow.velocity.kind']", "constant")
     page.fill("input[name='flow.velocity.value']", "40")
     page.click("#run")
