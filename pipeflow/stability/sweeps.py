@@ -224,15 +224,13 @@ class Sweep:
                 **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
                 **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
             },
-            **(
+            "excitation": (
                 {
-                    "excitation": {
-                        "orders": list(self.orders),
-                        "crossings": [c.to_dict() for c in self.excitation],
-                    }
+                    "orders": list(self.orders),
+                    "crossings": [c.to_dict() for c in self.excitation],
                 }
                 if spin
-                else {}
+                else None
             ),
             "zero_crossings": [c.to_dict() for c in self.zero_crossings],
             "warnings": list(self.warnings),
