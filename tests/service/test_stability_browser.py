@@ -97,6 +97,15 @@ def test_campbell_sweep_job_shows_progress_and_crossings(server: str, page: Page
         assert float(row[2]) == pytest.approx(c["spin"], rel=1e-5)
     _figures_loaded(page, ["campbell", "argand"])
     screenshot(page, "stability-campbell-job")
+    # the shareable link brings back the analysis, its form values and the result
+    link = page.get_attribute("#share-link", "href")
+    assert link and "analysis=campbell" in link
+    page.goto("about:blank")
+    open_page(page, link)
+    page.wait_for_selector("#tables table")
+    assert page.input_value("input[name='orders']") == "0.5, 1, 2"
+    assert page.input_value("#analysis") == "campbell"
+    assert _table(page) == rows
 
 
 @pytest.mark.parametrize(
