@@ -8,7 +8,8 @@
 //   profiles constant / polynomial / harmonic / table) a kind <select> with one block
 //   of fields per kind;
 // - an enum becomes a <select>, a boolean a checkbox, a number, string or array of numbers
-//   a text input (arrays as "a, b, c"); "X or null" is X, left empty for null;
+//   a text input (arrays as "a, b, c"); "X or null" is X, left empty for null, and an
+//   optional block ("object or null") is sent only when its "include" box is ticked;
 // - every field shows its description, with the unit the description states in brackets
 //   ("[m/s]") next to its name; initial values are the given values (an example), else the
 //   schema's defaults.
@@ -77,6 +78,7 @@ window.SchemaForm = (function () {
 
   function allDefaults(doc, s) {
     // every leaf of this object has a default (so the whole group may stay collapsed)
+    if (s.nullable) return true;
     if (isUnion(s)) return s.default !== undefined;
     if (!isObject(s)) return s.default !== undefined || s.nullable || s.type === "array";
     return (s.required || []).length === 0
@@ -150,7 +152,19 @@ window.SchemaForm = (function () {
     if (isObject(s)) {
       const fs = el("fieldset", { class: "group", "data-group": path });
       let body = fs;
-      if (!required && allDefaults(doc, s) && value === undefined) {
+      if (s.nullable) {
+        // an optional block that is null unless switched on (e.g. output.mode_shapes)
+        body = el("details", { "data-group": path });
+        body.open = value !== undefined && value !== null;
+        body.append(el("summary", {}, name + " (optional)"));
+        const on = el("label", { class: "field switch" });
+        const box = el("input", { type: "checkbox", name: path + ".enabled", "data-type": "switch" });
+        box.checked = body.open;
+        on.append(box, el("span", { class: "name" }, "include " + name));
+        body.append(on);
+        fs.append(body);
+        fs.classList.add("collapsed");
+      } else if (!required && allDefaults(doc, s) && value === undefined) {
         // an optional group the defaults cover: collapsed until wanted
         body = el("details", { "data-group": path });
         body.append(el("summary", {}, name + " (defaults)"));
@@ -227,6 +241,8 @@ window.SchemaForm = (function () {
       return Object.assign({ [disc]: kind }, collectObject(doc, variant, path, block, disc));
     }
     if (isObject(s)) {
+      const on = s.nullable ? find(scope, path + ".enabled") : null;
+      if (on && !on.checked) return undefined;  // switched off: the default (null) applies
       const out = collectObject(doc, s, path, scope);
       return Object.keys(out).length ? out : undefined;
     }

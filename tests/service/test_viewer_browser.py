@@ -130,6 +130,11 @@ def test_form_offers_every_method_and_profile_kind_of_the_schema(server: str, pa
     page.fill("input[name='flow.velocity.values']", "0, 0.4")
     page.select_option("select[name='method']", "magnus")
     page.fill("input[name='time.samples']", "201")
+    # an optional block (object or null) is sent only when switched on: mode shapes
+    page.click("details[data-group='output'] > summary")
+    page.click("details[data-group='output.mode_shapes'] > summary")
+    page.check("input[name='output.mode_shapes.enabled']")
+    page.fill("input[name='output.mode_shapes.times']", "0, 0.5")
     page.click("#run")
     page.wait_for_selector("#chart-tip[data-points='201']")
     assert "magnus" in page.inner_text("#method-used")
@@ -138,6 +143,8 @@ def test_form_offers_every_method_and_profile_kind_of_the_schema(server: str, pa
         "kind": "table", "t": [0, 1], "values": [0, 0.4], "interpolation": "linear"
     }  # fmt: skip
     assert sent["method"] == "magnus"
+    assert sent["output"]["mode_shapes"] == {"times": [0, 0.5], "points": 101}
+    assert page.evaluate("window.pipeflowViewer.state.result.mode_shapes.t") == [0, 0.5]
 
 
 def test_unstable_run_shows_the_banner_and_a_readable_log_axis(server: str, page: Page) -> None:
