@@ -163,11 +163,6 @@ class Branches:
         return bool(self.xi[k, j].imag >= -1e-9 * abs(self.xi[k, j]))
 
 
-def branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
-    """sigma [1/s] of branch j at parameter ``x`` near grid interval k (for root-finding)."""
-    return br.branch_at(j, k, x).real
-
-
 def follow(
     matrices: Callable[[FloatArray], FloatArray],
     grid: ArrayLike,

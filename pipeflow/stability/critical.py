@@ -26,9 +26,9 @@ import numpy as np
 from pipeflow.errors import InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
 from pipeflow.stability.core import (
+    Branches,
     FloatArray,
     Progress,
-    branch_sigma,
     check_modes,
     check_range,
     follow,
@@ -147,6 +147,10 @@ class CriticalVelocity:
         }
 
 
+def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
+    return br.branch_at(j, k, x).real
+
+
 def critical_velocities(
     pipe: Pipe,
     omega0: float = 0.0,
@@ -224,7 +228,7 @@ def critical_velocities(
     found: list[tuple[float, int, int, bool]] = []
     m = br.xi.shape[1]
     for j in range(m):
-        sigma_j = partial(branch_sigma, br, j)
+        sigma_j = partial(_branch_sigma, br, j)
         for v, k, loss in sign_changes(br.p, br.xi[:, j].real, tol, sigma_j, start, rtol):
             found.append((v, j, k, loss))
         if progress is not None:

@@ -28,7 +28,6 @@ from pipeflow.stability.core import (
     ComplexArray,
     FloatArray,
     Progress,
-    branch_sigma,
     check_modes,
     check_range,
     damping_ratio,
@@ -132,13 +131,17 @@ def excitation_crossings(
     return sorted(out, key=lambda c: (c.order, c.spin))
 
 
+def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
+    return br.branch_at(j, k, x).real
+
+
 def zero_crossings(br: Branches, chosen: Sequence[int]) -> list[ZeroCrossing]:
     """Where the tracked branches ``chosen`` cross sigma = 0 (the rounding band of
     :func:`~pipeflow.stability.core.rounding_level` counts as zero), by parameter value."""
     tol = rounding_level(br.xi)
     out: list[ZeroCrossing] = []
     for j in chosen:
-        sigma = partial(branch_sigma, br, int(j))
+        sigma = partial(_branch_sigma, br, int(j))
         for x, k, loss in sign_changes(br.p, br.xi[:, j].real, tol, sigma, 0, CROSSING_RTOL):
             xi = br.branch_at(int(j), k, x)
             direction: Literal["loss", "gain"] = "loss" if loss else "gain"
@@ -273,9 +276,7 @@ def sweep(
     """
     check_modes(modes)
     if any(not (math.isfinite(n) and n > 0) for n in orders):
-        raise InvalidInput(
-            f"excitation orders must be positive, got {list(orders)}", field="orders"
-        )
+        raise InvalidInput(f"excitation orders must be positive, got {list(orders)}", "orders")
     if not 1 <= tracked <= modes:
         raise InvalidInput(f"tracked modes must be between 1 and {modes}", field="tracked_modes")
     if parameter not in ("velocity", "spin"):

@@ -1,5 +1,5 @@
 """The stability page (/stability) in a real headless browser (set-up and screenshots:
-``tests/service/browser.py``).
+``tests/conftest.py``, ``tests/service/browser.py``).
 
 Checks: the analysis list is the API's (``/v1/stability`` plus every ``/v1/sweeps`` kind of
 the schema); critical velocities show every crossing (the paper pipe at 100 rad/s loses
@@ -16,9 +16,9 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.service.browser import Page, browser, open_page, page, screenshot, server
+from tests.service.browser import Page, open_page, page
 
-__all__ = ["browser", "page", "server"]
+__all__ = ["page"]
 
 
 def _run(page: Page) -> dict[str, Any]:
@@ -49,7 +49,9 @@ def _figures_loaded(page: Page, names: list[str]) -> None:
         )
 
 
-def test_critical_velocities_every_crossing_and_share(server: str, page: Page) -> None:
+def test_critical_velocities_every_crossing_and_share(
+    server: str, page: Page, screenshot: Any
+) -> None:
     doc = httpx.get(server + "/openapi.json", timeout=10).json()
     content = doc["paths"]["/v1/sweeps"]["post"]["requestBody"]["content"]["application/json"]
     kinds = list(content["schema"]["discriminator"]["mapping"])
@@ -74,7 +76,9 @@ def test_critical_velocities_every_crossing_and_share(server: str, page: Page) -
     assert page.inner_text("#job-status").startswith("loaded result " + result["key"][:12])
 
 
-def test_campbell_sweep_job_shows_progress_and_crossings(server: str, page: Page) -> None:
+def test_campbell_sweep_job_shows_progress_and_crossings(
+    server: str, page: Page, screenshot: Any
+) -> None:
     open_page(page, server + "/stability?analysis=campbell")
     assert page.input_value("input[name='orders']") == "1, 2"  # the schema's default
     page.fill("input[name='spin_range']", "0, 1500")
@@ -138,7 +142,13 @@ def test_campbell_sweep_job_shows_progress_and_crossings(server: str, page: Page
     ],
 )
 def test_argand_and_maps(
-    server: str, page: Page, kind: str, fields: dict[str, str], plot: str, summary: str
+    server: str,
+    page: Page,
+    screenshot: Any,
+    kind: str,
+    fields: dict[str, str],
+    plot: str,
+    summary: str,
 ) -> None:
     open_page(page, f"{server}/stability?analysis={kind}")
     for name, value in fields.items():

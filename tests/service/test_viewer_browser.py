@@ -5,7 +5,7 @@ schema with the schema's default method and the paper's example; a run completes
 three charts show data; the share link reloads the result by its key; a bad input shows the
 API's message next to the field; an unstable run (v = 40 m/s on the paper pipe at w0 = 100
 rad/s) shows the banner and a symmetric-log tip axis with readable labels.  Set-up and
-screenshots: ``tests/service/browser.py``.
+screenshots: ``tests/conftest.py`` and ``tests/service/browser.py``.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from typing import Any
 
 import httpx
 
-from tests.service.browser import Page, browser, open_page, page, screenshot, server
+from tests.service.browser import Page, open_page, page
 
-__all__ = ["browser", "page", "server"]
+__all__ = ["page"]
 
 
 def _points(page: Page, chart: str) -> int:
@@ -35,7 +35,7 @@ def _ref(doc: dict[str, Any], ref: str) -> dict[str, Any]:
     return schema
 
 
-def test_run_the_papers_example_and_share_it(server: str, page: Page) -> None:
+def test_run_the_papers_example_and_share_it(server: str, page: Page, screenshot: Any) -> None:
     open_page(page, server + "/")
     assert page.input_value("input[name='pipe.E']") == "7.8e9"
     assert page.input_value("input[name='flow.velocity.coefficients']") == "0, 0.4"
@@ -93,7 +93,9 @@ def test_bad_input_shows_the_api_message_next_to_the_field(server: str, page: Pa
     assert page.locator("[data-error-for='pipe.L']").inner_text() == ""
 
 
-def test_form_offers_every_method_and_profile_kind_of_the_schema(server: str, page: Page) -> None:
+def test_form_offers_every_method_and_profile_kind_of_the_schema(
+    server: str, page: Page, screenshot: Any
+) -> None:
     """The method list, its default and every profile kind (with each kind's fields and
     their descriptions) are the schema's; a table profile and the magnus method run."""
     doc, spec = _schema(server)
@@ -147,7 +149,9 @@ def test_form_offers_every_method_and_profile_kind_of_the_schema(server: str, pa
     assert page.evaluate("window.pipeflowViewer.state.result.mode_shapes.t") == [0, 0.5]
 
 
-def test_unstable_run_shows_the_banner_and_a_readable_log_axis(server: str, page: Page) -> None:
+def test_unstable_run_shows_the_banner_and_a_readable_log_axis(
+    server: str, page: Page, screenshot: Any
+) -> None:
     """v = 40 m/s on the paper pipe at w0 = 100 rad/s is past the critical velocity (27.69
     m/s): the tip overflows double precision.  The banner says unstable (with the first
     unstable time and growth rate when the result carries them), the tip axis switches to
