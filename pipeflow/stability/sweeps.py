@@ -14,7 +14,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,7 +24,6 @@ from pipeflow.eigen import order_lowest
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
 from pipeflow.stability.core import (
-    Branches,
     ComplexArray,
     FloatArray,
     Progress,
@@ -44,6 +43,16 @@ RPM = 60.0 / (2.0 * math.pi)  # rpm per rad/s
 MAX_REFINEMENT_FACTOR = 4
 #: relative tolerance of located crossings (excitation lines, sigma = 0) [-]
 CROSSING_RTOL = 1e-12
+
+
+class Branches(Protocol):
+    """What the crossing searches read of followed branches (``follow``'s result)."""
+
+    p: FloatArray
+    xi: ComplexArray
+    mode: NDArray[np.intp]
+
+    def branch_at(self, j: int, k: int, p: float) -> complex: ...
 
 
 @dataclass(frozen=True)
