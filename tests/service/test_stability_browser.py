@@ -67,6 +67,7 @@ def test_critical_velocities_every_crossing_and_share(
     for row, crossing in zip(rows, result["crossings"], strict=True):
         assert float(row[0]) == pytest.approx(crossing["velocity"], rel=1e-5)
         assert row[3] == str(crossing["mode"]) and row[5] == crossing["direction"]
+    page.locator("#summary").scroll_into_view_if_needed()
     screenshot(page, "stability-critical-velocities")
     link = page.get_attribute("#share-link", "href")
     assert link and "key=" in link and "analysis=stability" in link
@@ -100,6 +101,7 @@ def test_campbell_sweep_job_shows_progress_and_crossings(
         assert float(row[0]) == c["order"] and row[1] == str(c["mode"])
         assert float(row[2]) == pytest.approx(c["spin"], rel=1e-5)
     _figures_loaded(page, ["campbell", "argand"])
+    page.locator("#plots").scroll_into_view_if_needed()
     screenshot(page, "stability-campbell-job")
     # the shareable link brings back the analysis, its form values and the result
     link = page.get_attribute("#share-link", "href")
@@ -166,6 +168,7 @@ def test_argand_and_maps(
     else:
         assert len(rows) == len(result["betas"]) == 5
     _figures_loaded(page, [plot])
+    page.locator("#plots").scroll_into_view_if_needed()
     screenshot(page, f"stability-{kind}")
 
 

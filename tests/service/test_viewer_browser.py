@@ -67,6 +67,7 @@ def test_run_the_papers_example_and_share_it(server: str, page: Page, screenshot
     open_page(page, f"{server}/?key={key}&spec=%7Bbroken")
     page.wait_for_selector("#chart-tip[data-points='2001']")
     assert page.inner_text("#status").startswith("loaded result " + key[:12])
+    page.locator("#results").scroll_into_view_if_needed()
     screenshot(page, "viewer-paper-example")
 
 
@@ -125,6 +126,7 @@ def test_form_offers_every_method_and_profile_kind_of_the_schema(
     # every top-level field of the schema has an input or a group in the form
     for name in spec["properties"]:
         assert page.locator(f"[name='{name}'], [data-group='{name}']").count() >= 1, name
+    page.locator("[data-union='flow.velocity']").scroll_into_view_if_needed()
     screenshot(page, "viewer-form-table-profile")
     page.select_option("select[name='rotation.omega0.kind']", "constant")
     page.select_option("select[name='flow.velocity.kind']", "table")
@@ -183,6 +185,7 @@ def test_unstable_run_shows_the_banner_and_a_readable_log_axis(
     peak = max(abs(v) for v in result["tip_displacement"] if v is not None)
     assert max(finite) <= peak < 10 * max(finite)  # the top label is the data's decade
     assert int(page.get_attribute("#chart-damping", "data-points") or 0) > 0
+    page.locator("#results").scroll_into_view_if_needed()
     path = screenshot(page, "viewer-unstable-v40")
     assert path.stat().st_size > 10_000
     # the linear choice is still offered and redraws
