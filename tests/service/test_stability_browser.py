@@ -141,6 +141,7 @@ def test_campbell_sweep_job_shows_progress_and_crossings(
             "beta_map",
             "u_cr(β)",
         ),
+        ("floquet", {"modes": "2"}, "floquet_multipliers", "Verdict: "),
     ],
 )
 def test_argand_and_maps(
@@ -165,8 +166,10 @@ def test_argand_and_maps(
         assert first["value"] == pytest.approx(27.69, abs=0.005)
     elif kind == "spin_map":
         assert len(rows) == len(result["spins"]) == 4
-    else:
+    elif kind == "beta_map":
         assert len(rows) == len(result["betas"]) == 5
+    else:  # the result's scalars, the verdict among them
+        assert ["verdict", result["verdict"]] in rows
     _figures_loaded(page, [plot])
     page.locator("#plots").scroll_into_view_if_needed()
     screenshot(page, f"stability-{kind}")
