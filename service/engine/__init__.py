@@ -197,8 +197,10 @@ class Runner:
 
         ``spec`` is the canonical JSON form; ``force`` recomputes even if a result is
         stored; ``recover`` drives a record that is already active and bypasses the bound.
-        Raises :class:`QueueFull`, or :class:`StorageError` when the record cannot be written.
+        Raises :class:`QueueFull`, or :class:`StorageError` when the store is failing.
         """
+        if not recover and not self.store.healthy:
+            raise self.store.unavailable()  # its result could not be stored either
         flight = self._flights.get(key)
         if flight is None:
             if not recover and self.saturated:
@@ -358,6 +360,7 @@ class Runner:
 
         status = 507 if full else 503
         doc = problem(status, f"the result could not be stored: {message}", slug="storage")
+        self.store.mark_failed(message, full=full)  # not ready until a probe write succeeds
         try:
             await asyncio.to_thread(self.store.finish_job, key, "failed", doc)
         except StorageError:

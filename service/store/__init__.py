@@ -52,8 +52,8 @@ log = logging.getLogger("service.store")
 
 ACTIVE = ("queued", "running")
 STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
-#: bytes the storage probe writes to decide that there is room again
-PROBE_BYTES = 64 * 1024
+#: bytes the storage probe writes to decide that there is room again (a large result's worth)
+PROBE_BYTES = 1 << 20
 
 
 def sqlite_url(path: Path | str) -> str:
@@ -150,6 +150,7 @@ class Store:
             upgrade(self.engine, self.url)
         self.healthy = True
         self.last_error: str | None = None
+        self.last_full = False
         self._lock = threading.Lock()
         self._memory = MemoryLRU(memory_cache_bytes)
         # memory hits not yet written to results.accessed: written before evicting
@@ -168,7 +169,7 @@ class Store:
             yield
         except DBAPIError as exc:
             full = _is_full(exc)
-            self.healthy = False
+            self.healthy, self.last_full = False, full
             self.last_error = f"{type(exc.orig).__name__}: {exc.orig}"
             log.error("storage error: %s", self.last_error)
             what = "the disk of the store is full" if full else "the store failed"
@@ -187,6 +188,14 @@ class Store:
     def _insert(self, table: Any) -> Any:
         dialect = postgresql if self.engine.dialect.name == "postgresql" else sqlite
         return dialect.insert(table)
+
+    def mark_failed(self, reason: str, *, full: bool) -> None:
+        """A write elsewhere (a task on a worker) failed: unhealthy until :meth:`probe`."""
+        self.healthy, self.last_error, self.last_full = False, reason, full
+
+    def unavailable(self) -> StorageError:
+        """The error to answer while unhealthy (new work would not be stored either)."""
+        return StorageError(f"the store is not writable ({self.last_error})", full=self.last_full)
 
     def probe(self) -> bool:
         """Write and delete :data:`PROBE_BYTES`; on success the store is healthy again."""

@@ -166,9 +166,12 @@ def test_full_disk_answers_507_then_recovers(tiny_disk: Path) -> None:
         ready = c.get("/readyz")
         assert ready.status_code == 503 and ready.json()["type"].endswith("/storage")
         assert ready.headers["retry-after"] == "2"
-        # a new job cannot even be recorded: 507 as well, never 500
+        # new work is refused while the store cannot write (never 500); cached results are
+        # still served
         other = c.post("/v1/jobs", json={**SMALL, "initial": {"u0": 0.007}})
-        assert other.status_code in (503, 507), other.text
+        assert other.status_code == 507, other.text
+        assert other.headers["retry-after"] == "2"
+        assert c.post("/v1/simulations", json=SMALL).headers["x-cache"] == "HIT"
 
         filler.unlink()  # space is back: the probe sees it, the service is ready again
         end = time.monotonic() + 30
