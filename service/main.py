@@ -18,6 +18,7 @@ from service import problems
 from service.middleware import BodyLimit
 from service.routes import (
     compare,
+    docs,
     exports,
     health,
     jobs,
@@ -61,11 +62,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # served offline by service.routes.docs
+        redoc_url=None,
     )
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
-    for module in (simulations, jobs, compare, stability, sweeps, results, exports, health, viewer):
+    routers = (simulations, jobs, compare, stability, sweeps, results, exports, health)
+    for module in (*routers, docs, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:
