@@ -32,6 +32,10 @@ _draw_lock = threading.Lock()
 #: stored results never change under a key (the key hashes the inputs and the version)
 IMMUTABLE = "public, max-age=86400, immutable"
 
+#: a binary body in OpenAPI (3.1 reads format "binary" as raw bytes; generated clients return
+#: the bytes as a file rather than trying to parse them as JSON)
+BINARY = {"type": "string", "format": "binary"}
+
 Table = Literal["history", "eigenvalues", "cma_exponents"]
 TABLE_DESCRIPTION = "CSV table: " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
 
@@ -109,7 +113,7 @@ def _render(body: bytes, name: str, fmt: str) -> bytes:
     response_class=Response,
     responses={
         200: {
-            "content": {"image/png": {}, "image/svg+xml": {}},
+            "content": {media: {"schema": BINARY} for media in plots.MEDIA_TYPES.values()},
             "description": "The figure; axis labels carry SI units.",
         },
         **responses(304, 404, 422),
