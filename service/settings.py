@@ -6,8 +6,16 @@ import os
 from functools import lru_cache
 from pathlib import Path
 
+import platformdirs
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+def default_data_dir() -> Path:
+    """The per-user data directory: ``$XDG_DATA_HOME/pipeflow``, by default
+    ``~/.local/share/pipeflow`` on Linux (``platformdirs.user_data_dir``; the platform's
+    equivalent elsewhere), so the store does not depend on where the server was started."""
+    return Path(platformdirs.user_data_dir("pipeflow", appauthor=False))
 
 
 class Settings(BaseSettings):
@@ -16,7 +24,9 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="PIPEFLOW_", extra="ignore")
 
     data_dir: Path = Field(
-        Path("./var"), description="Directory of the SQLite store (results cache and jobs)."
+        default_factory=default_data_dir,
+        description="Directory of the SQLite store (results cache and jobs); one server "
+        "process per directory. Default: the per-user data directory (default_data_dir).",
     )
     workers: int = Field(
         default_factory=lambda: max(1, min(2, os.cpu_count() or 1)),
