@@ -46,6 +46,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        settings.ensure_data_dir()
         store = Store(settings.db_path, settings.cache_max_bytes, settings.memory_cache_bytes)
         runner = Runner(settings, store)
         app.state.store = store

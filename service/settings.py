@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from functools import lru_cache
 from pathlib import Path
 
@@ -63,6 +64,28 @@ class Settings(BaseSettings):
     @property
     def db_path(self) -> Path:
         return self.data_dir / "pipeflow.sqlite3"
+
+    def ensure_data_dir(self) -> Path:
+        """Create :attr:`data_dir` if needed and check this process may write there; raises
+        :class:`DataDirError` saying how to fix it (a root-owned bind mount, typically)."""
+        path = self.data_dir
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryFile(dir=path):
+                pass
+        except OSError as exc:
+            uid = os.getuid() if hasattr(os, "getuid") else "this user"
+            raise DataDirError(
+                f"PIPEFLOW_DATA_DIR={path} is not a writable directory for uid {uid} "
+                f"({exc.strerror}): give that user the directory (chown {uid} {path}), run "
+                'as its owner (docker run --user "$(id -u):$(id -g)"), or set '
+                "PIPEFLOW_DATA_DIR to a writable directory"
+            ) from exc
+        return path
+
+
+class DataDirError(RuntimeError):
+    """The data directory cannot be written: the server refuses to start."""
 
 
 @lru_cache(maxsize=1)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from service.settings import Settings
+from tests.live import ROOT
 
 
 def test_default_data_dir_is_per_user_not_the_working_directory(
@@ -26,3 +30,26 @@ def test_pipeflow_data_dir_overrides_it(monkeypatch: pytest.MonkeyPatch, tmp_pat
     monkeypatch.setenv("PIPEFLOW_DATA_DIR", str(tmp_path / "d"))
     assert Settings().data_dir == tmp_path / "d"
     assert Settings().db_path == tmp_path / "d" / "pipeflow.sqlite3"
+
+
+def test_an_unwritable_data_dir_stops_the_server_with_a_clear_message(tmp_path: Path) -> None:
+    """uvicorn exits at start-up with a message that says what to do, instead of SQLite's
+    'unable to open database file'.  (The case of the container, a root-owned bind mount and
+    uid 10001, cannot be made here: tests run as root, who may write anywhere, so the
+    directory is made impossible instead: its parent is a regular file.)"""
+    blocker = tmp_path / "not-a-directory"
+    blocker.write_text("")
+    data = blocker / "data"
+    env = {**os.environ, "PIPEFLOW_DATA_DIR": str(data), "PIPEFLOW_WORKERS": "1"}
+    done = subprocess.run(
+        [sys.executable, "-m", "uvicorn", "service.main:app", "--port", "0"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode != 0
+    uid = os.getuid()
+    assert f"PIPEFLOW_DATA_DIR={data} is not a writable directory for uid {uid}" in done.stderr
+    assert f"(chown {uid} {data})" in done.stderr
