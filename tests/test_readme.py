@@ -19,13 +19,12 @@ import os
 import re
 import subprocess
 import sys
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-from tests.live import ROOT, uvicorn_server
+from tests.live import ROOT
 
 README = ROOT / "README.md"
 SKIP = re.compile(r"<!--\s*readme-test:\s*skip\s*\((?P<reason>[^)]+)\)\s*-->")
@@ -91,13 +90,6 @@ def test_the_parser_reads_markers() -> None:
     ]
     with pytest.raises(AssertionError, match="malformed marker"):
         blocks("<!-- readme-test: skip -->\n```bash\nls\n```\n")
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    log = tmp_path_factory.mktemp("log") / "uvicorn.log"
-    with uvicorn_server(tmp_path_factory.mktemp("readme-data"), log) as url:
-        yield url
 
 
 @pytest.fixture(scope="module")

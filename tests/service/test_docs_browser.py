@@ -17,7 +17,7 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from tests.live import ROOT, chromium, uvicorn_server
+from tests.live import ROOT
 
 #: every operationId of the committed OpenAPI document (the pages must show them all)
 OPERATIONS = sorted(
@@ -25,19 +25,6 @@ OPERATIONS = sorted(
     for item in json.loads((ROOT / "openapi" / "openapi.json").read_text())["paths"].values()
     for op in item.values()
 )
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    log = tmp_path_factory.mktemp("log") / "uvicorn.log"
-    with uvicorn_server(tmp_path_factory.mktemp("docs"), log) as url:
-        yield url
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    with chromium() as b:
-        yield b
 
 
 @pytest.fixture

@@ -23,7 +23,7 @@ import pytest
 
 from pipeflow.simulation import simulate
 from pipeflow.spec import SimulationSpec
-from tests.live import ROOT, need, uvicorn_server
+from tests.live import ROOT, need
 from tests.service.conftest import SMALL
 
 PACKAGE = "pipeflow_generated_client"
@@ -64,13 +64,6 @@ def generated(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
         sys.path.remove(str(where))
         for name in [m for m in sys.modules if m == PACKAGE or m.startswith(PACKAGE + ".")]:
             del sys.modules[name]
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    log = tmp_path_factory.mktemp("log") / "uvicorn.log"
-    with uvicorn_server(tmp_path_factory.mktemp("generated-data"), log) as url:
-        yield url
 
 
 def test_simulation_and_plots_through_the_generated_client(generated: Any, server: str) -> None:

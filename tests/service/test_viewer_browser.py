@@ -10,30 +10,13 @@ the field.  Locally the test is skipped when chromium or playwright is absent; i
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import httpx
 import pytest
 
-from tests.live import chromium, uvicorn_server
-
-try:
+if TYPE_CHECKING:
     from playwright.sync_api import Page
-except ImportError:  # pragma: no cover - depends on the machine
-    Page = Any  # type: ignore[misc,assignment]
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    log = tmp_path_factory.mktemp("log") / "uvicorn.log"
-    with uvicorn_server(tmp_path_factory.mktemp("browser"), log) as url:
-        yield url
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    with chromium() as b:
-        yield b
 
 
 @pytest.fixture
