@@ -9,8 +9,8 @@ ENV PIP_DISABLE_PIP_VERSION_CHECK=1 \
     PIP_NO_CACHE_DIR=1
 RUN python -m venv /opt/venv
 WORKDIR /src
-# dependencies in their own layer, pinned by constraints.txt (generated from pyproject.toml by
-# the command in its header): a source change does not reinstall them
+# dependencies (with the parquet extra) in their own layer, pinned by constraints.txt (from
+# pyproject.toml by the command in its header): a source change does not reinstall them
 COPY constraints.txt ./
 RUN /opt/venv/bin/pip install --no-cache-dir -r constraints.txt
 COPY pyproject.toml README.md ./

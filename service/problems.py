@@ -29,6 +29,7 @@ _TITLES = {
     400: "Bad request",
     404: "Not found",
     405: "Method not allowed",
+    406: "Not acceptable",
     409: "Conflict",
     413: "Request body too large",
     415: "Unsupported media type",
@@ -162,6 +163,7 @@ def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
     descriptions = {
         304: "Not modified: the client's copy (If-None-Match) is current.",
         404: "Unknown key.",
+        406: "The requested format needs an optional extra the server lacks (e.g. pyarrow).",
         409: "The job is in a state that does not allow this.",
         413: "Request body larger than the configured limit.",
         422: "Invalid input; `errors` names each offending field.",
