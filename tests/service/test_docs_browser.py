@@ -3,15 +3,13 @@ leaves 127.0.0.1 aborted loads both pages and sees every operation of the API.
 
 The assets come from the fastapi-offline package (served under ``/static-offline-docs``);
 before, Swagger UI loaded from a CDN and the page stayed blank without internet.  A
-screenshot of each page is written to the test's temporary directory (its path is printed;
-``pytest -rA`` shows it).
+screenshot of each page goes to the run's temporary directory; pytest's summary lists them.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -53,15 +51,8 @@ def offline_page(browser: Any) -> Iterator[tuple[Any, list[str]]]:
     assert not errors, errors
 
 
-def _shot(page: Any, tmp_path: Path, name: str) -> None:
-    path = tmp_path / f"{name}.png"
-    page.screenshot(path=str(path), full_page=False)
-    assert path.stat().st_size > 10_000  # a rendered page, not a blank one
-    print(f"screenshot: {path}")
-
-
 def test_swagger_ui_shows_every_operation_offline(
-    server: str, offline_page: tuple[Any, list[str]], tmp_path: Path
+    server: str, offline_page: tuple[Any, list[str]], screenshot: Any
 ) -> None:
     page, blocked = offline_page
     page.goto(server + "/docs")
@@ -71,12 +62,12 @@ def test_swagger_ui_shows_every_operation_offline(
     shown = sorted(i.rpartition("-")[2] for i in ids)
     assert shown == OPERATIONS
     assert "pipeflow" in page.inner_text(".info .title")
-    _shot(page, tmp_path, "docs")
+    assert screenshot(page, "docs").stat().st_size > 10_000  # a rendered page, not a blank one
     assert blocked == []
 
 
 def test_redoc_shows_every_operation_offline(
-    server: str, offline_page: tuple[Any, list[str]], tmp_path: Path
+    server: str, offline_page: tuple[Any, list[str]], screenshot: Any
 ) -> None:
     page, blocked = offline_page
     page.goto(server + "/redoc")
@@ -85,7 +76,7 @@ def test_redoc_shows_every_operation_offline(
         "[data-section-id^='operation/']", "els => els.map(e => e.dataset.sectionId)"
     )
     assert sorted({s.removeprefix("operation/") for s in sections}) == OPERATIONS
-    _shot(page, tmp_path, "redoc")
+    assert screenshot(page, "redoc").stat().st_size > 10_000
     assert blocked == []
 
 
