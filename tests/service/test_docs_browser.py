@@ -1,7 +1,7 @@
 """/docs (Swagger UI) and /redoc work offline: headless chromium with every request that
 leaves 127.0.0.1 aborted loads both pages and sees every operation of the API.
 
-The assets come from the fastapi-offline package (served under ``/static-offline-docs``);
+The assets come from the fastapi-offline package (served under ``/static/docs/``);
 before, Swagger UI loaded from a CDN and the page stayed blank without internet.  A
 screenshot of each page goes to the run's temporary directory; pytest's summary lists them.
 """
