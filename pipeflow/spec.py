@@ -9,18 +9,22 @@ cache key is computed from.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Annotated, Any, Literal, Protocol
 
 import rfc8785
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pipeflow import __version__, profiles
+from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
 from pipeflow.modeshapes import DEFAULT_SHAPE_POINTS, MAX_SHAPE_POINTS, MAX_SHAPE_TIMES
-from pipeflow.simulation import Simulation
+from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
-from pipeflow.solvers.base import MAX_STEPS_CEILING
+from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
 
 MAX_SAMPLES = 200_001
 MAX_TABLE_POINTS = 10_000
@@ -52,6 +56,60 @@ Plane = Annotated[
         "neither of those two terms)."
     ),
 ]
+
+
+#: library parameter (of :class:`~pipeflow.simulation.Simulation` and
+#: :class:`~pipeflow.solvers.Options`) -> the request field of :class:`SimulationSpec` it
+#: comes from; the one place where library error names become JSON paths
+SIMULATION_FIELDS: dict[str, str] = {
+    "pipe": "pipe",
+    "flow": "flow.velocity",
+    "spin": "rotation.omega0",
+    "omega0": "rotation.omega0",
+    "u0": "initial.u0",
+    "du0": "initial.du0",
+    "initial_shape": "initial.shape",
+    "modes": "modes",
+    "t_end": "time.t_end",
+    "samples": "time.samples",
+    "method": "method",
+    "positions": "output.positions",
+    "eigen_modes": "output.eigen_modes",
+    "eigen_samples": "output.eigen_samples",
+    "include_modal": "output.modal",
+    "divergence_bound": "output.divergence_bound",
+    "mode_shape_times": "output.mode_shapes.times",
+    "mode_shape_points": "output.mode_shapes.points",
+    **{f.name: f"options.{f.name}" for f in dataclasses.fields(Options)},
+}
+
+
+def request_field(exc: PipeflowError, fields: Mapping[str, str], prefix: str = "") -> PipeflowError:
+    """Set ``exc.field`` to the request field of its library ``parameter`` (``fields``,
+    then ``prefix`` for a nested request), unless a caller already did; returns ``exc``."""
+    if exc.field is None and exc.parameter is not None:
+        exc.at(prefix + fields.get(exc.parameter, exc.parameter))
+    return exc
+
+
+@contextmanager
+def request_fields(fields: Mapping[str, str], prefix: str = "") -> Iterator[None]:
+    """Library errors raised inside name request fields (:func:`request_field`)."""
+    try:
+        yield
+    except PipeflowError as exc:
+        request_field(exc, fields, prefix)
+        raise
+
+
+def library_check(check: Callable[..., object], fields: Mapping[str, str], *args: Any) -> None:
+    """Run a library check (budget, common period...) at validation time, so a request the
+    library would refuse is a 422 naming the field at submission, not a job that fails later
+    (a pydantic validator must raise ValueError: the field leads its message)."""
+    try:
+        check(*args)
+    except PipeflowError as exc:
+        raise ValueError(f"{request_field(exc, fields).field}: {exc.message}") from None
 
 
 class StrictModel(BaseModel):
@@ -370,7 +428,7 @@ class SimulationSpec(StrictModel):
                     "initial": {"u0": 0.001, "du0": 0.0},
                     "modes": 10,
                     "time": {"t_end": 1.0, "samples": 2001},
-                    "method": "cma",
+                    "method": "auto",
                 }
             ]
         },
@@ -384,7 +442,7 @@ class SimulationSpec(StrictModel):
     modes: int = Field(10, ge=1, le=40, description="Number of Galerkin (cantilever) modes.")
     time: TimeSpec = Field(default_factory=TimeSpec)
     method: str = Field(
-        "cma",
+        "auto",
         description="Solver: " + "; ".join(f"'{n}': {s.description}" for n, s in SOLVERS.items()),
         json_schema_extra={"enum": list(sorted(SOLVERS))},
     )
@@ -456,6 +514,13 @@ class SimulationSpec(StrictModel):
         if data["output"]["mode_shapes"] is None:
             del data["output"]["mode_shapes"]  # requests from before the field keep their key
         return data
+
+
+def run_simulation(spec: SimulationSpec, progress: ProgressCallback | None = None) -> Result:
+    """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
+    the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
+    with request_fields(SIMULATION_FIELDS):
+        return simulate(spec.to_simulation(), progress=progress)
 
 
 #: the paper's section-5 example, v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s

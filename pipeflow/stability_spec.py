@@ -21,7 +21,6 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, TypeAdapter, model_validator
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE, Pipe
 from pipeflow.simulation import json_safe
 from pipeflow.spec import (
@@ -31,6 +30,8 @@ from pipeflow.spec import (
     PipeSpec,
     Plane,
     StrictModel,
+    library_check,
+    request_fields,
 )
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
@@ -50,6 +51,15 @@ MAX_FLOQUET_MODES = 20
 #: |v| [m/s] and |w0| [rad/s] bounds (far beyond any physical pipe; they keep numbers finite)
 MAX_SPEED = 1e6
 MAX_SPIN = 1e7
+
+
+#: library parameter -> request field where they differ (the stability specs otherwise use
+#: the library's names: modes, velocity_range, points, tolerance...)
+STABILITY_FIELDS: dict[str, str] = {
+    "flow": "flow.velocity",
+    "spin": "rotation.omega0",
+    "omega0": "rotation.omega0",
+}
 
 
 def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
@@ -453,24 +463,21 @@ def parse_sweep(data: Any) -> Any:
 
 
 def _library_check(check: Callable[..., object], *args: Any) -> None:
-    """Run a library check (budget, common period) at validation time, so a request the
-    library would refuse is a 422 naming the field at submission, not a job that fails later."""
-    try:
-        check(*args)
-    except PipeflowError as exc:
-        raise ValueError(f"{exc.field}: {exc.message}") from None
+    """:func:`pipeflow.spec.library_check` with :data:`STABILITY_FIELDS`."""
+    library_check(check, STABILITY_FIELDS, *args)
 
 
 def run_stability(spec: StabilitySpec, progress: Progress | None = None) -> dict[str, Any]:
     """Critical velocities for a :class:`StabilitySpec`: JSON-ready dict (SI units)."""
-    res = critical_velocities(
-        spec.mounted_pipe(),
-        omega0=spec.rotation.omega0.value,
-        velocity_range=spec.velocity_range,
-        modes=spec.modes,
-        points=spec.points,
-        progress=progress,
-    )
+    with request_fields(STABILITY_FIELDS):
+        res = critical_velocities(
+            spec.mounted_pipe(),
+            omega0=spec.rotation.omega0.value,
+            velocity_range=spec.velocity_range,
+            modes=spec.modes,
+            points=spec.points,
+            progress=progress,
+        )
     return {"kind": "stability", **json_safe(res.to_dict())}
 
 
@@ -479,4 +486,5 @@ def run_sweep(spec: Any, progress: Progress | None = None) -> dict[str, Any]:
     ``kind`` echoed first."""
     if not isinstance(spec, SWEEP_KINDS):
         raise TypeError(f"not a sweep spec: {type(spec).__name__}")
-    return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))
+    with request_fields(STABILITY_FIELDS):
+        return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))
