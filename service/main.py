@@ -21,6 +21,7 @@ from service.engine import Runner
 from service.middleware import BodyLimit
 from service.routes import (
     compare,
+    docs,
     exports,
     health,
     jobs,
@@ -49,6 +50,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        if settings.database_url is None:
+            settings.ensure_data_dir()  # the SQLite file lives there
         try:
             store = await asyncio.to_thread(
                 Store, settings.db_url, settings.cache_max_bytes, settings.memory_cache_bytes
@@ -71,11 +74,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # served offline by service.routes.docs
+        redoc_url=None,
     )
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
-    for module in (simulations, jobs, compare, stability, sweeps, results, exports, health, viewer):
+    routers = (simulations, jobs, compare, stability, sweeps, results, exports, health)
+    for module in (*routers, docs, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:
