@@ -1,30 +1,25 @@
-"""What every computing endpoint does, for any job kind: cache, single flight, jobs.
+"""What every computing endpoint does, for any computation: cache, single flight, jobs.
 
-Routes stay thin: they validate the body (FastAPI + the kind's spec model) and call
-:func:`run_sync` (answer with the result) or :func:`accept_job` (answer 202 with a job);
-the OpenAPI pieces they share (:data:`Refresh`, :data:`CACHE_HEADERS`,
-:data:`JOB_ACCEPTED`) are here too.
+Routes stay thin: they validate the body once (FastAPI + the computation's request model),
+key it once (:func:`service.keys.keyed`) and call :func:`run_sync` (answer with the
+result) or :func:`accept_job` (answer 202 with a job); the OpenAPI pieces they share
+(:data:`Refresh`, :data:`CACHE_HEADERS`, :data:`JOB_ACCEPTED`) are here too.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
 from fastapi import Query, Response
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel
 
-from service.kinds import JobKind
+from service.keys import Keyed
 from service.problems import ProblemError
 from service.runner import ComputationCancelled, ComputationFailed, QueueFull, Runner
 from service.schemas import JobStatus
 from service.store import Job, Store
-
-#: how long a resubmission waits for the cancelled run of the same job to stop [s]
-STOP_WAIT_S = 10.0
 
 Refresh = Annotated[
     bool, Query(description="Recompute even if the result is cached (and replace it).")
@@ -73,17 +68,15 @@ def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
     )
 
 
-async def run_sync(
-    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
-) -> Response:
-    """Serve the result for ``spec``: from the cache, or computed now (once per key)."""
-    key = kind.key(spec)
+async def run_sync(runner: Runner, store: Store, job: Keyed, refresh: bool) -> Response:
+    """Serve the result of ``job``: from the cache, or computed now (once per key)."""
+    key = job.key
     if not refresh:
         body = await asyncio.to_thread(store.get_result, key)
         if body is not None:
             return result_response(key, True, body)
     try:
-        task = await runner.submit(kind, key, kind.canonical(spec), force=refresh)
+        task = await runner.submit(job, force=refresh)
         body = await asyncio.shield(task)
     except QueueFull as exc:
         raise _saturated(runner, exc) from None
@@ -94,37 +87,24 @@ async def run_sync(
     return result_response(key, False, body)
 
 
-async def submit_job(
-    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
-) -> tuple[str, Job]:
-    """Accept a job for ``spec`` (idempotent: the id is the parameter hash)."""
-    key = kind.key(spec)
-    canonical = kind.canonical(spec)
+async def submit_job(runner: Runner, store: Store, job: Keyed, refresh: bool) -> Job:
+    """Accept ``job`` (idempotent: the id is the parameter hash) and return its record."""
+    key = job.key
     if not refresh and not runner.is_active(key) and await asyncio.to_thread(store.has_result, key):
-        await asyncio.to_thread(store.mark_succeeded, key, kind.name, canonical)
+        await asyncio.to_thread(store.mark_succeeded, key, job.computation.name, job.canonical)
     else:
         try:
-            task = await runner.submit(kind, key, canonical, force=refresh)
-            job = await asyncio.to_thread(store.get_job, key)
-            if job is not None and job.status == "cancelled" and not task.done():
-                # resubmitted while its cancelled run is still stopping: let it stop, rerun
-                with contextlib.suppress(Exception, asyncio.CancelledError):
-                    await asyncio.wait_for(asyncio.shield(task), STOP_WAIT_S)
-                await asyncio.sleep(0)
-                await runner.submit(kind, key, canonical, force=refresh)
+            await runner.submit(job, force=refresh)
         except QueueFull as exc:
             raise _saturated(runner, exc) from None
-    job = await asyncio.to_thread(store.get_job, key)
-    assert job is not None
-    return key, job
+    record = await asyncio.to_thread(store.get_job, key)
+    assert record is not None
+    return record
 
 
-async def accept_job(
-    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
-) -> JSONResponse:
+async def accept_job(runner: Runner, store: Store, job: Keyed, refresh: bool) -> JSONResponse:
     """:func:`submit_job`, answered 202 with the job and ``Location: /v1/jobs/{key}``."""
-    _, job = await submit_job(runner, store, kind, spec, refresh)
-    return job_response(job, 202)
+    return job_response(await submit_job(runner, store, job, refresh), 202)
 
 
 def job_response(job: Job, status: int = 200) -> JSONResponse:

@@ -14,19 +14,10 @@ from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
+from pipeflow.schema.registry import endpoints
 from service import problems
 from service.middleware import BodyLimit
-from service.routes import (
-    compare,
-    exports,
-    health,
-    jobs,
-    results,
-    simulations,
-    stability,
-    sweeps,
-    viewer,
-)
+from service.routes import computations, exports, health, jobs, results, viewer
 from service.runner import Runner
 from service.settings import Settings, get_settings
 from service.store import Store
@@ -65,7 +56,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
-    for module in (simulations, jobs, compare, stability, sweeps, results, exports, health, viewer):
+    for endpoint in endpoints():
+        app.include_router(computations.router_for(endpoint))
+    for module in (jobs, results, exports, health, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:

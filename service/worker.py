@@ -11,10 +11,12 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from service import store
+
+if TYPE_CHECKING:  # the worker imports numpy only after init() has pinned the threads
+    from pipeflow.schema.registry import Computation
 
 THREAD_VARIABLES = (
     "OMP_NUM_THREADS",
@@ -48,15 +50,15 @@ def ping() -> dict[str, Any]:
 
 
 def run(
-    function: Callable[[Any, Callable[[float], None]], dict[str, Any]],
-    spec_model: Any,
-    spec: dict[str, Any],
+    computation: Computation,
+    request: Any,
     key: str,
     db_path: str,
     timeout_s: float,
     interval_s: float,
 ) -> Outcome:
-    """Validate ``spec`` with ``spec_model``, run ``function(spec, progress)``, return bytes.
+    """Run ``computation.execute(request, progress)`` on the request validated by the route
+    (pickled, not validated again), return its JSON bytes.
 
     Progress is written to the job record at most every ``interval_s`` seconds, and each
     write checks the cancel flag and the runtime limit ``timeout_s`` [s]; the solver stops
@@ -85,8 +87,7 @@ def run(
                 raise Cancelled("cancelled by request")
 
         try:
-            validated = spec_model.model_validate(spec)
-            result = function(validated, progress)
+            result = computation.execute(request, progress)
         except Cancelled as exc:
             if time.monotonic() > deadline:
                 return ("error", runtime_problem(timeout_s))

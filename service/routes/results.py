@@ -3,37 +3,23 @@
 from __future__ import annotations
 
 import asyncio
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, Union
 
 from fastapi import APIRouter, Header, Path, Query, Response
 
+from pipeflow.schema.registry import COMPUTATIONS
 from service.compute import CACHE_HEADERS, result_response
 from service.deps import RunnerDep, StoreDep
 from service.problems import ProblemError, responses
 from service.routes.exports import TABLE_DESCRIPTION, Table, csv_response, wants_csv
-from service.schemas import KEY_PATTERN, CompareResponse, SimulationResponse
-from service.stability_schemas import (
-    BetaMapResponse,
-    FloquetResponse,
-    ResonanceChartResponse,
-    SpinMapResponse,
-    StabilityResponse,
-    SweepResponse,
-)
+from service.schemas import KEY_PATTERN
 
 router = APIRouter(prefix="/v1/results", tags=["results"])
 
-#: what a stored result can be: one model per job kind (stability kinds carry ``kind``)
-ResultDocument = (
-    SimulationResponse
-    | CompareResponse
-    | StabilityResponse
-    | SweepResponse
-    | SpinMapResponse
-    | BetaMapResponse
-    | ResonanceChartResponse
-    | FloquetResponse
-)
+#: what a stored result can be: one model per result shape of the registry
+ResultDocument: Any = Union[  # noqa: UP007
+    tuple(dict.fromkeys(c.response for c in COMPUTATIONS.values() if c.endpoint is not None))
+]
 
 
 def _matches(if_none_match: str, key: str) -> bool:

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from pipeflow.cli import ProgressBar, main
-from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 
 
 @pytest.fixture
@@ -133,9 +133,12 @@ def test_stability_refuses_a_simulation_spec(
 
 
 def test_serve_runs_uvicorn_on_the_app(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``pipeflow serve`` is the service's own entry point, handing uvicorn the app object."""
     import uvicorn
+    from fastapi import FastAPI
 
     calls: list[tuple[Any, dict[str, Any]]] = []
     monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append((app, kw)))
     assert main(["serve", "--port", "8123"]) == 0
-    assert calls == [("service.main:app", {"host": "127.0.0.1", "port": 8123, "workers": 1})]
+    [(app, kw)] = calls
+    assert isinstance(app, FastAPI) and kw == {"host": "127.0.0.1", "port": 8123}
