@@ -168,7 +168,11 @@ def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
         404: "Unknown key.",
         409: "The job is in a state that does not allow this.",
         413: "Request body larger than the configured limit.",
-        422: "Invalid input; `errors` names each offending field.",
+        422: "Invalid input; `errors` names each offending field.  Besides the schema, the "
+        "rules across fields that JSON Schema cannot state: M1 + M2 >= 1e-15 kg/m, [lo, hi] "
+        "ranges increasing, table times strictly increasing, starting at t <= 0 and covering "
+        "time.t_end, stations within [0, L], tracked_modes <= modes, max_points >= points, "
+        "a common period of harmonic flow and spin, and the work budgets of maps and charts.",
         503: "Saturated or not ready; retry after the Retry-After header [s].",
     }
     out: dict[int | str, dict[str, Any]] = {}

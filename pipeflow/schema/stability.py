@@ -20,6 +20,7 @@ import dataclasses
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import ConfigDict, Field, Strict, model_validator
 
 from pipeflow.basis import MAX_MODES
@@ -394,3 +395,8 @@ def _library_check(check: Callable[..., object], *args: Any) -> None:
         check(*args)
     except PipeflowError as exc:
         raise ValueError(f"{exc.field}: {exc.message}") from None
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. L = 5e-324 m: 1/L^3 = inf
+        raise ValueError(
+            f"pipe: the pipe's magnitudes take the model out of double precision "
+            f"({type(exc).__name__}: {exc}); check E, I, L, M1 and M2"
+        ) from None
