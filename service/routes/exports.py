@@ -17,11 +17,12 @@ import json
 import threading
 from typing import Annotated, Literal
 
-from fastapi import APIRouter, Header, Path, Response
+from fastapi import APIRouter, Depends, Header, Path, Response
 
 from pipeflow import plots
 from pipeflow.export import CSV_MEDIA_TYPE, TABLES, ExportError, available_tables, to_csv
 from service.deps import StoreDep
+from service.negotiation import accepts
 from service.problems import ProblemError, responses
 from service.schemas import KEY_PATTERN
 
@@ -107,12 +108,13 @@ def _render(body: bytes, name: str, fmt: str) -> bytes:
     operation_id="getResultPlot",
     summary="A figure of a stored result (PNG or SVG)",
     response_class=Response,
+    dependencies=[Depends(accepts(*plots.MEDIA_TYPES.values()))],
     responses={
         200: {
             "content": {"image/png": {}, "image/svg+xml": {}},
             "description": "The figure; axis labels carry SI units.",
         },
-        **responses(304, 404, 422),
+        **responses(304, 404, 406, 422),
     },
 )
 async def get_result_plot(

@@ -5,16 +5,20 @@ from __future__ import annotations
 import asyncio
 from typing import Annotated, Any, Literal, Union
 
-from fastapi import APIRouter, Header, Path, Query, Response
+from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
+from pipeflow.export import CSV_MEDIA_TYPE
 from pipeflow.schema.registry import COMPUTATIONS
 from service.compute import CACHE_HEADERS, result_response
 from service.deps import RunnerDep, StoreDep
+from service.negotiation import JSON, accepts
 from service.problems import ProblemError, responses
 from service.routes.exports import TABLE_DESCRIPTION, Table, csv_response, wants_csv
 from service.schemas import KEY_PATTERN
 
-router = APIRouter(prefix="/v1/results", tags=["results"])
+router = APIRouter(
+    prefix="/v1/results", tags=["results"], dependencies=[Depends(accepts(JSON, CSV_MEDIA_TYPE))]
+)
 
 #: what a stored result can be: one model per result shape of the registry
 ResultDocument: Any = Union[  # noqa: UP007
@@ -35,7 +39,7 @@ def _matches(if_none_match: str, key: str) -> bool:
     response_model=ResultDocument,
     responses={
         200: {"headers": CACHE_HEADERS, "content": {"text/csv": {}}},
-        **responses(304, 404, 422),
+        **responses(304, 404, 406, 422),
     },
 )
 async def get_result(

@@ -219,6 +219,15 @@ def test_content_negotiation(client: TestClient) -> None:
         resp = client.post("/v1/simulations", json=_small(), headers={"accept": accept})
         _problem(resp, 406)
         _problem(client.get(f"/v1/jobs/{'0' * 64}", headers={"accept": accept}), 406)
+    key = "0" * 64
+    _problem(client.get(f"/v1/results/{key}", headers={"accept": "image/png"}), 406)
+    _problem(
+        client.get(f"/v1/results/{key}/plots/damping.png", headers={"accept": "text/csv"}), 406
+    )
+    _problem(client.get("/healthz", headers={"accept": "text/html"}), 406)
+    # what each offers is fine (the key is unknown: 404, after negotiation)
+    _problem(client.get(f"/v1/results/{key}", headers={"accept": "text/csv"}), 404)
+    _problem(client.get(f"/v1/results/{key}/plots/damping.png", headers={"accept": "image/*"}), 404)
     # JSON by any name is fine
     for accept in ("application/json", "*/*", "application/*;q=0.5", "application/problem+json"):
         assert (
