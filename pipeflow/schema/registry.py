@@ -18,13 +18,15 @@ from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, Field, TypeAdapter
 
-from pipeflow.compare import compare
+from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
 from pipeflow.plots import available_plots
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
 from pipeflow.schema.simulation import PAPER_EXAMPLE, CompareSpec, SimulationSpec
 from pipeflow.simulation import json_safe, simulate
+from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
+from pipeflow.stability.maps import MAX_MAP_WORK
 
 Progress = Callable[[float], None]
 Run = Callable[[Any, Progress | None], dict[str, Any]]
@@ -60,12 +62,18 @@ class Computation:
     response: type[BaseModel]
     run: Run
     endpoint: Endpoint | None
-    cost: str
+    #: what bounds a request's work beyond the request model's own bounds (library budgets)
+    budget: str
     plots: tuple[str, ...] = ()
     tables: tuple[str, ...] = ()
     examples: Mapping[str, dict[str, Any]] = field(default_factory=dict)
     #: library parameter name -> request field (JSON path); unnamed ones map to themselves
     fields: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def cost(self) -> str:
+        """The cost bound: the request model's upper bounds on counts, then :attr:`budget`."""
+        return "; ".join([*count_bounds(self.request), self.budget])
 
     def request_field(self, parameter: str | None) -> str | None:
         """The request field (dotted JSON path) of the library's ``parameter``."""
@@ -90,6 +98,21 @@ class Computation:
         result = dict(json_safe(result))
         result["plots"] = [p for p in available_plots(result) if p in self.plots]
         return result
+
+
+def count_bounds(model: type[BaseModel], prefix: str = "") -> list[str]:
+    """``"field <= bound"`` for every integer field of ``model`` (nested models included)
+    with an upper bound: what a request can ask for, read from its one definition."""
+    out = []
+    for name, info in model.model_fields.items():
+        ann = info.annotation
+        if isinstance(ann, type) and issubclass(ann, BaseModel):
+            out += count_bounds(ann, f"{prefix}{name}.")
+            continue
+        bound = next((m.le for m in info.metadata if getattr(m, "le", None) is not None), None)
+        if ann is int and bound is not None:
+            out.append(f"{prefix}{name} <= {bound}")
+    return out
 
 
 def library_parameter(exc: PipeflowError) -> str | None:
@@ -211,7 +234,7 @@ SIMULATION = register(
         response=r.SimulationResponse,
         run=run_simulation,
         endpoint=SIMULATIONS,
-        cost="samples <= 200001, modes <= 40, options.max_steps <= 2e7 (solver budget)",
+        budget="the solver refuses runs over options.max_steps steps",
         plots=("tip_displacement", "damping", "frequency", "argand", "displacements"),
         tables=("history", "eigenvalues", "cma_exponents"),
         examples={
@@ -251,7 +274,7 @@ COMPARE = register(
         response=r.CompareResponse,
         run=run_compare,
         endpoint=COMPARE_ENDPOINT,
-        cost="one simulation's bound per method, at most 8 methods",
+        budget=f"one simulation's bound per method, at most {MAX_METHODS} methods",
         examples={
             "paper": {
                 "summary": "The paper's v = 0.4 t case with cma, magnus and rk4",
@@ -311,7 +334,7 @@ STABILITY = register(
         response=r.StabilityResponse,
         run=run_analysis,
         endpoint=STABILITY_ENDPOINT,
-        cost="points <= 2001 frozen spectra, modes <= 40",
+        budget="one frozen spectrum per point",
         plots=("argand", "sweep_frequency", "sweep_damping"),
         examples={
             "paper": {
@@ -360,7 +383,7 @@ _PAPER = s.PAPER_PIPE_JSON
 def _sweep(
     model: type[Any],
     response: type[BaseModel],
-    cost: str,
+    budget: str,
     plots: tuple[str, ...],
     summary: str,
     example: dict[str, Any],
@@ -373,7 +396,7 @@ def _sweep(
             response=response,
             run=run_analysis,
             endpoint=SWEEPS,
-            cost=cost,
+            budget=budget,
             plots=plots,
             examples={name: {"summary": summary, "value": {"kind": name, **example}}},
             fields=STABILITY_FIELDS,
@@ -384,7 +407,7 @@ def _sweep(
 ARGAND = _sweep(
     s.ArgandSweep,
     r.SweepResponse,
-    "points <= 2001 (4x after refinement) frozen spectra, modes <= 40",
+    "one frozen spectrum per point, at most max_points (4 x points) after refinement",
     ("argand", "sweep_frequency", "sweep_damping"),
     "Argand diagram: the paper's pipe, v from 0 to 60 m/s at w0 = 100 rad/s",
     {
@@ -399,7 +422,7 @@ ARGAND = _sweep(
 CAMPBELL = _sweep(
     s.CampbellSweep,
     r.SweepResponse,
-    "points <= 2001 (4x after refinement) frozen spectra, modes <= 40",
+    "one frozen spectrum per point, at most max_points (4 x points) after refinement",
     ("argand", "sweep_frequency", "sweep_damping"),
     "Campbell diagram: the paper's pipe, w0 from 0 to 2000 rad/s at v = 10 m/s",
     {
@@ -413,7 +436,7 @@ CAMPBELL = _sweep(
 SPIN_MAP = _sweep(
     s.SpinMapSweep,
     r.SpinMapResponse,
-    "velocity_points x spin_points <= 200 x 200, within the library's map budget",
+    f"velocity_points x spin_points x (2 modes)^3 <= {MAX_MAP_WORK:g} (map work)",
     ("spin_map",),
     "Critical velocity against spin: 100 x 100 (v, w0) map of the paper's pipe",
     {
@@ -428,7 +451,7 @@ SPIN_MAP = _sweep(
 BETA_MAP = _sweep(
     s.BetaMapSweep,
     r.BetaMapResponse,
-    "beta_points x u_points <= 400 x 2001, within the library's map budget",
+    f"beta_points x u_points x (2 modes)^3 <= {MAX_MAP_WORK:g} (map work)",
     ("beta_map",),
     "u_cr(beta) at gamma = 0 (Paidoussis' stability curve with its S-shapes)",
     {"modes": 10, "beta_range": [0.05, 0.95], "u_range": [0.0, 20.0], "beta_points": 50},
@@ -436,8 +459,8 @@ BETA_MAP = _sweep(
 RESONANCE_CHART = _sweep(
     s.ResonanceChartSweep,
     r.ResonanceChartResponse,
-    "amplitude_points x frequency_points <= 101 x 101 monodromy matrices, modes <= 12, "
-    "within the library's chart budget",
+    "amplitude_points x frequency_points x Magnus steps x (2 modes)^3 <= "
+    f"{MAX_CHART_WORK:g} (chart work)",
     ("resonance_chart",),
     "Parametric resonance of pulsating flow v = 10 + a sin(Omega t) m/s",
     {
@@ -451,7 +474,7 @@ RESONANCE_CHART = _sweep(
 FLOQUET = _sweep(
     s.FloquetSweep,
     r.FloquetResponse,
-    "one monodromy matrix over the common period, modes <= 20",
+    f"one monodromy matrix over the common period, at most {MAX_STEPS} Magnus steps",
     ("floquet_multipliers",),
     "Floquet multipliers: the paper's pipe with v = 10 + 5 sin(1000 t) m/s",
     {

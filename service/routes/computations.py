@@ -42,6 +42,14 @@ def examples(endpoint: Endpoint) -> dict[str, Any]:
     return {k: v for c in computations_at(endpoint) for k, v in c.examples.items()}
 
 
+def cost_note(endpoint: Endpoint) -> str:
+    """The cost bound of each computation at ``endpoint``, for the operation's description."""
+    lines = [f"- ``{c.name}``: {c.cost}" for c in computations_at(endpoint)]
+    return "\n\nCost bounds (a request beyond them is a 422 before any work):\n\n" + "\n".join(
+        lines
+    )
+
+
 def _computation(endpoint: Endpoint) -> Callable[[BaseModel], Computation]:
     only = computations_at(endpoint)
     if len(only) == 1:
@@ -71,11 +79,12 @@ def router_for(endpoint: Endpoint) -> APIRouter:
     ) -> JSONResponse:
         return await accept_job(runner, store, keyed(which(request), request), refresh)
 
+    costs = cost_note(endpoint)
     job_description = (
         f"The same computation as ``POST /v1/{endpoint.path}``, answered at once with its job "
         "(202, ``Location: /v1/jobs/{key}``); poll the job, then ``GET /v1/results/{key}``.  "
         "The job id is the parameter hash: resubmitting is idempotent, a finished result is "
-        "reused, and a failed or cancelled job is run again."
+        "reused, and a failed or cancelled job is run again." + costs
     )
 
     def add_job_route(path: str, operation_id: str, description: str) -> None:
@@ -93,7 +102,7 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         )
 
     if endpoint.run_operation is None:  # always a job
-        add_job_route(f"/{endpoint.path}", endpoint.job_operation, endpoint.description)
+        add_job_route(f"/{endpoint.path}", endpoint.job_operation, endpoint.description + costs)
         return router
     router.add_api_route(
         f"/{endpoint.path}",
@@ -101,7 +110,7 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         methods=["POST"],
         operation_id=endpoint.run_operation,
         summary=endpoint.summary,
-        description=endpoint.description,
+        description=endpoint.description + costs,
         response_model=response_type(endpoint),
         responses={200: {"headers": CACHE_HEADERS}, **responses(409, *PROBLEMS)},
         dependencies=NEGOTIATION,
@@ -111,6 +120,6 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         add_job_route(
             path.removeprefix("/v1"),
             operation_id,
-            job_description + f"  Alias of ``POST /v1/{endpoint.path}/jobs``.",
+            f"Alias of ``POST /v1/{endpoint.path}/jobs``.  " + job_description,
         )
     return router

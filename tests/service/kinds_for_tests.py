@@ -41,5 +41,5 @@ def sleep(spec: SleepSpec, progress: ProgressCallback | None) -> dict[str, Any]:
 
 
 SLEEP = register(
-    Computation("test-sleep", SleepSpec, SleepResult, sleep, endpoint=None, cost="seconds <= 120")
+    Computation("test-sleep", SleepSpec, SleepResult, sleep, endpoint=None, budget="seconds <= 120")
 )
