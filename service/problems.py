@@ -139,9 +139,11 @@ def pipeflow_problem(exc: PipeflowError) -> dict[str, Any]:
     """422 problem for a refusal by the library, pointing at ``exc.field``."""
     name = type(exc).__name__
     slug = re.sub(r"(?<!^)(?=[A-Z])", "-", name).lower()
+    # ``field`` is the request field: Computation.execute mapped the library's parameter
+    field = getattr(exc, "field", None)
     err: dict[str, Any] = {
-        "field": exc.field,
-        "pointer": _pointer(exc.field.split(".")) if exc.field else None,
+        "field": field,
+        "pointer": _pointer(field.split(".")) if field else None,
         "location": "body",
         "message": exc.message,
         "type": slug,

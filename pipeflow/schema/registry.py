@@ -23,7 +23,12 @@ from pipeflow.errors import PipeflowError
 from pipeflow.plots import available_plots
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
-from pipeflow.schema.simulation import PAPER_EXAMPLE, CompareSpec, SimulationSpec
+from pipeflow.schema.simulation import (
+    PAPER_EXAMPLE,
+    CompareSpec,
+    SimulationSpec,
+    library_parameter,
+)
 from pipeflow.simulation import json_safe, simulate
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
@@ -113,11 +118,6 @@ def count_bounds(model: type[BaseModel], prefix: str = "") -> list[str]:
         if ann is int and bound is not None:
             out.append(f"{prefix}{name} <= {bound}")
     return out
-
-
-def library_parameter(exc: PipeflowError) -> str | None:
-    """The library's own name of the parameter an error concerns."""
-    return getattr(exc, "parameter", None) or exc.field
 
 
 COMPUTATIONS: dict[str, Computation] = {}

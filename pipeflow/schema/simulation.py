@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from pipeflow import profiles
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS
+from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
 from pipeflow.simulation import Simulation
 from pipeflow.solvers import SOLVERS, Options
@@ -33,6 +34,12 @@ MAX_PROFILE_VALUE = 1e7
 MAX_COEFFICIENT = 1e9
 MIN_MASS = 1e-15
 BoundedValue = Annotated[float, Field(ge=-MAX_PROFILE_VALUE, le=MAX_PROFILE_VALUE)]
+
+
+def library_parameter(exc: PipeflowError) -> str | None:
+    """The library's own name of the parameter an error concerns (``parameter``, or the
+    older ``field``); :meth:`pipeflow.schema.registry.Computation.request_field` maps it."""
+    return getattr(exc, "parameter", None) or getattr(exc, "field", None)
 
 
 class StrictModel(BaseModel):

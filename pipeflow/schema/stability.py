@@ -26,7 +26,13 @@ from pydantic import ConfigDict, Field, Strict, model_validator
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
-from pipeflow.schema.simulation import ConstantProfile, HarmonicProfile, PipeSpec, StrictModel
+from pipeflow.schema.simulation import (
+    ConstantProfile,
+    HarmonicProfile,
+    PipeSpec,
+    StrictModel,
+    library_parameter,
+)
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
@@ -394,7 +400,8 @@ def _library_check(check: Callable[..., object], *args: Any) -> None:
     try:
         check(*args)
     except PipeflowError as exc:
-        raise ValueError(f"{exc.field}: {exc.message}") from None
+        # sweep requests name their fields as the library names its parameters
+        raise ValueError(f"{library_parameter(exc)}: {exc.message}") from None
     except (ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. L = 5e-324 m: 1/L^3 = inf
         raise ValueError(
             f"pipe: the pipe's magnitudes take the model out of double precision "
