@@ -29,6 +29,7 @@ the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s
   pipeflow run spec.json -o result.json         # run it locally (about a second)
   pipeflow run spec.json --format csv -o tip.csv                 # t [s], u(L,t) [m]
   pipeflow run spec.json --format csv --table eigenvalues        # sigma [1/s], omega [rad/s]
+  pipeflow run spec.json --format parquet -o history.parquet     # units in column metadata
   pipeflow plot result.json --name tip_displacement --out tip.png
   pipeflow plot spec.json --name frequency --out freq.svg        # runs the spec, then plots
   pipeflow stability stab.json                  # critical flow velocity, sweeps, maps
@@ -213,10 +214,11 @@ def cmd_example(args: argparse.Namespace) -> int:
 
 def cmd_run(args: argparse.Namespace) -> int:
     result = _result_for(args, _read_json(args.spec))
-    if args.format == "csv":
-        from pipeflow.export import to_csv
+    if args.format in ("csv", "parquet"):
+        from pipeflow.export import to_csv, to_parquet
 
-        _write(args.output, to_csv(result, args.table))
+        export = to_csv if args.format == "csv" else to_parquet
+        _write(args.output, export(result, args.table))
     else:
         _write_json(args, result)
     _print_warnings(result)
@@ -324,12 +326,17 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("spec", help="simulation spec JSON file ('-': stdin); see 'pipeflow example'")
-    sp.add_argument("--format", choices=("json", "csv"), default="json", help="output format")
+    sp.add_argument(
+        "--format",
+        choices=("json", "csv", "parquet"),
+        default="json",
+        help="output format (parquet: units in the column metadata; needs pipeflow[parquet])",
+    )
     sp.add_argument(
         "--table",
         choices=tuple(TABLES),
         default="history",
-        help="CSV table: " + "; ".join(f"{k}: {v}" for k, v in TABLES.items()),
+        help="CSV/Parquet table: " + "; ".join(f"{k}: {v}" for k, v in TABLES.items()),
     )
     json_output_flags(sp)
     sp.set_defaults(func=cmd_run)
@@ -413,8 +420,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"{exc.field}: " if exc.field else ""
         print(f"error: {where}{exc.message}", file=sys.stderr)
         return 2
-    except (ValueError, KeyError) as exc:
-        # plot/export errors carry a field too
+    except (ValueError, KeyError, ImportError) as exc:
+        # plot/export errors carry a field too; a missing optional extra says what to install
         field = getattr(exc, "field", None)
         print(f"error: {field + ': ' if field else ''}{exc}", file=sys.stderr)
         return 2

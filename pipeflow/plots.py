@@ -99,6 +99,22 @@ def _draw_stations(ax: Axes, r: dict[str, Any], label: str | None) -> None:
         ax.plot(r["t"], st["u"], lw=1.0, label=name)
 
 
+def _has_shapes(r: dict[str, Any]) -> bool:
+    return bool(isinstance(r.get("mode_shapes"), dict) and r["mode_shapes"].get("modes"))
+
+
+def _draw_mode_shapes(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    """Real part solid, imaginary part dashed, one colour per branch and time."""
+    block = r["mode_shapes"]
+    for i, t in enumerate(block["t"]):
+        for mode in block["modes"]:
+            name = f"mode {mode['mode']}, t = {t:g} s"
+            name = name if label is None else f"{label}, {name}"
+            (line,) = ax.plot(block["x"], mode["real"][i], lw=1.2, label=f"{name} (Re)")
+            ax.plot(block["x"], mode["imag"][i], lw=1.0, ls="--", color=line.get_color())
+    ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
+
+
 def _parameter_label(r: dict[str, Any]) -> str:
     par = r["parameter"]
     what = {"velocity": "flow velocity v", "spin": "spin ω0"}.get(par["name"], par["name"])
@@ -265,6 +281,14 @@ PLOTS: dict[str, PlotKind] = {
             _draw_stations,
             lambda r: _has_history(r) and bool(r.get("displacements")),
         ),
+        PlotKind(
+            "mode_shapes",
+            "Complex mode shapes of the frozen spectrum (solid: Re, dashed: Im)",
+            "position along the pipe x [m]",
+            "mode shape Φ(x) [-] (max |Φ| = 1)",
+            _draw_mode_shapes,
+            _has_shapes,
+        ),
     )
 }
 
@@ -305,7 +329,7 @@ def figure(
     ax.grid(True, lw=0.4, alpha=0.5)
     if name not in ("spin_map", "resonance_chart", "floquet_multipliers"):
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
-    multi = ("argand", "displacements", "sweep_frequency", "sweep_damping")
+    multi = ("argand", "displacements", "sweep_frequency", "sweep_damping", "mode_shapes")
     if any(label is not None for label, _ in series) or name in multi:
         ax.legend(fontsize=8)
     return fig

@@ -19,6 +19,14 @@ from pipeflow.diagnostics import add_error_estimate
 from pipeflow.eigen import Traces, track
 from pipeflow.errors import InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
+from pipeflow.modeshapes import (
+    DEFAULT_SHAPE_POINTS,
+    MAX_SHAPE_POINTS,
+    MAX_SHAPE_TIMES,
+    ModeShapes,
+    frozen_mode_shapes,
+)
+from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
@@ -45,6 +53,9 @@ class Simulation:
     divergence_bound : tip amplitude [m] beyond which the run is flagged as diverging
         (default: the pipe length, where the linear model has long stopped meaning anything).
     quadrature_order : Gauss-Legendre points for the Galerkin integrals (None: automatic).
+    mode_shape_times : times [s] (0..t_end) at which the complex mode shapes of the frozen
+        spectrum are returned (:mod:`pipeflow.modeshapes`); empty: none.
+    mode_shape_points : stations from x = 0 to L at which each mode shape is evaluated.
     """
 
     pipe: Pipe
@@ -64,11 +75,17 @@ class Simulation:
     include_modal: bool = False
     divergence_bound: float | None = None
     quadrature_order: int | None = None
+    mode_shape_times: tuple[float, ...] = ()
+    mode_shape_points: int = DEFAULT_SHAPE_POINTS
 
 
 @dataclass
-class Result:
-    """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form)."""
+class Result(NotebookViews):
+    """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form).
+
+    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot` (from
+    :class:`pipeflow.notebook.NotebookViews`; xarray/pandas are the ``notebook`` extra).
+    """
 
     simulation: Simulation
     t: FloatArray  # [s]
@@ -85,10 +102,14 @@ class Result:
     status: str  # "ok", "diverging" or "overflow"
     initial_tip_displacement: float  # [m]
     divergence_time: float | None  # [s]
+    mode_shapes: ModeShapes | None = None  # when ``simulation.mode_shape_times`` asks
 
     @property
     def fundamental(self) -> Traces:
         return Traces(self.frozen.xi[:, :1], self.frozen.confidence[:, :1])
+
+    def _document(self) -> dict[str, Any]:
+        return self.to_dict()
 
     def to_dict(self, include_modal: bool | None = None) -> dict[str, Any]:
         """JSON-ready dictionary: lists of floats, every number finite."""
@@ -126,6 +147,8 @@ class Result:
             "diagnostics": json_safe(self.diagnostics),
             "warnings": list(self.warnings),
         }
+        if self.mode_shapes is not None:
+            out["mode_shapes"] = json_safe(self.mode_shapes.to_dict())
         if modal:
             out["modal"] = {"d": _finite(self.d), "ddot": _finite(self.ddot)}
         return out
@@ -181,6 +204,20 @@ def validate(sim: Simulation) -> None:
     for i, x in enumerate(sim.positions):
         if not 0.0 <= x <= sim.pipe.L:
             raise InvalidInput(f"position {x} m is outside [0, L]", field=f"positions.{i}")
+    if len(sim.mode_shape_times) > MAX_SHAPE_TIMES:
+        raise InvalidInput(
+            f"at most {MAX_SHAPE_TIMES} mode-shape times", "output.mode_shapes.times"
+        )
+    for i, t in enumerate(sim.mode_shape_times):
+        if not 0.0 <= t <= sim.t_end:
+            raise InvalidInput(
+                f"mode-shape time {t} s is outside [0, t_end]", f"output.mode_shapes.times.{i}"
+            )
+    if not 2 <= sim.mode_shape_points <= MAX_SHAPE_POINTS:
+        raise InvalidInput(
+            f"mode-shape points must be between 2 and {MAX_SHAPE_POINTS}",
+            "output.mode_shapes.points",
+        )
 
 
 def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Result:
@@ -218,6 +255,17 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     n_eig = min(sim.eigen_modes, sim.modes)  # more branches than modes do not exist
     frozen = frozen_traces(model, loading, eigen_t, n_eig)
     exponents = cma_exponents(model, loading, eigen_t, n_eig)
+
+    shapes = None
+    if sim.mode_shape_times:
+        shapes = frozen_mode_shapes(
+            model,
+            loading,
+            np.asarray(sim.mode_shape_times, dtype=float),
+            n_eig,
+            sim.mode_shape_points,
+            track_times=eigen_t,
+        )
 
     initial_tip = float(d0 @ model.tip)
     bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
@@ -260,6 +308,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         status=status,
         initial_tip_displacement=initial_tip,
         divergence_time=divergence_time,
+        mode_shapes=shapes,
     )
 
 

@@ -29,8 +29,8 @@ _TITLES = {
     400: "Bad request",
     404: "Not found",
     405: "Method not allowed",
-    409: "Conflict",
     406: "Not acceptable",
+    409: "Conflict",
     413: "Request body too large",
     415: "Unsupported media type",
     422: "Invalid input",
@@ -164,10 +164,11 @@ def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
     """OpenAPI ``responses`` entries declaring the problem documents a route can return."""
     descriptions = {
         400: "Malformed request: the body is not valid JSON.",
-        406: "The Accept header admits none of the operation's media types.",
         415: "The body is not application/json.",
         304: "Not modified: the client's copy (If-None-Match) is current.",
         404: "Unknown key.",
+        406: "Not acceptable: the Accept header admits none of the operation's media types, "
+        "or the requested format needs an optional extra the server lacks (e.g. pyarrow).",
         409: "The job is in a state that does not allow this.",
         413: "Request body larger than the configured limit.",
         422: "Invalid input; `errors` names each offending field.  Besides the schema, the "

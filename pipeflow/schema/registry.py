@@ -20,6 +20,7 @@ from pydantic import BaseModel, Field, TypeAdapter
 
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
+from pipeflow.export import TABLES
 from pipeflow.plots import available_plots
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
@@ -235,8 +236,15 @@ SIMULATION = register(
         run=run_simulation,
         endpoint=SIMULATIONS,
         budget="the solver refuses runs over options.max_steps steps",
-        plots=("tip_displacement", "damping", "frequency", "argand", "displacements"),
-        tables=("history", "eigenvalues", "cma_exponents"),
+        plots=(
+            "tip_displacement",
+            "damping",
+            "frequency",
+            "argand",
+            "displacements",
+            "mode_shapes",
+        ),
+        tables=tuple(TABLES),  # every table of pipeflow.export is a simulation's
         examples={
             "paper": {
                 "summary": "The paper's section 5: v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s",

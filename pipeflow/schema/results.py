@@ -58,6 +58,22 @@ class Modal(BaseModel):
     ddot: list[list[float]] = Field(description="Their rates d'(t) [m/s].")
 
 
+class ShapeTrace(BaseModel):
+    mode: int = Field(description="Branch number, as in `eigenvalues`.")
+    sigma: list[float] = Field(description="Damping of the branch at each time [1/s].")
+    omega: list[float] = Field(description="Frequency of the branch at each time [rad/s].")
+    real: list[list[float]] = Field(
+        description="Re Phi(x) [-] per time, then per station (max |Phi| = 1, 1 + 0i at its peak)."
+    )
+    imag: list[list[float]] = Field(description="Im Phi(x) [-] per time, then per station.")
+
+
+class ModeShapesBlock(BaseModel):
+    t: list[float] = Field(description="Times of the shapes [s].")
+    x: list[float] = Field(description="Stations from the clamped end to the tip [m].")
+    modes: list[ShapeTrace]
+
+
 class SimulationResponse(BaseModel):
     """A simulation result with its parameter hash."""
 
@@ -90,6 +106,11 @@ class SimulationResponse(BaseModel):
     diagnostics: dict[str, Any] = Field(description="Solver diagnostics (costs, conditioning).")
     warnings: list[str] = Field(description="What the caller should know about this result.")
     modal: Modal | None = Field(None, description="Present when output.modal is true.")
+    mode_shapes: ModeShapesBlock | None = Field(
+        None,
+        description="Complex mode shapes of the frozen spectrum; present when "
+        "output.mode_shapes is given.",
+    )
     plots: list[str] = Field(
         default_factory=list,
         description="Figures of this result: GET /v1/results/{key}/plots/{name}.png or .svg.",

@@ -20,6 +20,7 @@ from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS
 from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
+from pipeflow.modeshapes import DEFAULT_SHAPE_POINTS, MAX_SHAPE_POINTS, MAX_SHAPE_TIMES
 from pipeflow.simulation import Simulation
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
@@ -249,6 +250,24 @@ class MethodOptions(StrictModel):
     )
 
 
+class ModeShapesSpec(StrictModel):
+    """Complex mode shapes of the frozen spectrum (pipeflow.modeshapes), one per traced
+    eigenvalue branch (output.eigen_modes) at each time, normalised to max |Phi| = 1."""
+
+    times: list[float] = Field(
+        min_length=1,
+        max_length=MAX_SHAPE_TIMES,
+        description="Times t [s] (0 <= t <= time.t_end) at which the shapes are returned.",
+    )
+    points: int = Field(
+        DEFAULT_SHAPE_POINTS,
+        ge=2,
+        le=MAX_SHAPE_POINTS,
+        description="Stations from x = 0 to x = L [m], evenly spaced, at which each shape is "
+        "evaluated.",
+    )
+
+
 class OutputSpec(StrictModel):
     positions: list[float] = Field(
         default_factory=list,
@@ -265,6 +284,20 @@ class OutputSpec(StrictModel):
     divergence_bound: float | None = Field(
         None, gt=0, description="Tip amplitude [m] flagged as divergence; null means L."
     )
+    mode_shapes: ModeShapesSpec | None = Field(
+        None,
+        description="Also return the complex mode shapes Phi(x) [-] (real and imaginary parts, "
+        "max modulus 1) of the frozen spectrum at these times; null: none.",
+    )
+
+    def mode_shape_arguments(self) -> dict[str, Any]:
+        """The :class:`~pipeflow.simulation.Simulation` arguments of ``mode_shapes``."""
+        if self.mode_shapes is None:
+            return {}
+        return {
+            "mode_shape_times": tuple(self.mode_shapes.times),
+            "mode_shape_points": self.mode_shapes.points,
+        }
 
 
 class SimulationSpec(StrictModel):
@@ -323,6 +356,10 @@ class SimulationSpec(StrictModel):
         for i, x in enumerate(self.output.positions):
             if not 0 <= x <= self.pipe.L:
                 raise ValueError(f"output.positions[{i}] = {x} m is outside [0, L]")
+        shapes = self.output.mode_shapes
+        for i, t in enumerate(shapes.times if shapes is not None else []):
+            if not 0 <= t <= self.time.t_end:
+                raise ValueError(f"output.mode_shapes.times.{i}: {t} s is outside [0, time.t_end]")
         for name, prof in (
             ("flow.velocity", self.flow.velocity),
             ("rotation.omega0", self.rotation.omega0),
@@ -350,6 +387,7 @@ class SimulationSpec(StrictModel):
             eigen_samples=self.output.eigen_samples,
             include_modal=self.output.modal,
             divergence_bound=self.output.divergence_bound,
+            **self.output.mode_shape_arguments(),
         )
 
     def canonical(self) -> dict[str, Any]:
@@ -357,6 +395,8 @@ class SimulationSpec(StrictModel):
         data = self.model_dump(mode="json")
         used = set(SOLVERS[self.method].option_names)
         data["options"] = {k: v for k, v in data["options"].items() if k in used}
+        if data["output"]["mode_shapes"] is None:
+            del data["output"]["mode_shapes"]  # requests from before the field keep their key
         return data
 
 
