@@ -55,7 +55,8 @@ async def get_result(
     store: StoreDep,
     runner: RunnerDep,
     if_none_match: Annotated[str | None, Header()] = None,
-    accept: Annotated[str | None, Header()] = None,
+    # content negotiation, not a parameter: the 200's media types document it
+    accept: Annotated[str | None, Header(include_in_schema=False)] = None,
     format: Annotated[
         Literal["json", "csv", "parquet"] | None,
         Query(
