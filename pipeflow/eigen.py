@@ -10,6 +10,7 @@ optimal assignment on the overlaps, never by re-sorting.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,12 +52,53 @@ def _decompose(S: NDArray[np.float64]) -> tuple[ComplexArray, ComplexArray, Comp
     return w, V, W
 
 
-def order_lowest(w: ComplexArray, count: int) -> NDArray[np.intp]:
+def damped_modes(w: ComplexArray) -> tuple[NDArray[np.intp], dict[int, int]]:
+    """Modes of a damped spectrum at one point, by natural frequency.
+
+    Returns one representative eigenvalue index per mode, ordered by the mode's natural
+    frequency, and ``partner`` (index -> representative) for the other eigenvalue of each
+    mode. A damped mode's two eigenvalues solve lambda^2 + 2 zeta w lambda + w^2 = 0, so
+    its natural frequency is w = |lambda| for a complex pair (representative: omega > 0) and
+    w = sqrt(s1 s2) for an over-damped pair of real roots -s1, -s2 (representative: the
+    slower root). Decaying real roots are paired smallest with largest, which is exact when
+    over-damping comes from one mechanism (Kelvin-Voigt: high modes, roots near 1/alpha and
+    alpha w^2; viscous: low modes); any other real root is a mode of frequency 0 (first).
+    """
+    scale = max(float(np.max(np.abs(w))), 1e-300)
+    tol = 1e-9 * scale
+    real = np.abs(w.imag) <= tol
+    key: dict[int, float] = {}
+    partner: dict[int, int] = {}
+    for i in np.flatnonzero(w.imag > tol):
+        key[int(i)] = float(abs(w[i]))
+        lower = np.flatnonzero(w.imag < -tol)
+        if lower.size:
+            j = int(lower[np.argmin(np.abs(w[lower] - np.conj(w[i])))])
+            partner.setdefault(j, int(i))
+    decaying = np.flatnonzero(real & (w.real < 0))
+    decaying = decaying[np.argsort(-w.real[decaying])]  # slowest first
+    k = decaying.size // 2
+    for a, b in zip(decaying[:k], decaying[::-1][:k], strict=True):
+        key[int(a)] = math.sqrt(float(w[a].real * w[b].real))
+        partner[int(b)] = int(a)
+    for i in np.flatnonzero(real):
+        if int(i) not in key and int(i) not in partner:
+            key[int(i)] = 0.0
+    reps = np.array(sorted(key, key=lambda i: (key[i], w[i].real)), dtype=np.intp)
+    return reps, partner
+
+
+def order_lowest(w: ComplexArray, count: int, damped: bool = False) -> NDArray[np.intp]:
     """Indices of the ``count`` lowest-frequency modes at one point.
 
     One eigenvalue per conjugate pair (omega >= 0); real eigenvalues (divergence or
-    over-damped motion) count as modes of zero frequency.
+    over-damped motion) count as modes of zero frequency.  ``damped``: order by natural
+    frequency instead, an over-damped pair of real roots being one mode
+    (:func:`damped_modes`), so that the heavily damped high modes of Kelvin-Voigt damping
+    do not displace the fundamental.
     """
+    if damped:
+        return damped_modes(w)[0][:count]
     scale = max(float(np.max(np.abs(w))), 1e-300)
     upper = np.flatnonzero(w.imag > -1e-12 * scale)
     order = np.lexsort((w.real[upper], np.abs(w.imag[upper])))
@@ -100,15 +142,16 @@ def assign(
     return perm, conf
 
 
-def track(S: NDArray[np.float64], modes: int) -> Traces:
+def track(S: NDArray[np.float64], modes: int, damped: bool = False) -> Traces:
     """Eigenvalues of each ``S[k]`` (shape ``(N, m, m)``), the ``modes`` lowest tracked.
 
-    Branches are chosen at the first point (lowest frequencies, one per conjugate pair)
-    and followed by optimal assignment of left/right eigenvector overlaps.
+    Branches are chosen at the first point (lowest frequencies, one per conjugate pair;
+    ``damped``: by natural frequency, see :func:`order_lowest`) and followed by optimal
+    assignment of left/right eigenvector overlaps.
     """
     w, V, W = _decompose(S)
     perm, conf = assign(w, V, W)
-    chosen = order_lowest(w[0], modes)
+    chosen = order_lowest(w[0], modes, damped)
     xi = np.take_along_axis(w, perm[:, chosen], axis=1)
     return Traces(xi=xi, confidence=conf[:, chosen])
 

@@ -94,7 +94,7 @@ def frozen_mode_shapes(
     S = model.state_matrix(loading.coefficients(grid))
     w, V, W = decompose(S)
     perm, _ = assign(w, V, W)
-    chosen = order_lowest(w[0], branches)
+    chosen = order_lowest(w[0], branches, model.pipe.damped)
     at = np.searchsorted(grid, times)
     cols = perm[at][:, chosen]  # (T, B): eigenvector index of branch j at each time
     xi = np.take_along_axis(w[at], cols, axis=1)

@@ -18,7 +18,14 @@ from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.eigen import Traces, track
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
+from pipeflow.model import (
+    REVERSE_FLOW_CAVEAT,
+    Loading,
+    Pipe,
+    PipeModel,
+    basis_caveats,
+    build_model,
+)
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -282,6 +289,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         )
     if np.any(sim.flow.value(eigen_t) < 0):
         warnings.append(REVERSE_FLOW_CAVEAT)
+    warnings.extend(basis_caveats(sim.pipe))
     diagnostics = {"method": sim.method, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,
@@ -314,7 +322,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
 
 def frozen_traces(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
     """Tracked eigenvalues of the frozen state matrix S(t) [1/s] at ``times`` [s]."""
-    return track(model.state_matrix(loading.coefficients(times)), modes)
+    return track(model.state_matrix(loading.coefficients(times)), modes, model.pipe.damped)
 
 
 def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
@@ -329,7 +337,7 @@ def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: 
     mats[~pos] = model.state_matrix(loading.coefficients(t[~pos]))
     if pos.any():
         mats[pos] = model.integrated_state_matrix(loading.integrals(t[pos])) / t[pos, None, None]
-    return track(mats, modes)
+    return track(mats, modes, model.pipe.damped)
 
 
 def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, Any]:
@@ -348,4 +356,5 @@ def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, 
         "gamma_max_abs": float(np.max(np.abs(g))),
         "time_scale": pipe.time_scale,
         "tau_end": float(times[-1] / pipe.time_scale),
+        **pipe.dimensionless_groups(),
     }

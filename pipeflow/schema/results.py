@@ -190,6 +190,11 @@ class StabilityDimensionless(BaseModel):
         description="The velocity range as flow numbers [-] (null when M2 = 0)."
     )
     time_scale: float = Field(description="L^2 sqrt((M1+M2)/EI) [s].")
+    alpha: float = Field(description="Kelvin-Voigt damping kelvin_voigt / time_scale [-].")
+    sigma: float = Field(description="Viscous damping c L^2 / sqrt(EI (M1+M2)) [-].")
+    tip_mass_ratio: float = Field(description="m_t / ((M1+M2) L) [-].")
+    tip_inertia_ratio: float = Field(description="J_t / ((M1+M2) L^3) [-].")
+    hub_ratio: float = Field(description="Hub radius over length R/L [-].")
 
 
 class ReverseFlow(BaseModel):
@@ -227,7 +232,8 @@ class StabilityResponse(_Result):
         "each located to 1e-10 relative."
     )
     dimensionless: StabilityDimensionless = Field(
-        description="Paidoussis' groups: beta, gamma, u_cr, time scale."
+        description="Paidoussis' groups: beta, gamma, u_cr, time scale, and the extended "
+        "model's alpha, sigma, tip_mass_ratio, tip_inertia_ratio, hub_ratio."
     )
     omega0: float = Field(description="Spin w0 [rad/s].")
     modes: int = Field(description="Galerkin modes used [-].")
@@ -342,6 +348,11 @@ class BetaMapResponse(_Result):
 
     kind: Literal["beta_map"] = Field(description="Result kind.")
     gamma: float = Field(description="Spin number [-].")
+    groups: dict[str, float] = Field(
+        description="alpha, sigma, tip_mass_ratio, tip_inertia_ratio, hub_ratio [-] (the same "
+        "at every beta)."
+    )
+    plane: Literal["in-plane", "out-of-plane"] = Field(description="Plane of the vibration.")
     betas: list[float] = Field(description="Mass ratios M2/(M1+M2) [-].")
     u_range: list[float] = Field(description="[u_min, u_max] flow numbers [-].")
     u_cr: list[float | None] = Field(description="Per beta: critical flow number [-], or null.")

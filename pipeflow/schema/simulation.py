@@ -35,6 +35,26 @@ MAX_PROFILE_VALUE = 1e7
 MAX_COEFFICIENT = 1e9
 MIN_MASS = 1e-15
 BoundedValue = Annotated[float, Field(ge=-MAX_PROFILE_VALUE, le=MAX_PROFILE_VALUE)]
+#: the mounting of the pipe beyond the paper's model (issue 14; docs/model.md): one
+#: definition each, used by every simulation and stability request
+HubRadius = Annotated[
+    float,
+    Field(
+        ge=0,
+        le=1e5,
+        description="Distance R of the clamped end from the rotation axis [m]; 0 (default): on "
+        "the axis, as in the paper. Adds the centrifugal tension M1 w0^2 R (L - x).",
+    ),
+]
+Plane = Annotated[
+    Literal["in-plane", "out-of-plane"],
+    Field(
+        description="Plane of the vibration: 'in-plane' (default; the paper's eq. (1), "
+        "chordwise, with the -(M1+M2) w0^2 u softening and the forcing by the angular "
+        "acceleration) or 'out-of-plane' (flapwise, perpendicular to the rotation plane: "
+        "neither of those two terms)."
+    ),
+]
 
 
 def library_parameter(exc: PipeflowError) -> str | None:
@@ -59,6 +79,26 @@ class StrictModel(BaseModel):
         return self.model_dump(mode="json")
 
 
+class DampingSpec(StrictModel):
+    """Damping of the pipe (issue 14): internal (Kelvin-Voigt) and external viscous."""
+
+    kelvin_voigt: float = Field(
+        0.0,
+        ge=0,
+        le=1e3,
+        description="Internal (Kelvin-Voigt) damping alpha [s]: E -> E (1 + alpha d/dt), a "
+        "damping matrix alpha K; 0 (default): none. Dimensionless alpha / time_scale "
+        "(Paidoussis 1998, eq. 3.71).",
+    )
+    viscous: float = Field(
+        0.0,
+        ge=0,
+        le=1e9,
+        description="External viscous damping c per unit length [N s/m^2] (force c du/dt per "
+        "metre); 0 (default): none. Dimensionless c L^2 / sqrt(EI (M1+M2)).",
+    )
+
+
 class PipeSpec(StrictModel):
     """Pipe and fluid properties (the paper's section 5 values are the example)."""
 
@@ -72,6 +112,26 @@ class PipeSpec(StrictModel):
     M2: float = Field(
         ge=0, le=1e6, description="Mass of the conveyed fluid per unit length [kg/m]."
     )
+    damping: DampingSpec = Field(
+        default_factory=DampingSpec,
+        description="Structural damping; both zero (default) is the paper's undamped pipe.",
+    )
+    tip_mass: float = Field(
+        0.0,
+        ge=0,
+        le=1e9,
+        description="Point mass m_t at the free end, e.g. a nozzle [kg]; 0 (default): none. "
+        "Adds its inertia, its centrifugal tension m_t w0^2 (R + L) and, in plane, its "
+        "softening and its forcing.",
+    )
+    tip_inertia: float = Field(
+        0.0,
+        ge=0,
+        le=1e12,
+        description="Rotary inertia J_t of the tip body about the bending axis through the "
+        "tip [kg m^2]; 0 (default): none. The cantilever-mode Galerkin converges only like "
+        "1/modes for it (about 1e-2 relative at 40 modes for J_t/(m L^3) = 0.01).",
+    )
 
     @model_validator(mode="after")
     def _mass(self) -> PipeSpec:
@@ -79,8 +139,22 @@ class PipeSpec(StrictModel):
             raise ValueError(f"M1 + M2 must be >= {MIN_MASS:g} kg/m")
         return self
 
-    def to_pipe(self) -> Pipe:
-        return Pipe(E=self.E, I=self.I, L=self.L, M1=self.M1, M2=self.M2)
+    def to_pipe(self, hub_radius: float = 0.0, plane: str = "in-plane") -> Pipe:
+        """The library's :class:`~pipeflow.model.Pipe`, mounted at ``hub_radius`` [m] and
+        vibrating in ``plane`` (both given by the request's rotation and plane fields)."""
+        return Pipe(
+            E=self.E,
+            I=self.I,
+            L=self.L,
+            M1=self.M1,
+            M2=self.M2,
+            kelvin_voigt=self.damping.kelvin_voigt,
+            viscous=self.damping.viscous,
+            tip_mass=self.tip_mass,
+            tip_inertia=self.tip_inertia,
+            hub_radius=hub_radius,
+            plane=plane,
+        )
 
 
 class ConstantProfile(StrictModel):
@@ -173,6 +247,7 @@ class RotationSpec(StrictModel):
     omega0: ProfileSpec = Field(
         default_factory=ConstantProfile, description="Spin w0(t) of the hub [rad/s]."
     )
+    hub_radius: HubRadius = 0.0
 
 
 class FlowSpec(StrictModel):
@@ -327,6 +402,7 @@ class SimulationSpec(StrictModel):
 
     pipe: PipeSpec
     rotation: RotationSpec = Field(default_factory=RotationSpec)
+    plane: Plane = "in-plane"
     flow: FlowSpec = Field(default_factory=FlowSpec)
     initial: InitialSpec = Field(default_factory=InitialSpec)
     modes: int = Field(
@@ -371,7 +447,7 @@ class SimulationSpec(StrictModel):
     def to_simulation(self) -> Simulation:
         """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
         return Simulation(
-            pipe=self.pipe.to_pipe(),
+            pipe=self.pipe.to_pipe(self.rotation.hub_radius, self.plane),
             flow=self.flow.velocity.to_profile(),
             spin=self.rotation.omega0.to_profile(),
             u0=self.initial.u0,

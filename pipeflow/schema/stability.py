@@ -16,7 +16,6 @@ returns the result's ``to_dict`` form and takes a ``progress`` callback (fractio
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
@@ -25,11 +24,13 @@ from pydantic import ConfigDict, Field, Strict, model_validator
 
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import PipeflowError
-from pipeflow.model import PAPER_PIPE
+from pipeflow.model import PAPER_PIPE, Pipe
 from pipeflow.schema.simulation import (
     ConstantProfile,
     HarmonicProfile,
+    HubRadius,
     PipeSpec,
+    Plane,
     StrictModel,
     library_parameter,
 )
@@ -41,7 +42,8 @@ from pipeflow.stability.sweeps import Parameter, sweep
 Progress = Callable[[float], None]
 
 #: the paper's section-5 pipe, for the schema examples
-PAPER_PIPE_JSON: Any = dataclasses.asdict(PAPER_PIPE)
+#: (E, I, L, M1, M2 only: the paper's pipe needs none of the fields beyond its model)
+PAPER_PIPE_JSON: Any = {name: getattr(PAPER_PIPE, name) for name in ("E", "I", "L", "M1", "M2")}
 MAX_SWEEP_POINTS = 2001
 MAX_MAP_SIDE = 200
 MAX_CHART_SIDE = 101
@@ -60,10 +62,28 @@ def _check_range(value: tuple[float, float], name: str, bound: float, unit: str)
         raise ValueError(f"{name} must lie within +-{bound:g} {unit}")
 
 
-class ConstantRotation(StrictModel):
+class Hub(StrictModel):
+    """Where the pipe is mounted on the rotating hub (for analyses that sweep the spin)."""
+
+    hub_radius: HubRadius = 0.0
+
+
+class ConstantRotation(Hub):
     omega0: ConstantProfile = Field(
         default_factory=ConstantProfile, description="Constant spin w0 of the hub [rad/s]."
     )
+
+
+class _Mounted(StrictModel):
+    """A request with a pipe, a hub radius (``rotation.hub_radius``) and a ``plane``."""
+
+    pipe: PipeSpec
+    rotation: Hub = Field(default_factory=Hub)
+    plane: Plane = "in-plane"
+
+    def mounted_pipe(self) -> Pipe:
+        """The library's pipe with this request's hub radius and plane."""
+        return self.pipe.to_pipe(self.rotation.hub_radius, self.plane)
 
 
 class ConstantFlow(StrictModel):
@@ -85,7 +105,7 @@ SpinRange = Annotated[Pair, Field(description="[w_min, w_max] spins w0 [rad/s], 
 Modes = Annotated[int, Field(ge=1, le=MAX_MODES, description="Galerkin (cantilever) modes n.")]
 
 
-class StabilitySpec(StrictModel):
+class StabilitySpec(_Mounted):
     """Critical flow velocity of a pipe at constant spin over a velocity range."""
 
     model_config = ConfigDict(
@@ -123,7 +143,7 @@ class StabilitySpec(StrictModel):
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.critical.critical_velocities` (``to_dict`` form)."""
         return critical_velocities(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             omega0=self.rotation.omega0.value,
             velocity_range=self.velocity_range,
             modes=self.modes,
@@ -132,8 +152,7 @@ class StabilitySpec(StrictModel):
         ).to_dict()
 
 
-class _TrackedSweep(StrictModel):
-    pipe: PipeSpec
+class _TrackedSweep(_Mounted):
     modes: Modes = 10
     points: int = Field(201, ge=2, le=MAX_SWEEP_POINTS, description="Evenly spaced points [-].")
     tracked_modes: int = Field(
@@ -169,7 +188,7 @@ class _TrackedSweep(StrictModel):
         progress: Progress | None,
     ) -> dict[str, Any]:
         return sweep(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             parameter,
             value_range,
             fixed=fixed,
@@ -216,7 +235,7 @@ class CampbellSweep(_TrackedSweep):
         return self._sweep("spin", self.spin_range, self.flow.velocity.value, progress)
 
 
-class SpinMapSweep(StrictModel):
+class SpinMapSweep(_Mounted):
     """Growth-rate map over (spin, flow velocity) and the critical velocity at each spin."""
 
     kind: Literal["spin_map"] = "spin_map"
@@ -239,7 +258,7 @@ class SpinMapSweep(StrictModel):
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.maps.spin_map` (``to_dict`` form)."""
         return spin_map(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.velocity_range,
             self.spin_range,
             modes=self.modes,
@@ -263,6 +282,27 @@ class BetaMapSweep(StrictModel):
     gamma: float = Field(0.0, ge=0, le=1e3, description="Spin number w0 L^2 sqrt((M1+M2)/EI) [-].")
     beta_points: int = Field(50, ge=1, le=400, description="Mass-ratio samples [-].")
     u_points: int = Field(201, ge=3, le=MAX_SWEEP_POINTS, description="Flow-number samples [-].")
+    alpha: float = Field(
+        0.0,
+        ge=0,
+        le=1e3,
+        description="Kelvin-Voigt damping kelvin_voigt / time_scale = alpha sqrt(EI/(M1+M2)) / "
+        "L^2 [-] (Paidoussis 1998, eq. 3.71); 0: undamped.",
+    )
+    sigma: float = Field(
+        0.0,
+        ge=0,
+        le=1e6,
+        description="Viscous damping c L^2 / sqrt(EI (M1+M2)) [-] (Paidoussis 1998, eq. 3.71).",
+    )
+    tip_mass_ratio: float = Field(
+        0.0, ge=0, le=1e6, description="Tip mass over pipe-and-fluid mass, m_t/((M1+M2) L) [-]."
+    )
+    tip_inertia_ratio: float = Field(
+        0.0, ge=0, le=1e6, description="Tip rotary inertia J_t/((M1+M2) L^3) [-]."
+    )
+    hub_ratio: float = Field(0.0, ge=0, le=1e5, description="Hub radius over length, R/L [-].")
+    plane: Plane = "in-plane"
 
     @model_validator(mode="after")
     def _ranges(self) -> BetaMapSweep:
@@ -285,10 +325,18 @@ class BetaMapSweep(StrictModel):
             beta_points=self.beta_points,
             u_points=self.u_points,
             progress=progress,
+            groups={
+                "alpha": self.alpha,
+                "sigma": self.sigma,
+                "tip_mass_ratio": self.tip_mass_ratio,
+                "tip_inertia_ratio": self.tip_inertia_ratio,
+                "hub_ratio": self.hub_ratio,
+            },
+            plane=self.plane,
         ).to_dict()
 
 
-class ResonanceChartSweep(StrictModel):
+class ResonanceChartSweep(_Mounted):
     """Floquet chart of pulsating flow v = mean + a sin(Omega t) over (a, Omega)."""
 
     kind: Literal["resonance_chart"] = "resonance_chart"
@@ -318,7 +366,7 @@ class ResonanceChartSweep(StrictModel):
             raise ValueError("frequency_range must be > 0 rad/s")
         _library_check(
             check_chart_work,
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.modes,
             self.amplitude_points,
             self.frequency_points,
@@ -329,7 +377,7 @@ class ResonanceChartSweep(StrictModel):
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.floquet.resonance_chart` (``to_dict`` form)."""
         return resonance_chart(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.mean_velocity,
             self.amplitude_range,
             self.frequency_range,
@@ -348,7 +396,7 @@ class PeriodicFlow(StrictModel):
     )
 
 
-class PeriodicRotation(StrictModel):
+class PeriodicRotation(Hub):
     omega0: ConstantProfile | HarmonicProfile = Field(
         default_factory=ConstantProfile,
         discriminator="kind",
@@ -356,7 +404,7 @@ class PeriodicRotation(StrictModel):
     )
 
 
-class FloquetSweep(StrictModel):
+class FloquetSweep(_Mounted):
     """Floquet multipliers of one case with harmonic flow and/or spin (one period)."""
 
     kind: Literal["floquet"] = "floquet"
@@ -378,7 +426,7 @@ class FloquetSweep(StrictModel):
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.floquet.floquet` (``to_dict`` form)."""
         return floquet(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.flow.velocity.to_profile(),
             self.rotation.omega0.to_profile(),
             modes=self.modes,

@@ -21,7 +21,7 @@ Conventions used by the whole :mod:`pipeflow.stability` package
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,9 +29,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq, minimize_scalar
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.eigen import assign, decompose
+from pipeflow.eigen import assign, damped_modes, decompose
 from pipeflow.errors import InvalidInput
-from pipeflow.model import Coefficients, Pipe, PipeModel
+from pipeflow.model import PLANES, Coefficients, Pipe, PipeModel
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -100,13 +100,21 @@ def damping_ratio(xi: ComplexArray) -> FloatArray:
     return np.asarray(z)
 
 
-def mode_numbers(w: ComplexArray) -> NDArray[np.intp]:
+def mode_numbers(w: ComplexArray, damped: bool = False) -> NDArray[np.intp]:
     """Mode number (1-based, by frequency) of each eigenvalue of one point; pairs share it.
 
     A conjugate pair is one mode, and so is a real pair +-s (a divergent mode of the
     conservative v = 0 system); other real eigenvalues are modes of frequency 0 (they
-    come first).
+    come first).  ``damped``: by natural frequency, an over-damped pair of real roots being
+    one mode (:func:`pipeflow.eigen.damped_modes`).
     """
+    if damped:
+        reps, partner = damped_modes(w)
+        number = np.zeros(w.size, dtype=np.intp)
+        number[reps] = np.arange(1, reps.size + 1)
+        for other, rep in partner.items():
+            number[other] = number[rep]
+        return number
     scale = max(float(np.max(np.abs(w))), 1e-300)
     tol = 1e-9 * scale
     real = np.abs(w.imag) <= tol
@@ -171,6 +179,7 @@ def follow(
     max_points: int = 0,
     max_levels: int = 6,
     progress: Progress | None = None,
+    damped: bool = False,
 ) -> Branches:
     """Follow all eigenvalue branches of ``matrices(p)`` along ``grid``, refining as needed.
 
@@ -211,19 +220,47 @@ def follow(
         p=p,
         xi=xi,
         confidence=conf,
-        mode=mode_numbers(w[0]),
+        mode=mode_numbers(w[0], damped),
         inserted=inserted,
         W=Wb,
         matrices=matrices,
     )
 
 
-def nondimensional_pipe(beta: float) -> Pipe:
+#: the :class:`Pipe` field that carries each group of :meth:`Pipe.dimensionless_groups` on
+#: the unit pipe of :func:`nondimensional_pipe`, where group and field are equal
+GROUP_FIELDS = {
+    "alpha": "kelvin_voigt",
+    "sigma": "viscous",
+    "tip_mass_ratio": "tip_mass",
+    "tip_inertia_ratio": "tip_inertia",
+    "hub_ratio": "hub_radius",
+}
+
+
+def nondimensional_pipe(
+    beta: float, groups: Mapping[str, float] | None = None, plane: str = "in-plane"
+) -> Pipe:
     """A pipe with E = I = L = 1, M1 + M2 = 1, M2 = beta: then v = u / sqrt(beta), w0 = gamma
-    and time is tau (Paidoussis' non-dimensional groups, physics notes section 1)."""
+    and time is tau (Paidoussis' non-dimensional groups, physics notes section 1).
+
+    ``groups``: the extended model's groups (keys of :data:`GROUP_FIELDS`: alpha, sigma,
+    tip_mass_ratio, tip_inertia_ratio, hub_ratio; missing ones are 0), ``plane`` its plane.
+    """
     if not 0 < beta < 1:
         raise InvalidInput(f"beta must be in (0, 1), got {beta}", field="beta")
-    return Pipe(E=1.0, I=1.0, L=1.0, M1=1.0 - beta, M2=beta)
+    extra: dict[str, float] = {}
+    for name, value in (groups or {}).items():
+        if name not in GROUP_FIELDS:
+            raise InvalidInput(
+                f"unknown group {name!r}; use {', '.join(GROUP_FIELDS)}", field="groups"
+            )
+        if not (math.isfinite(value) and value >= 0):
+            raise InvalidInput(f"{name} must be finite and >= 0, got {value}", field=name)
+        extra[GROUP_FIELDS[name]] = float(value)
+    if plane not in PLANES:
+        raise InvalidInput(f"unknown plane {plane!r}", field="plane")
+    return Pipe(E=1.0, I=1.0, L=1.0, M1=1.0 - beta, M2=beta, plane=plane, **extra)
 
 
 def sign_changes(

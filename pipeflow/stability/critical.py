@@ -24,7 +24,7 @@ from typing import Any, Literal
 import numpy as np
 
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats, build_model
 from pipeflow.stability.core import (
     Branches,
     FloatArray,
@@ -128,6 +128,7 @@ class CriticalVelocity:
                 None if p.M2 == 0 else [float(p.flow_number(x)) for x in self.velocity_range]
             ),
             "time_scale": p.time_scale,
+            **p.dimensionless_groups(),
         }
 
     def to_dict(self) -> dict[str, Any]:
@@ -179,7 +180,7 @@ def critical_velocities(
     if points < 3:
         raise InvalidInput("points must be >= 3", field="points")
     model = build_model(pipe, modes)
-    warnings: list[str] = []
+    warnings: list[str] = basis_caveats(pipe)
     reverse: dict[str, Any] | None = None
     if v_min < 0:
         rate = float(growth_rate(model, v_min, omega0)[0])
@@ -220,7 +221,7 @@ def critical_velocities(
         progress(0.0)
     br = follow(
         matrices, grid, min_confidence=0.5, max_points=2 * grid.size, max_levels=4,
-        progress=progress,
+        progress=progress, damped=pipe.damped,
     )  # fmt: skip
     tol = rounding_level(br.xi)
     start = int(np.searchsorted(br.p, lo))

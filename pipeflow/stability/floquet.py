@@ -173,6 +173,7 @@ class Floquet:
             "dimensionless": {
                 "beta": self.pipe.beta,
                 "time_scale": self.pipe.time_scale,
+                **self.pipe.dimensionless_groups(),
                 "period": self.period / self.pipe.time_scale,
             },
             "warnings": list(self.warnings),
@@ -364,6 +365,7 @@ class ResonanceChart:
             "dimensionless": {
                 "beta": p.beta,
                 "time_scale": p.time_scale,
+                **p.dimensionless_groups(),
                 "u_mean": None if p.M2 == 0 else float(p.flow_number(self.mean_velocity)),
                 "gamma": float(p.spin_number(self.omega0)),
                 "frequencies": (self.frequencies * p.time_scale).tolist(),

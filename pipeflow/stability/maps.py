@@ -12,6 +12,7 @@ line use :func:`pipeflow.stability.critical.critical_velocities`.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -170,6 +171,7 @@ class SpinMap:
                     for v in self.critical_velocity
                 ],
                 "time_scale": p.time_scale,
+                **p.dimensionless_groups(),
             },
             "warnings": list(self.warnings),
             "diagnostics": {"galerkin_modes": self.modes, "points": int(self.growth.size)},
@@ -243,6 +245,8 @@ class BetaMap:
     crossings: list[list[BoundaryCrossing]]
     stable_at_start: list[bool]
     warnings: list[str] = field(default_factory=list)
+    groups: dict[str, float] = field(default_factory=dict)
+    plane: str = "in-plane"
 
     @property
     def u_cr(self) -> list[float | None]:
@@ -252,6 +256,8 @@ class BetaMap:
         return {
             "kind": "beta_map",
             "gamma": self.gamma,
+            "groups": dict(self.groups),
+            "plane": self.plane,
             "betas": self.betas.tolist(),
             "u_range": list(self.u_range),
             "u_cr": self.u_cr,
@@ -292,13 +298,18 @@ def beta_map(
     u_points: int = 201,
     rtol: float = 1e-10,
     progress: Progress | None = None,
+    groups: Mapping[str, float] | None = None,
+    plane: str = "in-plane",
 ) -> BetaMap:
     """The u_cr(beta) curve: boundary crossings in u for each beta, gamma fixed.
 
     Non-dimensional throughout (E = I = L = 1, M1 + M2 = 1: physics notes section 1):
     beta = M2/(M1+M2) in (0, 1), u = v L sqrt(M2/EI) >= 0, gamma = w0 L^2 sqrt((M1+M2)/EI);
-    frequencies are omega sqrt((M1+M2) L^4/EI).
+    frequencies are omega sqrt((M1+M2) L^4/EI). ``groups`` (alpha, sigma, tip_mass_ratio,
+    tip_inertia_ratio, hub_ratio: :data:`~pipeflow.stability.core.GROUP_FIELDS`) and
+    ``plane`` extend the pipe beyond the paper's model, the same at every beta.
     """
+    nondimensional_pipe(0.5, groups, plane)  # refuse bad groups before any work
     check_modes(modes)
     check_range(*beta_range, field="beta_range")
     check_range(*u_range, field="u_range")
@@ -313,7 +324,7 @@ def beta_map(
     u = np.linspace(*u_range, u_points)
     crossings, stable = [], []
     for i, beta in enumerate(betas):
-        model = build_model(nondimensional_pipe(float(beta)), modes)
+        model = build_model(nondimensional_pipe(float(beta), groups, plane), modes)
         scale = 1.0 / math.sqrt(beta)  # v = u / sqrt(beta)
         xi = eigenvalues(model, u * scale, gamma)
         line = _line(model, u * scale, gamma, xi, rtol)
@@ -330,4 +341,6 @@ def beta_map(
         u_range=(float(u_range[0]), float(u_range[1])),
         crossings=crossings,
         stable_at_start=stable,
+        groups=nondimensional_pipe(0.5, groups, plane).dimensionless_groups(),
+        plane=plane,
     )

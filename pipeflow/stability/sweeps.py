@@ -110,6 +110,7 @@ class Sweep:
             "dimensionless": {
                 "beta": p.beta,
                 "time_scale": p.time_scale,
+                **p.dimensionless_groups(),
                 **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
                 **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
             },
@@ -183,12 +184,13 @@ def sweep(
     br = follow(
         matrices,
         np.linspace(lo, hi, points),
-        watch=lambda w0: order_lowest(w0, tracked),
+        watch=lambda w0: order_lowest(w0, tracked, pipe.damped),
         min_confidence=min_confidence,
         max_points=cap,
         progress=progress,
+        damped=pipe.damped,
     )
-    chosen = order_lowest(br.xi[0], tracked)
+    chosen = order_lowest(br.xi[0], tracked, pipe.damped)
     xi = br.xi[:, chosen]
     xi = xi.real + 1j * np.abs(xi.imag)
     conf = br.confidence[:, chosen]
