@@ -280,6 +280,34 @@ class SweepBranch(BaseModel):
     )
 
 
+class ExcitationCrossing(BaseModel):
+    order: float = Field(description="Order n of the excitation line omega = n w0 [-].")
+    mode: int = Field(description="Mode number of the crossing branch.")
+    spin: float = Field(description="Spin w0 at the crossing [rad/s].")
+    spin_rpm: float = Field(description="The same [rpm].")
+    frequency: float = Field(description="Frequency there, n w0 [rad/s].")
+    frequency_hz: float = Field(description="The same [Hz].")
+    sigma: float = Field(description="Damping of the branch there [1/s] (> 0: unstable).")
+    damping_ratio: float = Field(description="zeta = -sigma/|xi| there [-].")
+
+
+class Excitation(BaseModel):
+    orders: list[float] = Field(description="The excitation orders n requested [-].")
+    crossings: list[ExcitationCrossing] = Field(
+        description="Every crossing of a tracked branch with a line omega = n w0, by order then "
+        "spin, located by root-finding on the frozen spectrum to 1e-12 relative."
+    )
+
+
+class ZeroCrossing(BaseModel):
+    mode: int = Field(description="Mode number of the crossing branch.")
+    value: float = Field(description="Swept parameter at sigma = 0 [m/s or rad/s].")
+    frequency: float = Field(description="|omega| there [rad/s] (0: divergence).")
+    direction: Literal["loss", "gain"] = Field(
+        description="loss: unstable beyond, with increasing parameter; gain: stable again."
+    )
+
+
 class SweepResponse(_Result):
     """Tracked eigenvalues xi = sigma + i omega against flow velocity or spin."""
 
@@ -291,6 +319,13 @@ class SweepResponse(_Result):
     )
     inserted: list[bool] = Field(description="Per point: added by refinement.")
     modes: list[SweepBranch] = Field(description="The tracked branches, lowest first.")
+    excitation: Excitation | None = Field(
+        None, description="Campbell: the excitation lines' crossings with the tracked branches."
+    )
+    zero_crossings: list[ZeroCrossing] = Field(
+        default_factory=list,
+        description="Where a tracked branch crosses sigma = 0 (Argand: the critical points).",
+    )
     dimensionless: dict[str, float] = Field(
         description="beta [-], time_scale [s], and gamma (argand) or flow_number (campbell) [-]."
     )

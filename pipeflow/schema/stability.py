@@ -186,6 +186,7 @@ class _TrackedSweep(_Mounted):
         value_range: tuple[float, float],
         fixed: float,
         progress: Progress | None,
+        orders: tuple[float, ...] = (),
     ) -> dict[str, Any]:
         return sweep(
             self.mounted_pipe(),
@@ -198,6 +199,7 @@ class _TrackedSweep(_Mounted):
             min_confidence=self.min_confidence,
             max_points=self.max_points,
             progress=progress,
+            orders=orders,
         ).to_dict()
 
 
@@ -224,6 +226,12 @@ class CampbellSweep(_TrackedSweep):
     kind: Literal["campbell"] = "campbell"
     flow: ConstantFlow = Field(default_factory=ConstantFlow)
     spin_range: SpinRange
+    orders: list[Annotated[float, Field(gt=0, le=100)]] = Field(
+        [1.0, 2.0],
+        max_length=8,
+        description="Excitation orders n [-]: the lines omega = n w0 (1x synchronous, 2x, "
+        "0.5x, ...) whose crossings with the tracked branches are located and reported.",
+    )
 
     @model_validator(mode="after")
     def _ranges(self) -> CampbellSweep:
@@ -232,7 +240,9 @@ class CampbellSweep(_TrackedSweep):
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.sweeps.sweep` over spin (``to_dict`` form)."""
-        return self._sweep("spin", self.spin_range, self.flow.velocity.value, progress)
+        return self._sweep(
+            "spin", self.spin_range, self.flow.velocity.value, progress, tuple(self.orders)
+        )
 
 
 class SpinMapSweep(_Mounted):

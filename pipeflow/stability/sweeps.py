@@ -11,11 +11,14 @@ followed member of the pair may be the lower one; its partner is the conjugate).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from functools import partial
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import brentq
 
 from pipeflow.eigen import order_lowest
 from pipeflow.errors import BudgetExceeded, InvalidInput
@@ -28,6 +31,8 @@ from pipeflow.stability.core import (
     check_range,
     damping_ratio,
     follow,
+    rounding_level,
+    sign_changes,
     state_matrices,
 )
 
@@ -36,6 +41,121 @@ RPM = 60.0 / (2.0 * math.pi)  # rpm per rad/s
 
 #: refinement can at most multiply the number of points by this factor
 MAX_REFINEMENT_FACTOR = 4
+#: relative tolerance of located crossings (excitation lines, sigma = 0) [-]
+CROSSING_RTOL = 1e-12
+
+
+class Branches(Protocol):
+    """What the crossing searches read of followed branches (``follow``'s result)."""
+
+    p: FloatArray
+    xi: ComplexArray
+    mode: NDArray[np.intp]
+
+    def branch_at(self, j: int, k: int, p: float) -> complex: ...
+
+
+@dataclass(frozen=True)
+class ExcitationCrossing:
+    """Campbell: a tracked branch meets the excitation line omega = order x w0.
+
+    order : n of the line n x w0 [-] (1: synchronous, 2: twice per revolution, ...).
+    mode : mode number of the branch.
+    spin : w0 at the crossing [rad/s]; frequency = order x spin [rad/s].
+    sigma : damping of the branch there [1/s] (> 0: unstable).
+    """
+
+    order: float
+    mode: int
+    spin: float
+    frequency: float
+    sigma: float
+
+    def to_dict(self) -> dict[str, Any]:
+        mag = math.hypot(self.sigma, self.frequency)
+        return {
+            "order": self.order,
+            "mode": self.mode,
+            "spin": self.spin,
+            "spin_rpm": self.spin * RPM,
+            "frequency": self.frequency,
+            "frequency_hz": self.frequency / (2 * math.pi),
+            "sigma": self.sigma,
+            "damping_ratio": -self.sigma / mag if mag > 0 else 0.0,
+        }
+
+
+@dataclass(frozen=True)
+class ZeroCrossing:
+    """A tracked branch crossing sigma = 0 along the sweep (the Argand plot's imaginary axis).
+
+    value : swept parameter there [m/s or rad/s]; frequency : |omega| there [rad/s];
+    direction : "loss" (becomes unstable with increasing parameter) or "gain".
+    """
+
+    mode: int
+    value: float
+    frequency: float
+    direction: Literal["loss", "gain"]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "mode": self.mode,
+            "value": self.value,
+            "frequency": self.frequency,
+            "direction": self.direction,
+        }
+
+
+def _abs_omega_minus(br: Branches, j: int, order: float, x: float, k: int) -> float:
+    return abs(br.branch_at(j, k, x).imag) - order * x
+
+
+def excitation_crossings(
+    br: Branches, chosen: Sequence[int], orders: Sequence[float]
+) -> list[ExcitationCrossing]:
+    """Every root of |omega_j(w0)| - n w0 of the tracked branches ``chosen`` of a spin sweep.
+
+    Bracketed on the sweep grid ``br.p`` [rad/s] and located by Brent's method on the frozen
+    spectrum (:meth:`Branches.branch_at`, the branch followed by eigenvector overlap) to
+    :data:`CROSSING_RTOL`.  A bracket whose ends disagree once re-evaluated (a tracking swap)
+    is skipped.  Sorted by order, then spin.
+    """
+    out: list[ExcitationCrossing] = []
+    p = br.p
+    for n in orders:
+        for j in chosen:
+            g = np.abs(br.xi[:, j].imag) - n * p
+            for k in np.flatnonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0):
+                f = partial(_abs_omega_minus, br, int(j), float(n))
+                a, b = float(p[k]), float(p[k + 1])
+                if f(a, int(k)) * f(b, int(k)) > 0:
+                    continue
+                scale = max(abs(a), abs(b))
+                w = float(
+                    brentq(f, a, b, args=(int(k),), xtol=1e-14 * scale + 1e-300, rtol=CROSSING_RTOL)
+                )
+                xi = br.branch_at(int(j), int(k), w)
+                out.append(ExcitationCrossing(float(n), int(br.mode[j]), w, n * w, xi.real))
+    return sorted(out, key=lambda c: (c.order, c.spin))
+
+
+def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
+    return br.branch_at(j, k, x).real
+
+
+def zero_crossings(br: Branches, chosen: Sequence[int]) -> list[ZeroCrossing]:
+    """Where the tracked branches ``chosen`` cross sigma = 0 (the rounding band of
+    :func:`~pipeflow.stability.core.rounding_level` counts as zero), by parameter value."""
+    tol = rounding_level(br.xi)
+    out: list[ZeroCrossing] = []
+    for j in chosen:
+        sigma = partial(_branch_sigma, br, int(j))
+        for x, k, loss in sign_changes(br.p, br.xi[:, j].real, tol, sigma, 0, CROSSING_RTOL):
+            xi = br.branch_at(int(j), k, x)
+            direction: Literal["loss", "gain"] = "loss" if loss else "gain"
+            out.append(ZeroCrossing(int(br.mode[j]), x, abs(xi.imag), direction))
+    return sorted(out, key=lambda c: c.value)
 
 
 @dataclass
@@ -61,6 +181,9 @@ class Sweep:
     mode: NDArray[np.intp]
     inserted: NDArray[np.bool_]
     warnings: list[str] = field(default_factory=list)
+    orders: tuple[float, ...] = ()
+    excitation: list[ExcitationCrossing] = field(default_factory=list)
+    zero_crossings: list[ZeroCrossing] = field(default_factory=list)
 
     @property
     def sigma(self) -> FloatArray:
@@ -114,6 +237,15 @@ class Sweep:
                 **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
                 **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
             },
+            "excitation": (
+                {
+                    "orders": list(self.orders),
+                    "crossings": [c.to_dict() for c in self.excitation],
+                }
+                if spin
+                else None
+            ),
+            "zero_crossings": [c.to_dict() for c in self.zero_crossings],
             "warnings": list(self.warnings),
             "diagnostics": {
                 "points": int(self.values.size),
@@ -135,6 +267,7 @@ def sweep(
     min_confidence: float = 0.9,
     max_points: int | None = None,
     progress: Progress | None = None,
+    orders: Sequence[float] = (1.0, 2.0),
 ) -> Sweep:
     """Eigenvalues against flow velocity (Argand) or spin (Campbell), modes tracked.
 
@@ -148,8 +281,12 @@ def sweep(
     min_confidence : refine (insert midpoints) where tracking confidence falls below this.
     max_points : cap on the points after refinement (default 4 x points).
     progress : called with a fraction in [0, 1]; may raise ``Cancelled``.
+    orders : Campbell only: excitation orders n [-] whose lines omega = n w0 are crossed with
+        the tracked branches (:func:`excitation_crossings`); ignored for velocity sweeps.
     """
     check_modes(modes)
+    if any(not (math.isfinite(n) and n > 0) for n in orders):
+        raise InvalidInput(f"excitation orders must be positive, got {list(orders)}", "orders")
     if not 1 <= tracked <= modes:
         raise InvalidInput(f"tracked modes must be between 1 and {modes}", field="tracked_modes")
     if parameter not in ("velocity", "spin"):
@@ -201,6 +338,9 @@ def sweep(
             "(eigenvalues coalescing, e.g. a mode passing through the real axis, or the "
             "point cap was reached): branch identities there are uncertain"
         )
+    orders = tuple(float(n) for n in orders) if parameter == "spin" else ()
+    excitation = excitation_crossings(br, chosen.tolist(), orders)
+    zeros = zero_crossings(br, chosen.tolist())
     if progress is not None:
         progress(1.0)
     return Sweep(
@@ -214,4 +354,7 @@ def sweep(
         mode=br.mode[chosen],
         inserted=br.inserted,
         warnings=warnings,
+        orders=orders,
+        excitation=excitation,
+        zero_crossings=zeros,
     )
