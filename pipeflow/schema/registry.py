@@ -343,7 +343,6 @@ STABILITY = register(
         run=run_analysis,
         endpoint=STABILITY_ENDPOINT,
         budget="one frozen spectrum per point",
-        plots=("argand", "sweep_frequency", "sweep_damping"),
         examples={
             "paper": {
                 "summary": "The paper's pipe at w0 = 100 rad/s, v from 0 to 60 m/s, 10 modes",
@@ -431,7 +430,7 @@ CAMPBELL = _sweep(
     s.CampbellSweep,
     r.SweepResponse,
     "one frozen spectrum per point, at most max_points (4 x points) after refinement",
-    ("argand", "sweep_frequency", "sweep_damping"),
+    ("argand", "campbell", "sweep_frequency", "sweep_damping"),
     "Campbell diagram: the paper's pipe, w0 from 0 to 2000 rad/s at v = 10 m/s",
     {
         "pipe": _PAPER,

@@ -8,10 +8,12 @@ import typing
 import pytest
 
 from pipeflow.errors import InvalidInput
+from pipeflow.plots import available_plots
 from pipeflow.schema import registry
 from pipeflow.schema.registry import COMPUTATIONS, SIMULATION, SWEEP_KINDS, SWEEPS
 from pipeflow.schema.simulation import PAPER_EXAMPLE, MethodOptions, SimulationSpec
 from pipeflow.solvers import Options
+from tests.pipeflow.cases import TINY, tiny_request
 
 SERVED = [c for c in COMPUTATIONS.values() if c.endpoint is not None]
 
@@ -64,3 +66,14 @@ def test_execute_adds_the_plots_the_entry_names() -> None:
     out = SIMULATION.execute(spec)
     assert out["plots"] == ["tip_displacement", "damping", "frequency", "argand"]
     assert set(out["plots"]) <= set(SIMULATION.plots)
+
+
+@pytest.mark.parametrize("name", sorted(TINY))
+def test_every_plot_a_result_can_have_is_named_by_its_entry(name: str) -> None:
+    """execute() keeps the plots its entry names: a plot kind added to pipeflow.plots for a
+    computation must be added to the entry too, or this fails (it would be dropped)."""
+    c = COMPUTATIONS[name]
+    raw = c.run(tiny_request(name), None)
+    raw = {"kind": name, **raw} if "kind" in c.response.model_fields else raw
+    assert set(available_plots(raw)) <= set(c.plots)
+    assert c.execute(tiny_request(name))["plots"] == available_plots(raw)

@@ -16,11 +16,9 @@ import os
 import tempfile
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from typing import Any
 
 from fastapi import FastAPI, Request
 
-from pipeflow.model import PAPER_PIPE
 from pipeflow.schema.registry import COMPUTATIONS
 from service import deps, worker
 from service.keys import Keyed
@@ -28,41 +26,15 @@ from service.main import create_app
 from service.runner import Runner
 from service.settings import Settings
 from service.store import Store
-
-PIPE = {k: getattr(PAPER_PIPE, k) for k in ("E", "I", "L", "M1", "M2")}
-#: a tiny real request of every computation
-TINY: dict[str, dict[str, Any]] = {
-    "simulation": {"pipe": PIPE, "modes": 2, "time": {"t_end": 0.01, "samples": 11}},
-    "compare": {
-        "simulation": {"pipe": PIPE, "modes": 2, "time": {"t_end": 0.01, "samples": 11}},
-        "methods": ["cma", "rk4"],
-    },
-    "stability": {"pipe": PIPE, "modes": 3, "velocity_range": [0.0, 40.0], "points": 11},
-    "argand": {"pipe": PIPE, "modes": 3, "tracked_modes": 2, "points": 5}
-    | {"velocity_range": [0.0, 40.0]},
-    "campbell": {"pipe": PIPE, "modes": 3, "tracked_modes": 2, "points": 5}
-    | {"spin_range": [0.0, 1000.0]},
-    "spin_map": {"pipe": PIPE, "modes": 3, "velocity_points": 5, "spin_points": 2}
-    | {"velocity_range": [0.0, 60.0], "spin_range": [0.0, 1000.0]},
-    "beta_map": {"modes": 3, "beta_points": 2, "u_points": 11},
-    "resonance_chart": {"pipe": PIPE, "modes": 2, "mean_velocity": 10.0}
-    | {"amplitude_range": [0.0, 5.0], "frequency_range": [500.0, 1500.0]}
-    | {"amplitude_points": 2, "frequency_points": 2},
-    "floquet": {"pipe": PIPE, "modes": 2}
-    | {"flow": {"velocity": {"kind": "harmonic", "mean": 10.0, "amplitude": 5.0}}},
-}
-TINY["floquet"]["flow"]["velocity"]["frequency"] = 1000.0
+from tests.pipeflow.cases import TINY, tiny_request
 
 
 def tiny_results() -> dict[str, bytes]:
     """The JSON bytes of each computation's tiny case (the fake's answers)."""
     out = {}
-    for name, body in TINY.items():
-        c = COMPUTATIONS[name]
-        request = c.request.model_validate(
-            {"kind": name, **body} if "kind" in c.request.model_fields else body
-        )
-        out[name] = json.dumps(c.execute(request), allow_nan=False).encode()
+    for name in TINY:
+        result = COMPUTATIONS[name].execute(tiny_request(name))
+        out[name] = json.dumps(result, allow_nan=False).encode()
     return out
 
 
