@@ -96,7 +96,7 @@ def _read_json(path: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise PipeflowError(f"{path} is not valid JSON: {exc}", field="input") from exc
+        raise PipeflowError(f"{path} is not valid JSON: {exc}", parameter="input") from exc
 
 
 def _unwrap(data: Any) -> Any:
@@ -253,7 +253,7 @@ def cmd_stability(args: argparse.Namespace) -> int:
         raise PipeflowError(
             "not a stability spec: give 'velocity_range' (critical velocity) or a sweep "
             f"'kind' ({', '.join(_sweep_kinds())}); see 'pipeflow stability --help'",
-            field="kind",
+            parameter="kind",
         )
     result = _result_for(args, data)
     _write_json(args, result)
@@ -270,7 +270,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
         from service.__main__ import serve
     except ImportError as exc:
         raise PipeflowError(
-            f"the service is not installed ({exc}); pip install -e '.[service]'", field="serve"
+            f"the service is not installed ({exc}); pip install -e '.[service]'",
+            parameter="serve",
         ) from None
     serve(args.host, args.port)
     return 0
@@ -417,7 +418,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"error: {line}", file=sys.stderr)
         return 2
     except PipeflowError as exc:
-        where = f"{exc.field}: " if exc.field else ""
+        name = exc.field if exc.field is not None else exc.parameter
+        where = f"{name}: " if name else ""
         print(f"error: {where}{exc.message}", file=sys.stderr)
         return 2
     except (ValueError, KeyError, ImportError) as exc:

@@ -123,7 +123,7 @@ class Pipe:
     @property
     def damped(self) -> bool:
         """True with any damping: modes are then ordered by natural frequency (an over-damped
-        mode's two real roots are one mode, :func:`pipeflow.eigen.damped_modes`)."""
+        mode's two real roots are one mode, :func:`pipeflow.spectra.damped_modes`)."""
         return bool(self.kelvin_voigt or self.viscous)
 
     @property

@@ -26,11 +26,14 @@ from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
 from pipeflow.schema.simulation import (
     PAPER_EXAMPLE,
+    SIMULATION_FIELDS,
     CompareSpec,
     SimulationSpec,
-    library_parameter,
+    request_field,
 )
-from pipeflow.simulation import json_safe, simulate
+from pipeflow.schema.simulation import run_simulation as simulate_request
+from pipeflow.schema.stability import STABILITY_FIELDS
+from pipeflow.simulation import json_safe
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
 
@@ -97,7 +100,7 @@ class Computation:
         try:
             result = self.run(request, progress)
         except PipeflowError as exc:
-            exc.field = self.request_field(library_parameter(exc))
+            request_field(exc, self.fields)  # the one mapping: library name -> request field
             raise
         if "kind" in self.response.model_fields:  # analyses echo their kind first
             result = {"kind": self.name, **result}
@@ -177,38 +180,6 @@ def computation_for(request: BaseModel) -> Computation:
 
 # -- the computations --------------------------------------------------------------------
 
-#: simulation parameters of the library (pipeflow.simulation.Simulation) -> request fields
-SIMULATION_FIELDS: dict[str, str] = {
-    "pipe": "pipe",
-    "E": "pipe.E",
-    "I": "pipe.I",
-    "L": "pipe.L",
-    "M1": "pipe.M1",
-    "M2": "pipe.M2",
-    "flow": "flow.velocity",
-    "velocity": "flow.velocity",
-    "spin": "rotation.omega0",
-    "omega0": "rotation.omega0",
-    "u0": "initial.u0",
-    "du0": "initial.du0",
-    "initial_shape": "initial.shape",
-    "shape": "initial.shape",
-    "t_end": "time.t_end",
-    "samples": "time.samples",
-    "step": "options.step",
-    "max_steps": "options.max_steps",
-    "rtol": "options.rtol",
-    "atol": "options.atol",
-    "integrator": "options.integrator",
-    "tolerance": "options.tolerance",
-    "condition_limit": "options.condition_limit",
-    "positions": "output.positions",
-    "eigen_modes": "output.eigen_modes",
-    "eigen_samples": "output.eigen_samples",
-    "include_modal": "output.modal",
-    "divergence_bound": "output.divergence_bound",
-}
-
 SIMULATIONS = Endpoint(
     path="simulations",
     tag="simulations",
@@ -225,7 +196,7 @@ SIMULATIONS = Endpoint(
 
 def run_simulation(spec: SimulationSpec, progress: Progress | None) -> dict[str, Any]:
     """:func:`pipeflow.simulation.simulate` (see :meth:`~pipeflow.simulation.Result.to_dict`)."""
-    return simulate(spec.to_simulation(), progress=progress).to_dict()
+    return simulate_request(spec, progress).to_dict()
 
 
 SIMULATION = register(
@@ -325,14 +296,6 @@ PAPER_STABILITY: dict[str, Any] = {
     "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
     "modes": 10,
     "velocity_range": [0.0, 60.0],
-}
-
-#: stability parameters of the library -> request fields (shared by the stability kinds)
-STABILITY_FIELDS: dict[str, str] = {
-    "omega0": "rotation.omega0.value",
-    "velocity": "flow.velocity.value",
-    "flow": "flow.velocity",
-    "spin": "rotation.omega0",
 }
 
 STABILITY = register(

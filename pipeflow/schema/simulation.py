@@ -11,19 +11,22 @@ method does not read dropped) that the service's cache key is computed from.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pipeflow import profiles
 from pipeflow.basis import MAX_MODES
-from pipeflow.compare import MAX_METHODS
+from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
 from pipeflow.modeshapes import DEFAULT_SHAPE_POINTS, MAX_SHAPE_POINTS, MAX_SHAPE_TIMES
-from pipeflow.simulation import Simulation
+from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
-from pipeflow.solvers.base import MAX_STEPS_CEILING
+from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
 
 MAX_SAMPLES = 200_001
 MAX_TABLE_POINTS = 10_000
@@ -57,10 +60,58 @@ Plane = Annotated[
 ]
 
 
-def library_parameter(exc: PipeflowError) -> str | None:
-    """The library's own name of the parameter an error concerns (``parameter``, or the
-    older ``field``); :meth:`pipeflow.schema.registry.Computation.request_field` maps it."""
-    return getattr(exc, "parameter", None) or getattr(exc, "field", None)
+#: library parameter (of :class:`~pipeflow.simulation.Simulation` and
+#: :class:`~pipeflow.solvers.Options`) -> the request field of :class:`SimulationSpec` it
+#: comes from; the one place where library error names become JSON paths
+SIMULATION_FIELDS: dict[str, str] = {
+    "pipe": "pipe",
+    "flow": "flow.velocity",
+    "spin": "rotation.omega0",
+    "omega0": "rotation.omega0",
+    "u0": "initial.u0",
+    "du0": "initial.du0",
+    "initial_shape": "initial.shape",
+    "modes": "modes",
+    "t_end": "time.t_end",
+    "samples": "time.samples",
+    "method": "method",
+    "positions": "output.positions",
+    "eigen_modes": "output.eigen_modes",
+    "eigen_samples": "output.eigen_samples",
+    "include_modal": "output.modal",
+    "divergence_bound": "output.divergence_bound",
+    "mode_shape_times": "output.mode_shapes.times",
+    "mode_shape_points": "output.mode_shapes.points",
+    **{f.name: f"options.{f.name}" for f in dataclasses.fields(Options)},
+}
+
+
+def request_field(exc: PipeflowError, fields: Mapping[str, str], prefix: str = "") -> PipeflowError:
+    """Set ``exc.field`` to the request field of its library ``parameter`` (``fields``,
+    then ``prefix`` for a nested request), unless a caller already did; returns ``exc``."""
+    if exc.field is None and exc.parameter is not None:
+        exc.at(prefix + fields.get(exc.parameter, exc.parameter))
+    return exc
+
+
+@contextmanager
+def request_fields(fields: Mapping[str, str], prefix: str = "") -> Iterator[None]:
+    """Library errors raised inside name request fields (:func:`request_field`)."""
+    try:
+        yield
+    except PipeflowError as exc:
+        request_field(exc, fields, prefix)
+        raise
+
+
+def library_check(check: Callable[..., object], fields: Mapping[str, str], *args: Any) -> None:
+    """Run a library check (budget, common period...) at validation time, so a request the
+    library would refuse is a 422 naming the field at submission, not a job that fails later
+    (a pydantic validator must raise ValueError: the field leads its message)."""
+    try:
+        check(*args)
+    except PipeflowError as exc:
+        raise ValueError(f"{request_field(exc, fields).field}: {exc.message}") from None
 
 
 class StrictModel(BaseModel):
@@ -394,7 +445,7 @@ class SimulationSpec(StrictModel):
                     "initial": {"u0": 0.001, "du0": 0.0},
                     "modes": 10,
                     "time": {"t_end": 1.0, "samples": 2001},
-                    "method": "cma",
+                    "method": "auto",
                 }
             ]
         },
@@ -410,7 +461,7 @@ class SimulationSpec(StrictModel):
     )
     time: TimeSpec = Field(default_factory=TimeSpec)
     method: str = Field(
-        "cma",
+        "auto",
         description="Solver: " + "; ".join(f"'{n}': {s.description}" for n, s in SOLVERS.items()),
         json_schema_extra={"enum": list(sorted(SOLVERS))},
     )
@@ -476,6 +527,13 @@ class SimulationSpec(StrictModel):
         return data
 
 
+def run_simulation(spec: SimulationSpec, progress: ProgressCallback | None = None) -> Result:
+    """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
+    the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
+    with request_fields(SIMULATION_FIELDS):
+        return simulate(spec.to_simulation(), progress=progress)
+
+
 #: the paper's section-5 example, v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s
 PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_json_schema()["examples"][0]
 
@@ -494,10 +552,11 @@ class CompareSpec(StrictModel):
         "method that reads them."
     )
     methods: list[Literal[tuple(sorted(SOLVERS))]] = Field(  # type: ignore[valid-type]
-        default_factory=lambda: [m for m in SOLVERS if m != "reference"],
+        default_factory=default_methods,
         min_length=1,
         max_length=MAX_METHODS,
-        description="Distinct method names to run (default: every method but 'reference').",
+        description="Distinct method names to run (default: every method but 'reference' "
+        "and 'auto').",
         json_schema_extra={"uniqueItems": True},
     )
 

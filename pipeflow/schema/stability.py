@@ -23,7 +23,6 @@ import numpy as np
 from pydantic import ConfigDict, Field, Strict, model_validator
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE, Pipe
 from pipeflow.schema.simulation import (
     ConstantProfile,
@@ -32,7 +31,7 @@ from pipeflow.schema.simulation import (
     PipeSpec,
     Plane,
     StrictModel,
-    library_parameter,
+    library_check,
 )
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
@@ -52,6 +51,15 @@ MAX_FLOQUET_MODES = 20
 #: |v| [m/s] and |w0| [rad/s] bounds (far beyond any physical pipe; they keep numbers finite)
 MAX_SPEED = 1e6
 MAX_SPIN = 1e7
+
+
+#: library parameter -> request field where they differ (the stability specs otherwise use
+#: the library's names: modes, velocity_range, points, tolerance...)
+STABILITY_FIELDS: dict[str, str] = {
+    "flow": "flow.velocity",
+    "spin": "rotation.omega0",
+    "omega0": "rotation.omega0",
+}
 
 
 def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
@@ -453,14 +461,12 @@ SweepModel = (
 
 
 def _library_check(check: Callable[..., object], *args: Any) -> None:
-    """Run a library check (budget, common period) at validation time, so a request the
-    library would refuse is a 422 naming the field at submission, not a job that fails later."""
+    """:func:`pipeflow.schema.simulation.library_check` with :data:`STABILITY_FIELDS`; a pipe
+    whose magnitudes overflow the model there (e.g. L = 5e-324 m: 1/L^3 = inf) is refused
+    naming ``pipe``."""
     try:
-        check(*args)
-    except PipeflowError as exc:
-        # sweep requests name their fields as the library names its parameters
-        raise ValueError(f"{library_parameter(exc)}: {exc.message}") from None
-    except (ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. L = 5e-324 m: 1/L^3 = inf
+        library_check(check, STABILITY_FIELDS, *args)
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:
         raise ValueError(
             f"pipe: the pipe's magnitudes take the model out of double precision "
             f"({type(exc).__name__}: {exc}); check E, I, L, M1 and M2"

@@ -25,15 +25,13 @@ import numpy as np
 
 from pipeflow.errors import InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats, build_model
+from pipeflow.spectra import Branches, follow, rounding_level
 from pipeflow.stability.core import (
-    Branches,
     FloatArray,
     Progress,
     check_modes,
     check_range,
-    follow,
     growth_rate,
-    rounding_level,
     sign_changes,
     stable_intervals,
     state_matrices,
@@ -178,7 +176,7 @@ def critical_velocities(
     v_min, v_max = float(velocity_range[0]), float(velocity_range[1])
     check_range(v_min, v_max, "velocity_range")
     if points < 3:
-        raise InvalidInput("points must be >= 3", field="points")
+        raise InvalidInput("points must be >= 3", parameter="points")
     model = build_model(pipe, modes)
     warnings: list[str] = basis_caveats(pipe)
     reverse: dict[str, Any] | None = None

@@ -20,6 +20,7 @@ import numpy as np
 
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, build_model
+from pipeflow.spectra import rounding_level
 from pipeflow.stability.core import (
     FloatArray,
     Progress,
@@ -27,7 +28,6 @@ from pipeflow.stability.core import (
     check_range,
     eigenvalues,
     nondimensional_pipe,
-    rounding_level,
     sign_changes,
     stable_intervals,
 )
@@ -54,14 +54,14 @@ class BoundaryCrossing:
     frequency: float
 
 
-def check_map_work(points: int, modes: int, field: str) -> None:
+def check_map_work(points: int, modes: int, parameter: str) -> None:
     """Raise :class:`BudgetExceeded` when ``points`` eigenproblems of ``2 modes`` cost too much."""
     work = points * (2.0 * modes) ** 3
     if work > MAX_MAP_WORK:
         raise BudgetExceeded(
             f"the map needs {points} eigenvalue problems of size {2 * modes}: "
             f"{work:.3g} > {MAX_MAP_WORK:.3g} units; use fewer points or modes",
-            field=field,
+            parameter=parameter,
         )
 
 
@@ -195,10 +195,10 @@ def spin_map(
     relative tolerance ``rtol``.
     """
     check_modes(modes)
-    check_range(*velocity_range, field="velocity_range")
-    check_range(*spin_range, field="spin_range")
+    check_range(*velocity_range, parameter="velocity_range")
+    check_range(*spin_range, parameter="spin_range")
     if velocity_points < 3 or spin_points < 1:
-        raise InvalidInput("need >= 3 velocity points and >= 1 spin point", field="points")
+        raise InvalidInput("need >= 3 velocity points and >= 1 spin point", parameter="points")
     check_map_work(velocity_points * spin_points, modes, "spin_points")
     model = build_model(pipe, modes)
     v = np.linspace(*velocity_range, velocity_points)
@@ -311,14 +311,16 @@ def beta_map(
     """
     nondimensional_pipe(0.5, groups, plane)  # refuse bad groups before any work
     check_modes(modes)
-    check_range(*beta_range, field="beta_range")
-    check_range(*u_range, field="u_range")
+    check_range(*beta_range, parameter="beta_range")
+    check_range(*u_range, parameter="u_range")
     if not (0 < beta_range[0] and beta_range[1] < 1):
-        raise InvalidInput("beta must lie in (0, 1)", field="beta_range")
+        raise InvalidInput("beta must lie in (0, 1)", parameter="beta_range")
     if u_range[0] < 0:
-        raise InvalidInput("u_range must be >= 0 (" + REVERSE_FLOW_CAVEAT + ")", field="u_range")
+        raise InvalidInput(
+            "u_range must be >= 0 (" + REVERSE_FLOW_CAVEAT + ")", parameter="u_range"
+        )
     if beta_points < 1 or u_points < 3:
-        raise InvalidInput("need >= 1 beta point and >= 3 u points", field="points")
+        raise InvalidInput("need >= 1 beta point and >= 3 u points", parameter="points")
     check_map_work(beta_points * u_points, modes, "u_points")
     betas = np.linspace(*beta_range, beta_points)
     u = np.linspace(*u_range, u_points)

@@ -1,7 +1,7 @@
 """Eigenvalue sweeps: Argand diagrams (against flow velocity) and Campbell diagrams (spin).
 
 Modes are followed from point to point by the optimal assignment of left/right eigenvector
-overlaps (:func:`pipeflow.eigen.assign`), never by sorting; each point carries the overlap
+overlaps (:func:`pipeflow.spectra.assign`), never by sorting; each point carries the overlap
 that linked it to the previous one as a tracking confidence, and where it drops below
 ``min_confidence`` midpoints are inserted (up to ``max_points``).  A conjugate pair is one
 mode: frequencies are reported as |omega| >= 0 (after a branch passes the real axis the
@@ -20,9 +20,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
-from pipeflow.eigen import order_lowest
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
+from pipeflow.spectra import follow, order_lowest, rounding_level
 from pipeflow.stability.core import (
     ComplexArray,
     FloatArray,
@@ -30,8 +30,6 @@ from pipeflow.stability.core import (
     check_modes,
     check_range,
     damping_ratio,
-    follow,
-    rounding_level,
     sign_changes,
     state_matrices,
 )
@@ -288,18 +286,20 @@ def sweep(
     if any(not (math.isfinite(n) and n > 0) for n in orders):
         raise InvalidInput(f"excitation orders must be positive, got {list(orders)}", "orders")
     if not 1 <= tracked <= modes:
-        raise InvalidInput(f"tracked modes must be between 1 and {modes}", field="tracked_modes")
+        raise InvalidInput(
+            f"tracked modes must be between 1 and {modes}", parameter="tracked_modes"
+        )
     if parameter not in ("velocity", "spin"):
-        raise InvalidInput(f"unknown sweep parameter {parameter!r}", field="parameter")
+        raise InvalidInput(f"unknown sweep parameter {parameter!r}", parameter="parameter")
     lo, hi = float(value_range[0]), float(value_range[1])
     check_range(lo, hi, "velocity_range" if parameter == "velocity" else "spin_range")
     if points < 2:
-        raise InvalidInput("points must be >= 2", field="points")
+        raise InvalidInput("points must be >= 2", parameter="points")
     if not 0 <= min_confidence <= 1:
-        raise InvalidInput("min_confidence must be in [0, 1]", field="min_confidence")
+        raise InvalidInput("min_confidence must be in [0, 1]", parameter="min_confidence")
     cap = max_points if max_points is not None else MAX_REFINEMENT_FACTOR * points
     if cap < points:
-        raise BudgetExceeded("max_points must be >= points", field="max_points")
+        raise BudgetExceeded("max_points must be >= points", parameter="max_points")
     model = build_model(pipe, modes)
     warnings: list[str] = []
     if parameter == "velocity":

@@ -373,8 +373,7 @@ def test_heavily_damped_high_modes_keep_their_numbers() -> None:
     lambda^2 + alpha omega_k^2 lambda + omega_k^2 = 0), so every mode keeps its undamped
     number and the lowest traced branches stay the fundamental: the natural frequency of the
     eigenvalues numbered k equals omega_k to 1e-9 relative (rounding of the roots)."""
-    from pipeflow.eigen import order_lowest
-    from pipeflow.stability.core import mode_numbers
+    from pipeflow.spectra import mode_numbers, order_lowest
 
     pipe = Pipe(**UNIT, M1=1.0, M2=0.0, kelvin_voigt=0.01)
     n = 10

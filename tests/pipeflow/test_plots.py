@@ -216,7 +216,14 @@ def test_campbell_and_argand_mark_the_crossings() -> None:
     """The Campbell figure draws one dashed line per excitation order (legend "1x", "2x"),
     the crossings and a damping-ratio colour bar; the Argand figure marks the critical point
     (the paper pipe at 100 rad/s: 27.69 m/s, mode 3, as in the README)."""
-    from pipeflow.stability_spec import PAPER_PIPE_JSON, parse_sweep, run_sweep
+    from pipeflow.schema.registry import SWEEPS, computation_for, parse
+    from pipeflow.schema.stability import PAPER_PIPE_JSON
+
+    def parse_sweep(body: dict[str, Any]) -> Any:
+        return parse(SWEEPS, body)
+
+    def run_sweep(request: Any) -> dict[str, Any]:
+        return computation_for(request).execute(request)
 
     c = run_sweep(
         parse_sweep(

@@ -48,7 +48,7 @@ def test_library_parameters_map_onto_request_fields() -> None:
     """A library error naming its own parameter leaves execute() naming the request field."""
 
     def refuse(spec: SimulationSpec, progress: object) -> dict[str, object]:
-        raise InvalidInput("no", field="step")
+        raise InvalidInput("no", parameter="step")
 
     c = dataclasses.replace(SIMULATION, run=refuse)
     with pytest.raises(InvalidInput) as err:
