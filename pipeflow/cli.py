@@ -273,7 +273,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             f"the service is not installed ({exc}); pip install -e '.[service]'",
             parameter="serve",
         ) from None
-    serve(args.host, args.port)
+    serve(args.host, args.port, workers=args.workers, data_dir=args.data_dir)
     return 0
 
 
@@ -390,6 +390,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1)")
     sp.add_argument("--port", type=int, default=8000, help="TCP port (default 8000)")
+    sp.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="compute worker processes (as PIPEFLOW_WORKERS; default min(2, CPUs)); the "
+        "server itself is one process",
+    )
+    sp.add_argument(
+        "--data-dir",
+        type=Path,
+        metavar="DIR",
+        help="directory of the results and jobs store (as PIPEFLOW_DATA_DIR; default the "
+        "per-user data directory, ~/.local/share/pipeflow on Linux)",
+    )
     sp.set_defaults(func=cmd_serve)
     return p
 

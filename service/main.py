@@ -17,7 +17,7 @@ from pipeflow import __version__
 from pipeflow.schema.registry import endpoints
 from service import problems
 from service.middleware import BodyLimit
-from service.routes import computations, exports, health, jobs, results, viewer
+from service.routes import computations, docs, exports, health, jobs, results, viewer
 from service.runner import Runner
 from service.settings import Settings, get_settings
 from service.store import Store
@@ -36,6 +36,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        settings.ensure_data_dir()
         store = Store(settings.db_path, settings.cache_max_bytes, settings.memory_cache_bytes)
         runner = Runner(settings, store)
         app.state.store = store
@@ -52,13 +53,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # served offline by service.routes.docs
+        redoc_url=None,
     )
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
     for endpoint in endpoints():
         app.include_router(computations.router_for(endpoint))
-    for module in (jobs, results, exports, health, viewer):
+    for module in (jobs, results, exports, health, docs, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:
