@@ -191,10 +191,15 @@ def _expm_block(X: FloatArray) -> FloatArray:
         for _ in range(s):
             R = R @ R
         return R
+    # most squarings first: the matrices still being squared are a leading slice (a view)
+    order = np.argsort(-scal, kind="stable")
+    R, counts = R[order], np.count_nonzero(scal[:, None] > np.arange(s)[None, :], axis=0)
     for j in range(s):
-        sel = scal > j
-        R[sel] = R[sel] @ R[sel]
-    return R
+        head = R[: counts[j]]
+        R[: counts[j]] = head @ head
+    out = np.empty_like(R)
+    out[order] = R
+    return out
 
 
 def product_of_steps(E: FloatArray) -> FloatArray:
