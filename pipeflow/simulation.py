@@ -263,8 +263,18 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
 
 
 def frozen_traces(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
-    """Tracked eigenvalues of the frozen state matrix S(t) [1/s] at ``times`` [s]."""
+    """Tracked eigenvalues of the frozen state matrix S(t) [1/s] at ``times`` [s].
+
+    For constant coefficients S is one matrix: decomposed once, the same at every time."""
+    if loading.is_time_invariant:
+        return _repeated(track(model.state_matrix(loading.coefficients(times[:1])), modes), times)
     return track(model.state_matrix(loading.coefficients(times)), modes)
+
+
+def _repeated(one: Traces, times: FloatArray) -> Traces:
+    """Traces of one point, repeated at every time (confidence 1: nothing to link)."""
+    n = np.asarray(times).size
+    return Traces(np.repeat(one.xi, n, axis=0), np.ones((n, one.xi.shape[1])))
 
 
 def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
@@ -274,6 +284,8 @@ def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: 
     frozen eigenvalues; for varying ones they are the time-averaged spectrum.
     """
     t = np.asarray(times, dtype=float)
+    if loading.is_time_invariant:  # P(t)/t = S at every time
+        return frozen_traces(model, loading, t, modes)
     mats = np.empty((t.size, model.size, model.size))
     pos = t > 0
     mats[~pos] = model.state_matrix(loading.coefficients(t[~pos]))
