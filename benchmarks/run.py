@@ -682,6 +682,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-service", action="store_true")
     ap.add_argument("--skip-scaling", action="store_true")
     ap.add_argument("--all-ivp", action="store_true", help="also Radau and BDF (slow)")
+    ap.add_argument("--ivp", nargs="+", help="these solve_ivp methods only, e.g. DOP853")
+    ap.add_argument("--time-variant-only", action="store_true", help="skip v = 0.4, -0.4")
+    ap.add_argument("--skip-crosscheck", action="store_true", help="no DOP853 rtol 1e-12 run")
+    ap.add_argument("--repeats", type=int, help="best of this many runs (default 5)")
+    ap.add_argument("--rtols", type=float, nargs="+", help="the solve_ivp tolerance ladder")
     args = ap.parse_args(argv)
     if args.quick:
         s = Setup(
@@ -693,12 +698,21 @@ def main(argv: list[str] | None = None) -> int:
             rtols=(1e-7, 1e-8, 1e-9, 1e-10, 1e-11),
             ivp_methods=IVP_METHODS if args.all_ivp else FAST_IVP_METHODS,
         )  # fmt: skip
+    if args.ivp:
+        s.ivp_methods = tuple(args.ivp)
+    if args.repeats:
+        s.repeats = args.repeats
+    if args.rtols:
+        s.rtols = tuple(args.rtols)
+    if args.time_variant_only:
+        for name in [n for n, f in CASES.items() if f.is_constant]:
+            del CASES[name]
     s.model = build_model(PAPER_PIPE, s.modes)
     t_start = time.perf_counter()
     out("# pipeflow benchmarks (issues 4 and 9)")
     out()
     machine()
-    if not args.quick:
+    if not (args.quick or args.skip_crosscheck):
         crosscheck(s)
     summary = section_methods(s)
     section_ratios(summary)
