@@ -27,6 +27,7 @@ the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s
   pipeflow run spec.json -o result.json         # run it locally (about a second)
   pipeflow run spec.json --format csv -o tip.csv                 # t [s], u(L,t) [m]
   pipeflow run spec.json --format csv --table eigenvalues        # sigma [1/s], omega [rad/s]
+  pipeflow run spec.json --format parquet -o history.parquet     # units in column metadata
   pipeflow plot result.json --name tip_displacement --out tip.png
   pipeflow plot spec.json --name frequency --out freq.svg        # runs the spec, then plots
   pipeflow stability stab.json                  # critical flow velocity, sweeps, maps
@@ -93,7 +94,7 @@ def _read_json(path: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise PipeflowError(f"{path} is not valid JSON: {exc}", field="input") from exc
+        raise PipeflowError(f"{path} is not valid JSON: {exc}", parameter="input") from exc
 
 
 def _unwrap(data: Any) -> Any:
@@ -127,12 +128,11 @@ def _progress(args: argparse.Namespace, label: str) -> ProgressBar:
 
 
 def _run_local(spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
-    from pipeflow.simulation import simulate
-    from pipeflow.spec import SimulationSpec
+    from pipeflow.spec import SimulationSpec, run_simulation
 
     spec = SimulationSpec.model_validate(spec_data)
     try:
-        result = simulate(spec.to_simulation(), progress=bar)
+        result = run_simulation(spec, progress=bar)
     finally:
         bar.close()
     return result.to_dict()
@@ -219,10 +219,11 @@ def cmd_example(args: argparse.Namespace) -> int:
 
 def cmd_run(args: argparse.Namespace) -> int:
     result = _result_for(args, _read_json(args.spec))
-    if args.format == "csv":
-        from pipeflow.export import to_csv
+    if args.format in ("csv", "parquet"):
+        from pipeflow.export import to_csv, to_parquet
 
-        _write(args.output, to_csv(result, args.table))
+        export = to_csv if args.format == "csv" else to_parquet
+        _write(args.output, export(result, args.table))
     else:
         _write_json(args, result)
     _print_warnings(result)
@@ -257,7 +258,7 @@ def cmd_stability(args: argparse.Namespace) -> int:
         raise PipeflowError(
             "not a stability spec: give 'velocity_range' (critical velocity) or a sweep "
             f"'kind' ({', '.join(SWEEP_KINDS)}); see 'pipeflow stability --help'",
-            field="kind",
+            parameter="kind",
         )
     result = _result_for(args, data)
     _write_json(args, result)
@@ -326,12 +327,17 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("spec", help="simulation spec JSON file ('-': stdin); see 'pipeflow example'")
-    sp.add_argument("--format", choices=("json", "csv"), default="json", help="output format")
+    sp.add_argument(
+        "--format",
+        choices=("json", "csv", "parquet"),
+        default="json",
+        help="output format (parquet: units in the column metadata; needs pipeflow[parquet])",
+    )
     sp.add_argument(
         "--table",
         choices=tuple(TABLES),
         default="history",
-        help="CSV table: " + "; ".join(f"{k}: {v}" for k, v in TABLES.items()),
+        help="CSV/Parquet table: " + "; ".join(f"{k}: {v}" for k, v in TABLES.items()),
     )
     json_output_flags(sp)
     sp.set_defaults(func=cmd_run)
@@ -411,11 +417,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"error: {line}", file=sys.stderr)
         return 2
     except PipeflowError as exc:
-        where = f"{exc.field}: " if exc.field else ""
+        name = exc.field if exc.field is not None else exc.parameter
+        where = f"{name}: " if name else ""
         print(f"error: {where}{exc.message}", file=sys.stderr)
         return 2
-    except (ValueError, KeyError) as exc:
-        # plot/export errors carry a field too
+    except (ValueError, KeyError, ImportError) as exc:
+        # plot/export errors carry a field too; a missing optional extra says what to install
         field = getattr(exc, "field", None)
         print(f"error: {field + ': ' if field else ''}{exc}", file=sys.stderr)
         return 2

@@ -7,9 +7,9 @@ solver itself cannot see (physics notes, section 2).  RK4's error depends on its
 ``magnus`` run on at most :data:`CHECK_SAMPLES` of the output times, first with a fixed
 :data:`CHECK_STEPS` steps (its own error estimated by step doubling), repeated to a
 tolerance of :data:`RESOLUTION_FRACTION` of the measured error (at least
-:data:`CHECK_TOLERANCE`) only when that first run cannot resolve it, so the check costs a
-fraction of the CMA run itself (about 12% on the paper's example).
-Methods that control their own error (``magnus``, ``reference``) report it themselves.
+:data:`CHECK_TOLERANCE`) only when that first run cannot resolve it.
+Methods that control their own error (``magnus``, ``reference``) report it themselves,
+and ``cma`` on constant coefficients knows it is exact: each solver says which applies.
 
 Every estimate is a relative error of the balanced state (modal displacements and
 velocities over the reference frequencies, in metres), max over time of the difference
@@ -28,24 +28,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow.errors import PipeflowError
-from pipeflow.solvers import SOLVERS, Problem, SolverOutput
-from pipeflow.solvers.magnus import relative_difference
+from pipeflow.solvers import SOLVERS, Problem, Solver, SolverOutput
+from pipeflow.solvers.base import relative_difference
 
 #: relative error above which a result carries a warning [-]
 WARN_THRESHOLD = 1e-4
 #: the yardstick resolves errors down to this (relative) [-]
 CHECK_TOLERANCE = 1e-6
 #: steps of the first, fixed-step yardstick run over the whole run: on the paper's example
-#: (10 modes, 1 s) its error is ~4e-5, against cma errors of 3e-3..6e-2 on time-variant
-#: input, at ~12% of the cma solve
+#: (10 modes, 1 s) its error is ~4e-6, against cma errors of 3e-3..6e-2 on time-variant
+#: input
 CHECK_STEPS = 256
 #: the yardstick's own error must be below this fraction of the error it measures, or the
 #: check is repeated to that tolerance (so an estimate is good to ~10%)
 RESOLUTION_FRACTION = 0.1
 #: at most this many output times are checked (evenly spread, first and last included)
 CHECK_SAMPLES = 257
-#: methods whose error is measured here (the others estimate their own)
-CHECKED_METHODS = ("cma", "rk4")
+#: the method that serves as the yardstick
+CHECK_METHOD = "magnus"
 
 
 def check_indices(n_times: int, samples: int = CHECK_SAMPLES) -> NDArray[np.int64]:
@@ -56,23 +56,23 @@ def check_indices(n_times: int, samples: int = CHECK_SAMPLES) -> NDArray[np.int6
 
 
 def add_error_estimate(
-    method: str, problem: Problem, out: SolverOutput, threshold: float = WARN_THRESHOLD
+    solver: Solver, problem: Problem, out: SolverOutput, threshold: float = WARN_THRESHOLD
 ) -> None:
-    """Add ``estimated_relative_error`` (and how it was obtained) to ``out``; warn above
-    ``threshold``.  Mutates ``out.diagnostics`` and ``out.warnings``."""
+    """Add ``estimated_relative_error`` (and how it was obtained) to the output ``out`` of
+    ``solver``; warn above ``threshold``.  Mutates ``out.diagnostics`` and ``out.warnings``.
+
+    The solver says what applies: it estimates its own error
+    (``Solver.estimates_own_error``), knows it exactly (``Solver.exact_error``), or is
+    measured against a :data:`CHECK_METHOD` run here."""
     diag = out.diagnostics
-    if method not in CHECKED_METHODS:
+    if solver.estimates_own_error:
         if "estimated_relative_error" in diag:
-            _warn(method, float(diag["estimated_relative_error"]), threshold, out)
+            _warn(solver, float(diag["estimated_relative_error"]), threshold, out)
         return
     t0 = time.perf_counter()
-    if method == "cma" and problem.loading.is_time_invariant:
-        # exact up to rounding, amplified by the eigenvector condition number
-        cond = float(diag.get("eigenvector_condition_max", 1.0))
-        diag["estimated_relative_error"] = float(np.finfo(float).eps * max(cond, 1.0))
-        diag["error_estimate_method"] = (
-            "exact for constant coefficients: rounding only (eps x eigenvector condition)"
-        )
+    exact = solver.exact_error(problem, out)
+    if exact is not None:
+        diag["estimated_relative_error"], diag["error_estimate_method"] = exact
         return
     finite = np.all(np.isfinite(out.z), axis=1)
     last = int(np.argmin(finite)) if not finite.all() else out.z.shape[0]
@@ -86,20 +86,20 @@ def add_error_estimate(
         # step doubling); only where it cannot resolve the error it measures, a run to
         # a tolerance of RESOLUTION_FRACTION of that error
         check = _yardstick(problem, t_check, step=float(t_check[-1]) / CHECK_STEPS)
-        estimate = relative_difference(check.z, out.z[idx], problem.model.size)
+        estimate = relative_difference(out.z[idx], check.z, problem.model.size)
         resolution = float(check.diagnostics.get("estimated_relative_error", 0.0))
         if resolution > max(CHECK_TOLERANCE, RESOLUTION_FRACTION * estimate):
             tol = max(CHECK_TOLERANCE, RESOLUTION_FRACTION * estimate)
             check = _yardstick(problem, t_check, tolerance=min(tol, 0.5))
-            estimate = relative_difference(check.z, out.z[idx], problem.model.size)
+            estimate = relative_difference(out.z[idx], check.z, problem.model.size)
             resolution = float(check.diagnostics.get("estimated_relative_error", 0.0))
     except PipeflowError as exc:
         diag["error_estimate_method"] = f"unavailable: {exc.message}"
         return
     diag["estimated_relative_error"] = estimate
     diag["error_estimate_method"] = (
-        f"comparison with a magnus run (estimated error {resolution:.2g}) at {idx.size} of "
-        "the output times"
+        f"comparison with a {CHECK_METHOD} run (estimated error {resolution:.2g}) at "
+        f"{idx.size} of the output times"
     )
     diag["error_estimate_resolution"] = resolution
     # the same on the tip displacement u(L, t), the quantity most users plot; it is often
@@ -107,36 +107,28 @@ def add_error_estimate(
     model = problem.model
     tip_check = model.from_balanced(check.z[:, : model.size])[0] @ model.tip
     tip_out = model.from_balanced(out.z[idx])[0] @ model.tip
-    tip_scale = float(np.max(np.abs(tip_check)))
-    if tip_scale > 0:
-        diag["estimated_tip_relative_error"] = float(
-            np.max(np.abs(tip_out - tip_check)) / tip_scale
-        )
+    if np.any(tip_check != 0):
+        diag["estimated_tip_relative_error"] = relative_difference(tip_out, tip_check)
     diag["error_estimate_seconds"] = time.perf_counter() - t0
-    _warn(method, estimate, threshold, out)
+    _warn(solver, estimate, threshold, out)
 
 
 def _yardstick(
     problem: Problem, t: NDArray[np.float64], step: float | None = None, tolerance: float = 1e-6
 ) -> SolverOutput:
-    """A magnus run of ``problem`` at the output times ``t`` [s], with a fixed ``step`` [s]
-    or to ``tolerance`` [-]."""
+    """A :data:`CHECK_METHOD` run of ``problem`` at the output times ``t`` [s], with a fixed
+    ``step`` [s] or to ``tolerance`` [-]."""
     options = replace(problem.options, step=step, tolerance=tolerance)
     sub = Problem(problem.model, problem.loading, problem.z0, t, options)
-    return SOLVERS["magnus"].solve(sub)
+    return SOLVERS[CHECK_METHOD].solve(sub)
 
 
-def _warn(method: str, estimate: float, threshold: float, out: SolverOutput) -> None:
+def _warn(solver: Solver, estimate: float, threshold: float, out: SolverOutput) -> None:
     if not (estimate > threshold or math.isnan(estimate)):
         return
-    advice: dict[str, str] = {
-        "cma": "CMA is exact only for constant flow and spin; use method 'magnus'",
-        "rk4": "use a smaller options.step or method 'magnus'",
-        "magnus": "use a smaller options.tolerance or options.step",
-    }
     out.warnings.append(
-        f"estimated relative error of this {method} result is {estimate:.2g}, above "
-        f"{threshold:g}: {advice.get(method, 'use a more accurate method')}"
+        f"estimated relative error of this {solver.name} result is {estimate:.2g}, above "
+        f"{threshold:g}: {solver.error_advice}"
     )
 
 

@@ -1,4 +1,4 @@
-"""CSV export of a simulation result: time histories and eigenvalue traces.
+"""CSV and Parquet export of a simulation result: time histories, eigenvalue traces, shapes.
 
 Works on the JSON form of a result (:meth:`pipeflow.simulation.Result.to_dict`, which is
 also what the service stores), so the command line, the service and a notebook export the
@@ -18,6 +18,15 @@ Tables
     (frequency) and ``confidence_j [-]`` (tracking confidence, 0..1) for each branch j.
 ``cma_exponents``
     The same columns for the eigenvalues of P(t)/t, the exponents the paper's CMA applies.
+``mode_shapes``
+    When the result carries mode shapes (``output.mode_shapes``): ``x [m]`` then, for each
+    time t and branch j, ``real_j(t=<t>) [-]`` and ``imag_j(t=<t>) [-]`` of the normalised
+    complex shape (:mod:`pipeflow.modeshapes`).
+
+Parquet (:func:`to_parquet`, needs the optional ``pyarrow``: ``pip install
+'pipeflow[parquet]'``) writes the same tables with the bare column names (``t``,
+``tip_displacement``, ...) and each column's unit in its field metadata (``unit``), float64
+throughout, so the values are the identical floats.
 """
 
 from __future__ import annotations
@@ -27,14 +36,18 @@ import io
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from pipeflow.optional import require
+
 #: table name -> one-line description (units in the column headers)
 TABLES: dict[str, str] = {
     "history": "time history: t [s], tip displacement [m], stations [m], modal coordinates",
     "eigenvalues": "frozen-time eigenvalues of S(t): sigma [1/s], omega [rad/s] per branch",
     "cma_exponents": "eigenvalues of P(t)/t (the CMA exponents): sigma [1/s], omega [rad/s]",
+    "mode_shapes": "complex mode shapes along x [m]: real and imaginary parts [-] per time",
 }
 
 CSV_MEDIA_TYPE = "text/csv"
+PARQUET_MEDIA_TYPE = "application/vnd.apache.parquet"
 
 
 class ExportError(ValueError):
@@ -54,6 +67,8 @@ def available_tables(result: dict[str, Any]) -> list[str]:
     for name in ("eigenvalues", "cma_exponents"):
         if isinstance(result.get(name), dict) and result[name].get("modes"):
             names.append(name)
+    if isinstance(result.get("mode_shapes"), dict) and result["mode_shapes"].get("modes"):
+        names.append("mode_shapes")
     return names
 
 
@@ -65,7 +80,15 @@ def table(result: dict[str, Any], name: str = "history") -> tuple[list[str], lis
         raise ExportError(f"this result has no {name!r} table")
     if name == "history":
         return _history(result)
+    if name == "mode_shapes":
+        return _shapes(result["mode_shapes"])
     return _traces(result[name])
+
+
+def split_header(label: str) -> tuple[str, str]:
+    """``"t [s]"`` -> ``("t", "s")``: a column name and its unit."""
+    name, _, unit = label.rpartition(" [")
+    return name, unit.removesuffix("]")
 
 
 def _history(result: dict[str, Any]) -> tuple[list[str], list[list[float]]]:
@@ -95,6 +118,17 @@ def _traces(block: dict[str, Any]) -> tuple[list[str], list[list[float]]]:
     return header, columns
 
 
+def _shapes(block: dict[str, Any]) -> tuple[list[str], list[list[float]]]:
+    header = ["x [m]"]
+    columns: list[list[float]] = [list(block["x"])]
+    for i, t in enumerate(block["t"]):
+        for mode in block["modes"]:
+            j = mode["mode"]
+            header += [f"real_{j}(t={_num(t)}) [-]", f"imag_{j}(t={_num(t)}) [-]"]
+            columns += [list(mode["real"][i]), list(mode["imag"][i])]
+    return header, columns
+
+
 def _num(x: Any) -> str:
     return repr(float(x))
 
@@ -116,3 +150,23 @@ def to_csv(result: dict[str, Any], name: str = "history") -> str:
     """Table ``name`` (see :data:`TABLES`) of a JSON result as CSV text with a unit header."""
     header, columns = table(result, name)
     return write_csv(header, columns)
+
+
+def to_parquet(result: dict[str, Any], name: str = "history") -> bytes:
+    """Table ``name`` of a JSON result as Parquet bytes: bare column names, float64 columns,
+    each field's metadata ``{"unit": ...}`` (SI), the table's name and description in the
+    schema metadata.  Needs the optional ``pyarrow`` (``pip install 'pipeflow[parquet]'``)."""
+    header, columns = table(result, name)
+    pa = require("pyarrow", "parquet", "Parquet export")
+    pq = require("pyarrow.parquet", "parquet", "Parquet export")
+
+    fields, arrays = [], []
+    for label, values in zip(header, columns, strict=True):
+        col, unit = split_header(label)
+        fields.append(pa.field(col, pa.float64(), metadata={"unit": unit}))
+        arrays.append(pa.array(values, type=pa.float64()))
+    meta = {"table": name, "description": TABLES[name]}
+    schema = pa.schema(fields, metadata=meta)
+    buf = pa.BufferOutputStream()
+    pq.write_table(pa.Table.from_arrays(arrays, schema=schema), buf)
+    return bytes(buf.getvalue().to_pybytes())

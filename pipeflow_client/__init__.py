@@ -14,8 +14,22 @@ Example::
         r = c.simulate(PAPER_EXAMPLE)          # numpy arrays, SI units
         print(r.key, r.tip_displacement[:3])   # u(L, t) [m]
         png = c.plot(r.key, "frequency")       # PNG bytes
+        r.to_dataframe()                       # pandas, units in attrs (pipeflow[notebook])
+
+    async with AsyncClient("http://localhost:8000") as c:   # the same methods, awaited
+        r = await c.simulate(PAPER_EXAMPLE)
+
+Both retry ``503`` answers (all computation slots busy), waiting what ``Retry-After`` says
+(:class:`RetryPolicy`).
 """
 
-from pipeflow_client.client import Client, JobFailed, ServiceError, SimulationResult
+from pipeflow_client.client import (
+    AsyncClient,
+    Client,
+    JobFailed,
+    RetryPolicy,
+    ServiceError,
+    SimulationResult,
+)
 
-__all__ = ["Client", "JobFailed", "ServiceError", "SimulationResult"]
+__all__ = ["AsyncClient", "Client", "JobFailed", "RetryPolicy", "ServiceError", "SimulationResult"]

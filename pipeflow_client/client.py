@@ -1,25 +1,41 @@
-"""``Client(base_url)``: simulate, submit and wait for jobs, fetch results, CSV and plots.
+"""``Client`` and ``AsyncClient``: simulate, submit and wait for jobs, fetch results, CSV,
+Parquet and plots.
 
-Results come back as :class:`SimulationResult` (numpy arrays, SI units); the service's
-RFC 9457 problem documents come back as :class:`ServiceError` carrying the document, the
-HTTP status and the offending field.
+Results come back as :class:`SimulationResult` (numpy arrays, SI units; ``to_xarray()``,
+``to_dataframe()`` and ``plot()`` for notebooks); the service's RFC 9457 problem documents
+come back as :class:`ServiceError` carrying the document, the HTTP status and the offending
+field.
+
+Every operation is written once, as a generator that yields the HTTP requests (and pauses)
+it needs and receives the responses (:mod:`pipeflow_client.client` "sans-IO" style); the
+sync :class:`Client` drives it with :class:`httpx.Client` and ``time.sleep``, the
+:class:`AsyncClient` with :class:`httpx.AsyncClient` and ``asyncio.sleep``.  Both retry a
+``503 Service Unavailable`` (all computation slots busy) with tenacity, waiting what the
+answer's ``Retry-After`` says (seconds or an HTTP date; exponential back-off without it).
 """
 
 from __future__ import annotations
 
+import asyncio
+import email.utils
+import functools
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Generator, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from datetime import UTC, datetime
+from typing import Any, TypeVar
 
 import httpx
 import numpy as np
+import tenacity
 from numpy.typing import NDArray
 
 from pipeflow.errors import PipeflowError
+from pipeflow.notebook import NotebookViews
 
 FloatArray = NDArray[np.float64]
 Progress = Callable[[float], None]
+T = TypeVar("T")
 
 
 class ServiceError(PipeflowError):
@@ -29,9 +45,12 @@ class ServiceError(PipeflowError):
     problem : the RFC 9457 problem document (``title``, ``detail``, ``errors``, ...).
     field : dotted path of the first offending input (e.g. ``"pipe.E"``), or None.
     errors : every offending input as ``{"field", "message", ...}`` dicts.
+    retry_after : the answer's ``Retry-After`` [s] (503), or None.
     """
 
-    def __init__(self, status: int, problem: dict[str, Any]) -> None:
+    def __init__(
+        self, status: int, problem: dict[str, Any], retry_after: float | None = None
+    ) -> None:
         errors = list(problem.get("errors") or [])
         first = errors[0] if errors else {}
         detail = problem.get("detail") or problem.get("title") or f"HTTP {status}"
@@ -39,12 +58,12 @@ class ServiceError(PipeflowError):
             detail = "; ".join(
                 f"{e.get('field') or 'body'}: {e.get('message', '')}" for e in errors
             )
-        super().__init__(
-            f"{status} {problem.get('title', '')}: {detail}".strip(), first.get("field")
-        )
+        super().__init__(f"{status} {problem.get('title', '')}: {detail}".strip())
+        self.at(first.get("field"))  # the request field the service named
         self.status = status
         self.problem = problem
         self.errors = errors
+        self.retry_after = retry_after
 
 
 class JobFailed(ServiceError):
@@ -52,7 +71,7 @@ class JobFailed(ServiceError):
 
 
 @dataclass(frozen=True)
-class SimulationResult:
+class SimulationResult(NotebookViews):
     """One simulation result from the service (SI units).
 
     key : parameter hash of the result (share it: ``GET /v1/results/{key}``).
@@ -65,6 +84,9 @@ class SimulationResult:
     displacements : {x [m]: u(x, t) [m]} at the requested stations.
     warnings : what the service says about this result.
     raw : the full JSON document.
+
+    ``to_xarray()``, ``to_dataframe(table)`` and ``plot(name)`` give the same objects as a
+    local :class:`pipeflow.simulation.Result` (:mod:`pipeflow.notebook`).
     """
 
     key: str
@@ -103,18 +125,401 @@ class SimulationResult:
         """Names of the plots the service can draw of this result."""
         return list(self.raw.get("plots", []))
 
+    def _document(self) -> dict[str, Any]:
+        return self.raw
+
+
+# ---- the operations, once, independent of the transport ----------------------------------
+
+
+@dataclass(frozen=True)
+class Call:
+    """One HTTP request an operation needs (path relative to the client's base URL)."""
+
+    method: str
+    path: str
+    params: dict[str, str] | None = None
+    json: Any = None
+    headers: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Pause:
+    """Wait ``seconds`` [s] before the next request (polling a job)."""
+
+    seconds: float
+
+
+Steps = Generator[Call | Pause, httpx.Response | None, T]
+
+
+def _json(call: Call) -> Steps[Any]:
+    response = yield call
+    assert response is not None
+    return response.json()
+
 
 def _spec_json(spec: Any) -> Any:
     dump = getattr(spec, "model_dump", None)
     return dump(mode="json", exclude_unset=True) if callable(dump) else spec
 
 
-class Client:
-    """A pipeflow service at ``base_url`` (e.g. ``"http://localhost:8000"``).
+def _refresh(refresh: bool) -> dict[str, str] | None:
+    return {"refresh": "true"} if refresh else None
+
+
+class _Operations:
+    """Every operation of the service as a generator of :class:`Call`/:class:`Pause`; the
+    public methods of :class:`Client` and :class:`AsyncClient` are made from these by
+    :func:`_operation`."""
+
+    @staticmethod
+    def simulate_raw(
+        spec: Any, *, refresh: bool = False, progress: Progress | None = None
+    ) -> Steps[dict[str, Any]]:
+        """Run ``spec`` (dict or :class:`~pipeflow.spec.SimulationSpec`) and return the JSON.
+
+        With ``progress`` the run goes through a job, and ``progress(fraction)`` is called
+        while waiting; otherwise it is one ``POST /v1/simulations``.
+        """
+        if progress is None:
+            doc: dict[str, Any] = yield from _json(
+                Call("POST", "/v1/simulations", _refresh(refresh), _spec_json(spec))
+            )
+            return doc
+        job = yield from _Operations.submit(spec, refresh=refresh)
+        return (yield from _Operations.wait_raw(job["key"], progress=progress))
+
+    @staticmethod
+    def simulate(
+        spec: Any, *, refresh: bool = False, progress: Progress | None = None
+    ) -> Steps[SimulationResult]:
+        """Run ``spec`` (or serve it from the cache) and return the result as numpy arrays."""
+        raw = yield from _Operations.simulate_raw(spec, refresh=refresh, progress=progress)
+        return SimulationResult.from_json(raw)
+
+    @staticmethod
+    def submit(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
+        """Submit ``spec`` as a job; returns the job document (``key``, ``status``, ...)."""
+        doc: dict[str, Any] = yield from _json(
+            Call("POST", "/v1/jobs", _refresh(refresh), _spec_json(spec))
+        )
+        return doc
+
+    @staticmethod
+    def job(key: str) -> Steps[dict[str, Any]]:
+        """The job document: status, progress [0..1], timestamps, error."""
+        doc: dict[str, Any] = yield from _json(Call("GET", f"/v1/jobs/{key}"))
+        return doc
+
+    @staticmethod
+    def cancel(key: str) -> Steps[dict[str, Any]]:
+        """Cancel a queued or running job."""
+        doc: dict[str, Any] = yield from _json(Call("DELETE", f"/v1/jobs/{key}"))
+        return doc
+
+    @staticmethod
+    def wait_raw(
+        key: str,
+        *,
+        progress: Progress | None = None,
+        poll: float = 0.2,
+        timeout: float | None = None,
+    ) -> Steps[dict[str, Any]]:
+        """Poll job ``key`` every ``poll`` [s] until it ends; return the result JSON.
+
+        Raises :class:`JobFailed` for a failed or cancelled job and :class:`TimeoutError`
+        after ``timeout`` [s].
+        """
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            job = yield from _Operations.job(key)
+            if progress is not None:
+                progress(float(job.get("progress", 0.0)))
+            status = job["status"]
+            if status == "succeeded":
+                if progress is not None:
+                    progress(1.0)
+                return (yield from _Operations.result_raw(key))
+            if status in ("failed", "cancelled"):
+                raise JobFailed(409, job.get("error") or {"title": f"job {status}"})
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"job {key} still {status} after {timeout} s")
+            yield Pause(poll)
+
+    @staticmethod
+    def wait(
+        key: str,
+        *,
+        progress: Progress | None = None,
+        poll: float = 0.2,
+        timeout: float | None = None,
+    ) -> Steps[SimulationResult]:
+        """Wait for job ``key`` (see :meth:`wait_raw`) and return its result."""
+        raw = yield from _Operations.wait_raw(key, progress=progress, poll=poll, timeout=timeout)
+        return SimulationResult.from_json(raw)
+
+    @staticmethod
+    def result_raw(key: str) -> Steps[dict[str, Any]]:
+        """The stored result JSON of ``key``."""
+        doc: dict[str, Any] = yield from _json(Call("GET", f"/v1/results/{key}"))
+        return doc
+
+    @staticmethod
+    def result(key: str) -> Steps[SimulationResult]:
+        """The stored result of ``key`` as numpy arrays."""
+        return SimulationResult.from_json((yield from _Operations.result_raw(key)))
+
+    @staticmethod
+    def result_csv(key: str, table: str = "history") -> Steps[str]:
+        """CSV of a stored result: ``history`` (t [s], u(L,t) [m], ...), ``eigenvalues``
+        or ``cma_exponents`` (sigma [1/s], omega [rad/s]), ``mode_shapes``; header row
+        with units."""
+        call = Call("GET", f"/v1/results/{key}", {"table": table}, headers={"Accept": "text/csv"})
+        response = yield call
+        assert response is not None
+        return response.text
+
+    @staticmethod
+    def result_parquet(key: str, table: str = "history") -> Steps[bytes]:
+        """Parquet bytes of a stored result's ``table`` (bare column names, each unit in
+        the field metadata ``unit``); read with ``pyarrow.parquet.read_table(io.BytesIO(b))``."""
+        call = Call(
+            "GET",
+            f"/v1/results/{key}",
+            {"table": table},
+            headers={"Accept": "application/vnd.apache.parquet"},
+        )
+        response = yield call
+        assert response is not None
+        return response.content
+
+    @staticmethod
+    def plot(key: str, name: str = "tip_displacement", fmt: str = "png") -> Steps[bytes]:
+        """PNG or SVG bytes of plot ``name`` of the stored result ``key``."""
+        response = yield Call("GET", f"/v1/results/{key}/plots/{name}.{fmt}")
+        assert response is not None
+        return response.content
+
+    @staticmethod
+    def compare(
+        simulation: Any, methods: list[str] | None = None, *, refresh: bool = False
+    ) -> Steps[dict[str, Any]]:
+        """Run one case with several methods (``POST /v1/compare``): per method the solve and
+        wall time [s], estimated error [-] and relative difference from the most accurate
+        (``baseline``) on the modal state and the tip [-]."""
+        body: dict[str, Any] = {"simulation": _spec_json(simulation)}
+        if methods is not None:
+            body["methods"] = list(methods)
+        doc: dict[str, Any] = yield from _json(Call("POST", "/v1/compare", _refresh(refresh), body))
+        return doc
+
+    @staticmethod
+    def stability(
+        spec: Any, *, refresh: bool = False, progress: Progress | None = None
+    ) -> Steps[dict[str, Any]]:
+        """Critical flow velocities [m/s] at constant spin: ``critical_velocity``,
+        ``crossings``, ``dimensionless`` (spec: dict or
+        :class:`~pipeflow.stability_spec.StabilitySpec`).
+
+        One ``POST /v1/stability``; with ``progress`` it runs as a job instead
+        (``POST /v1/stability/jobs``) and ``progress(fraction)`` is called while waiting.
+        """
+        if progress is None:
+            doc: dict[str, Any] = yield from _json(
+                Call("POST", "/v1/stability", _refresh(refresh), _spec_json(spec))
+            )
+            return doc
+        job = yield from _Operations.submit_stability(spec, refresh=refresh)
+        return (yield from _Operations.wait_raw(job["key"], progress=progress))
+
+    @staticmethod
+    def submit_stability(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
+        """Submit a critical-velocity analysis as a job; returns the job document."""
+        doc: dict[str, Any] = yield from _json(
+            Call("POST", "/v1/stability/jobs", _refresh(refresh), _spec_json(spec))
+        )
+        return doc
+
+    @staticmethod
+    def submit_sweep(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
+        """Submit a sweep, map or Floquet analysis (``POST /v1/sweeps``, spec ``kind``) as a
+        job; returns the job document (``key``, ``kind``, ``status``, ``progress``)."""
+        body = _spec_json(spec)
+        if isinstance(body, dict) and "kind" not in body and hasattr(spec, "kind"):
+            body = {"kind": spec.kind, **body}  # a model's default tag is not "set"
+        doc: dict[str, Any] = yield from _json(Call("POST", "/v1/sweeps", _refresh(refresh), body))
+        return doc
+
+    @staticmethod
+    def sweep(
+        spec: Any,
+        *,
+        refresh: bool = False,
+        progress: Progress | None = None,
+        poll: float = 0.2,
+        timeout: float | None = None,
+    ) -> Steps[dict[str, Any]]:
+        """An Argand/Campbell sweep, stability map, resonance chart or Floquet analysis
+        (spec ``kind``; dict or a :mod:`pipeflow.stability_spec` model): submitted as a job,
+        waited for (``progress(fraction)`` while running, see :meth:`wait_raw`), and returned
+        as the result JSON (SI units, ``plots`` for :meth:`plot`)."""
+        job = yield from _Operations.submit_sweep(spec, refresh=refresh)
+        return (
+            yield from _Operations.wait_raw(
+                job["key"], progress=progress, poll=poll, timeout=timeout
+            )
+        )
+
+    @staticmethod
+    def post(path: str, body: Any, **params: Any) -> Steps[Any]:
+        """``POST path`` with a JSON body; returns the JSON answer (any endpoint)."""
+        return (yield from _json(Call("POST", path, params or None, _spec_json(body))))
+
+    @staticmethod
+    def health() -> Steps[dict[str, Any]]:
+        """``GET /healthz``: ``{"status": "ok", "version": ...}``."""
+        doc: dict[str, Any] = yield from _json(Call("GET", "/healthz"))
+        return doc
+
+
+def _operation(steps: Callable[..., Steps[Any]]) -> Callable[..., Any]:
+    """A client method from an operation: ``self._run(steps(...))`` (sync: the value;
+    async: an awaitable of it)."""
+
+    @functools.wraps(steps)
+    def method(self: _Base, *args: Any, **kwargs: Any) -> Any:
+        return self._run(steps(*args, **kwargs))
+
+    return method
+
+
+# ---- retries of 503 --------------------------------------------------------------------
+
+
+def retry_after_seconds(value: str | None, now: datetime | None = None) -> float | None:
+    """``Retry-After`` (RFC 9110 section 10.2.3: delay-seconds or an HTTP date) in [s]."""
+    if value is None or not value.strip():
+        return None
+    value = value.strip()
+    if value.isdigit():
+        return float(value)
+    try:
+        when = email.utils.parsedate_to_datetime(value)
+    except (TypeError, ValueError):
+        return None
+    return max(0.0, (when - (now or datetime.now(UTC))).total_seconds())
+
+
+def _is_busy(exc: BaseException) -> bool:
+    return isinstance(exc, ServiceError) and exc.status == 503
+
+
+@dataclass(frozen=True)
+class RetryPolicy:
+    """How 503 answers are retried.
+
+    attempts : requests in all, the first included (1: never retry).
+    max_wait : longest single wait [s]; a longer ``Retry-After`` is cut to it.
+    backoff : first wait [s] when the answer has no ``Retry-After`` (then doubled).
+    on_retry : called as ``on_retry(error, wait_seconds)`` before each wait.
+    """
+
+    attempts: int = 5
+    max_wait: float = 60.0
+    backoff: float = 0.5
+    on_retry: Callable[[ServiceError, float], None] | None = None
+
+    def _wait(self, state: tenacity.RetryCallState) -> float:
+        exc = state.outcome.exception() if state.outcome is not None else None
+        after = exc.retry_after if isinstance(exc, ServiceError) else None
+        if after is None:
+            after = self.backoff * 2 ** (state.attempt_number - 1)
+        return min(after, self.max_wait)
+
+    def _before_sleep(self, state: tenacity.RetryCallState) -> None:
+        exc = state.outcome.exception() if state.outcome is not None else None
+        if self.on_retry is not None and isinstance(exc, ServiceError):
+            wait = state.next_action.sleep if state.next_action is not None else 0.0
+            self.on_retry(exc, wait)
+
+    def tenacity_kwargs(self) -> dict[str, Any]:
+        """Arguments of :class:`tenacity.Retrying` / :class:`tenacity.AsyncRetrying`."""
+        return {
+            "retry": tenacity.retry_if_exception(_is_busy),
+            "wait": self._wait,
+            "stop": tenacity.stop_after_attempt(max(1, self.attempts)),
+            "before_sleep": self._before_sleep,
+            "reraise": True,
+        }
+
+
+def _checked(response: httpx.Response) -> httpx.Response:
+    if response.status_code >= 400:
+        raise ServiceError(
+            response.status_code,
+            _problem(response),
+            retry_after_seconds(response.headers.get("retry-after")),
+        )
+    return response
+
+
+# ---- the two clients -------------------------------------------------------------------
+
+
+class _Base:
+    """What both clients share: base URL, default headers, retry policy, and the methods."""
+
+    def __init__(
+        self,
+        base_url: str,
+        headers: Mapping[str, str] | None,
+        retry: RetryPolicy | None,
+    ) -> None:
+        self.base_url = base_url.rstrip("/")
+        self.headers = dict(headers or {})
+        self.retry = retry if retry is not None else RetryPolicy()
+
+    def _run(self, steps: Steps[Any]) -> Any:
+        raise NotImplementedError
+
+    def _kwargs(self, call: Call) -> dict[str, Any]:
+        return {
+            "method": call.method,
+            "url": self.base_url + call.path,
+            "params": call.params,
+            "json": call.json,
+            "headers": {**self.headers, **call.headers},
+        }
+
+    simulate_raw = _operation(_Operations.simulate_raw)
+    simulate = _operation(_Operations.simulate)
+    submit = _operation(_Operations.submit)
+    job = _operation(_Operations.job)
+    cancel = _operation(_Operations.cancel)
+    wait_raw = _operation(_Operations.wait_raw)
+    wait = _operation(_Operations.wait)
+    result_raw = _operation(_Operations.result_raw)
+    result = _operation(_Operations.result)
+    result_csv = _operation(_Operations.result_csv)
+    result_parquet = _operation(_Operations.result_parquet)
+    plot = _operation(_Operations.plot)
+    compare = _operation(_Operations.compare)
+    stability = _operation(_Operations.stability)
+    submit_stability = _operation(_Operations.submit_stability)
+    submit_sweep = _operation(_Operations.submit_sweep)
+    sweep = _operation(_Operations.sweep)
+    post = _operation(_Operations.post)
+    health = _operation(_Operations.health)
+
+
+class Client(_Base):
+    """A pipeflow service at ``base_url`` (e.g. ``"http://localhost:8000"``), blocking.
 
     ``http`` lets a caller pass its own :class:`httpx.Client` (tests pass FastAPI's
     ``TestClient``); otherwise one is created with ``timeout`` [s] and closed by
-    :meth:`close` or the ``with`` block.
+    :meth:`close` or the ``with`` block.  ``retry`` sets how 503 answers are retried
+    (:class:`RetryPolicy`; ``RetryPolicy(attempts=1)`` never retries).
     """
 
     def __init__(
@@ -124,11 +529,11 @@ class Client:
         timeout: float = 600.0,
         http: httpx.Client | None = None,
         headers: Mapping[str, str] | None = None,
+        retry: RetryPolicy | None = None,
     ) -> None:
-        self.base_url = base_url.rstrip("/")
+        super().__init__(base_url, headers, retry)
         self._own = http is None
         self.http = http if http is not None else httpx.Client(timeout=timeout)
-        self.headers = dict(headers or {})
 
     def __enter__(self) -> Client:
         return self
@@ -140,203 +545,75 @@ class Client:
         if self._own:
             self.http.close()
 
-    # ---- transport -------------------------------------------------------------------
+    def _send(self, call: Call) -> httpx.Response:
+        for attempt in tenacity.Retrying(**self.retry.tenacity_kwargs()):
+            with attempt:
+                return _checked(self.http.request(**self._kwargs(call)))
+        raise AssertionError("unreachable: tenacity reraises the last error")
 
-    def _request(self, method: str, path: str, **kw: Any) -> httpx.Response:
-        headers = {**self.headers, **kw.pop("headers", {})}
-        response = self.http.request(method, self.base_url + path, headers=headers, **kw)
-        if response.status_code >= 400:
-            raise ServiceError(response.status_code, _problem(response))
-        return response
+    def _run(self, steps: Steps[T]) -> T:
+        answer: httpx.Response | None = None
+        try:
+            while True:
+                step = steps.send(answer)
+                if isinstance(step, Pause):
+                    time.sleep(step.seconds)
+                    answer = None
+                else:
+                    answer = self._send(step)
+        except StopIteration as done:
+            value: T = done.value
+            return value
 
-    def _json(self, method: str, path: str, **kw: Any) -> Any:
-        return self._request(method, path, **kw).json()
 
-    # ---- simulations -----------------------------------------------------------------
+class AsyncClient(_Base):
+    """The same service and methods as :class:`Client`, for asyncio: every method returns
+    an awaitable (``r = await client.simulate(spec)``), on an :class:`httpx.AsyncClient`
+    (``http``, or one created with ``timeout`` [s] and closed by :meth:`aclose` or
+    ``async with``)."""
 
-    def simulate_raw(
-        self, spec: Any, *, refresh: bool = False, progress: Progress | None = None
-    ) -> dict[str, Any]:
-        """Run ``spec`` (dict or :class:`~pipeflow.spec.SimulationSpec`) and return the JSON.
-
-        With ``progress`` the run goes through a job, and ``progress(fraction)`` is called
-        while waiting; otherwise it is one ``POST /v1/simulations``.
-        """
-        if progress is None:
-            return self._json(
-                "POST", "/v1/simulations", json=_spec_json(spec), params=_refresh(refresh)
-            )
-        job = self.submit(spec, refresh=refresh)
-        return self.wait_raw(job["key"], progress=progress)
-
-    def simulate(
-        self, spec: Any, *, refresh: bool = False, progress: Progress | None = None
-    ) -> SimulationResult:
-        """Run ``spec`` (or serve it from the cache) and return the result as numpy arrays."""
-        return SimulationResult.from_json(
-            self.simulate_raw(spec, refresh=refresh, progress=progress)
-        )
-
-    def submit(self, spec: Any, *, refresh: bool = False) -> dict[str, Any]:
-        """Submit ``spec`` as a job; returns the job document (``key``, ``status``, ...)."""
-        doc: dict[str, Any] = self._json(
-            "POST", "/v1/jobs", json=_spec_json(spec), params=_refresh(refresh)
-        )
-        return doc
-
-    def job(self, key: str) -> dict[str, Any]:
-        """The job document: status, progress [0..1], timestamps, error."""
-        doc: dict[str, Any] = self._json("GET", f"/v1/jobs/{key}")
-        return doc
-
-    def cancel(self, key: str) -> dict[str, Any]:
-        """Cancel a queued or running job."""
-        doc: dict[str, Any] = self._json("DELETE", f"/v1/jobs/{key}")
-        return doc
-
-    def wait_raw(
+    def __init__(
         self,
-        key: str,
+        base_url: str,
         *,
-        progress: Progress | None = None,
-        poll: float = 0.2,
-        timeout: float | None = None,
-    ) -> dict[str, Any]:
-        """Poll job ``key`` every ``poll`` [s] until it ends; return the result JSON.
+        timeout: float = 600.0,
+        http: httpx.AsyncClient | None = None,
+        headers: Mapping[str, str] | None = None,
+        retry: RetryPolicy | None = None,
+    ) -> None:
+        super().__init__(base_url, headers, retry)
+        self._own = http is None
+        self.http = http if http is not None else httpx.AsyncClient(timeout=timeout)
 
-        Raises :class:`JobFailed` for a failed or cancelled job and :class:`TimeoutError`
-        after ``timeout`` [s].
-        """
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while True:
-            job = self.job(key)
-            if progress is not None:
-                progress(float(job.get("progress", 0.0)))
-            status = job["status"]
-            if status == "succeeded":
-                if progress is not None:
-                    progress(1.0)
-                return self.result_raw(key)
-            if status in ("failed", "cancelled"):
-                raise JobFailed(409, job.get("error") or {"title": f"job {status}"})
-            if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"job {key} still {status} after {timeout} s")
-            time.sleep(poll)
+    async def __aenter__(self) -> AsyncClient:
+        return self
 
-    def wait(
-        self,
-        key: str,
-        *,
-        progress: Progress | None = None,
-        poll: float = 0.2,
-        timeout: float | None = None,
-    ) -> SimulationResult:
-        """Wait for job ``key`` (see :meth:`wait_raw`) and return its result."""
-        raw = self.wait_raw(key, progress=progress, poll=poll, timeout=timeout)
-        return SimulationResult.from_json(raw)
+    async def __aexit__(self, *exc: object) -> None:
+        await self.aclose()
 
-    # ---- stored results ----------------------------------------------------------------
+    async def aclose(self) -> None:
+        if self._own:
+            await self.http.aclose()
 
-    def result_raw(self, key: str) -> dict[str, Any]:
-        """The stored result JSON of ``key``."""
-        doc: dict[str, Any] = self._json("GET", f"/v1/results/{key}")
-        return doc
+    async def _send(self, call: Call) -> httpx.Response:
+        async for attempt in tenacity.AsyncRetrying(**self.retry.tenacity_kwargs()):
+            with attempt:
+                return _checked(await self.http.request(**self._kwargs(call)))
+        raise AssertionError("unreachable: tenacity reraises the last error")
 
-    def result(self, key: str) -> SimulationResult:
-        """The stored result of ``key`` as numpy arrays."""
-        return SimulationResult.from_json(self.result_raw(key))
-
-    def result_csv(self, key: str, table: str = "history") -> str:
-        """CSV of a stored result: ``history`` (t [s], u(L,t) [m], ...), ``eigenvalues``
-        or ``cma_exponents`` (sigma [1/s], omega [rad/s]); header row with units."""
-        response = self._request(
-            "GET", f"/v1/results/{key}", params={"table": table}, headers={"Accept": "text/csv"}
-        )
-        return response.text
-
-    def plot(self, key: str, name: str = "tip_displacement", fmt: str = "png") -> bytes:
-        """PNG or SVG bytes of plot ``name`` of the stored result ``key``."""
-        return self._request("GET", f"/v1/results/{key}/plots/{name}.{fmt}").content
-
-    # ---- method comparison ---------------------------------------------------------------
-
-    def compare(
-        self, simulation: Any, methods: list[str] | None = None, *, refresh: bool = False
-    ) -> dict[str, Any]:
-        """Run one case with several methods (``POST /v1/compare``): per method the solve and
-        wall time [s], estimated error [-] and relative difference from the most accurate
-        (``baseline``) on the modal state and the tip [-]."""
-        body: dict[str, Any] = {"simulation": _spec_json(simulation)}
-        if methods is not None:
-            body["methods"] = list(methods)
-        doc: dict[str, Any] = self._json("POST", "/v1/compare", json=body, params=_refresh(refresh))
-        return doc
-
-    # ---- stability -----------------------------------------------------------------------
-
-    def stability(
-        self, spec: Any, *, refresh: bool = False, progress: Progress | None = None
-    ) -> dict[str, Any]:
-        """Critical flow velocities [m/s] at constant spin: ``critical_velocity``,
-        ``crossings``, ``dimensionless`` (spec: dict or
-        :class:`~pipeflow.stability_spec.StabilitySpec`).
-
-        One ``POST /v1/stability``; with ``progress`` it runs as a job instead
-        (``POST /v1/stability/jobs``) and ``progress(fraction)`` is called while waiting.
-        """
-        if progress is None:
-            doc: dict[str, Any] = self._json(
-                "POST", "/v1/stability", json=_spec_json(spec), params=_refresh(refresh)
-            )
-            return doc
-        job = self.submit_stability(spec, refresh=refresh)
-        return self.wait_raw(job["key"], progress=progress)
-
-    def submit_stability(self, spec: Any, *, refresh: bool = False) -> dict[str, Any]:
-        """Submit a critical-velocity analysis as a job; returns the job document."""
-        doc: dict[str, Any] = self._json(
-            "POST", "/v1/stability/jobs", json=_spec_json(spec), params=_refresh(refresh)
-        )
-        return doc
-
-    def submit_sweep(self, spec: Any, *, refresh: bool = False) -> dict[str, Any]:
-        """Submit a sweep, map or Floquet analysis (``POST /v1/sweeps``, spec ``kind``) as a
-        job; returns the job document (``key``, ``kind``, ``status``, ``progress``)."""
-        body = _spec_json(spec)
-        if isinstance(body, dict) and "kind" not in body and hasattr(spec, "kind"):
-            body = {"kind": spec.kind, **body}  # a model's default tag is not "set"
-        doc: dict[str, Any] = self._json("POST", "/v1/sweeps", json=body, params=_refresh(refresh))
-        return doc
-
-    def sweep(
-        self,
-        spec: Any,
-        *,
-        refresh: bool = False,
-        progress: Progress | None = None,
-        poll: float = 0.2,
-        timeout: float | None = None,
-    ) -> dict[str, Any]:
-        """An Argand/Campbell sweep, stability map, resonance chart or Floquet analysis
-        (spec ``kind``; dict or a :mod:`pipeflow.stability_spec` model): submitted as a job,
-        waited for (``progress(fraction)`` while running, see :meth:`wait_raw`), and returned
-        as the result JSON (SI units, ``plots`` for :meth:`plot`)."""
-        job = self.submit_sweep(spec, refresh=refresh)
-        return self.wait_raw(job["key"], progress=progress, poll=poll, timeout=timeout)
-
-    # ---- other computations --------------------------------------------------------------
-
-    def post(self, path: str, body: Any, **params: Any) -> Any:
-        """``POST path`` with a JSON body; returns the JSON answer (any endpoint)."""
-        return self._json("POST", path, json=_spec_json(body), params=params or None)
-
-    def health(self) -> dict[str, Any]:
-        doc: dict[str, Any] = self._json("GET", "/healthz")
-        return doc
-
-
-def _refresh(refresh: bool) -> dict[str, str] | None:
-    return {"refresh": "true"} if refresh else None
+    async def _run(self, steps: Steps[T]) -> T:
+        answer: httpx.Response | None = None
+        try:
+            while True:
+                step = steps.send(answer)
+                if isinstance(step, Pause):
+                    await asyncio.sleep(step.seconds)
+                    answer = None
+                else:
+                    answer = await self._send(step)
+        except StopIteration as done:
+            value: T = done.value
+            return value
 
 
 def _problem(response: httpx.Response) -> dict[str, Any]:

@@ -17,11 +17,16 @@ KEY_PATTERN = r"^[0-9a-f]{64}$"
 
 
 class Trace(BaseModel):
-    mode: int = Field(description="Branch number, 1 = lowest frequency at t = 0.")
+    mode: int = Field(description="Mode number, 1 = lowest frequency at t = 0.")
     sigma: list[float] = Field(description="Real part of xi = sigma + i omega: damping [1/s].")
     omega: list[float] = Field(description="Imaginary part: frequency [rad/s].")
     confidence: list[float] = Field(
         description="Tracking confidence in [0, 1] (eigenvector correlation between steps)."
+    )
+    least_stable: bool | None = Field(
+        None,
+        description="Frozen spectrum only: this is the least stable branch of the whole "
+        "spectrum (largest sigma over time), traced whether or not it is among the lowest.",
     )
 
 
@@ -45,6 +50,22 @@ class Modal(BaseModel):
     ddot: list[list[float]] = Field(description="Their rates d'(t) [m/s].")
 
 
+class ShapeTrace(BaseModel):
+    mode: int = Field(description="Branch number, as in `eigenvalues`.")
+    sigma: list[float] = Field(description="Damping of the branch at each time [1/s].")
+    omega: list[float] = Field(description="Frequency of the branch at each time [rad/s].")
+    real: list[list[float]] = Field(
+        description="Re Phi(x) [-] per time, then per station (max |Phi| = 1, 1 + 0i at its peak)."
+    )
+    imag: list[list[float]] = Field(description="Im Phi(x) [-] per time, then per station.")
+
+
+class ModeShapesBlock(BaseModel):
+    t: list[float] = Field(description="Times of the shapes [s].")
+    x: list[float] = Field(description="Stations from the clamped end to the tip [m].")
+    modes: list[ShapeTrace]
+
+
 class SimulationResponse(BaseModel):
     """A simulation result with its parameter hash."""
 
@@ -56,7 +77,13 @@ class SimulationResponse(BaseModel):
         description="ok; diverging (a growing mode or the tip passed the divergence bound); "
         "overflow (samples after double-precision overflow are omitted)."
     )
-    method: str = Field(description="Solver used.")
+    method: str = Field(description="Method as requested ('auto' by default).")
+    method_used: str = Field(description="Solver that ran ('auto' resolves to cma or magnus).")
+    method_reason: str = Field(description="One line: why that solver.")
+    first_unstable_time: float | None = Field(
+        description="First output time [s] at which any branch of the frozen spectrum "
+        "has sigma > 0 (beyond rounding), or null if none."
+    )
     t: list[float] = Field(description="Output times [s].")
     tip_displacement: list[float] = Field(description="Tip displacement u(L, t) [m].")
     initial_tip_displacement: float = Field(description="u(L, 0) [m].")
@@ -77,6 +104,11 @@ class SimulationResponse(BaseModel):
     diagnostics: dict[str, Any] = Field(description="Solver diagnostics (costs, conditioning).")
     warnings: list[str] = Field(description="What the caller should know about this result.")
     modal: Modal | None = Field(None, description="Present when output.modal is true.")
+    mode_shapes: ModeShapesBlock | None = Field(
+        None,
+        description="Complex mode shapes of the frozen spectrum; present when "
+        "output.mode_shapes is given.",
+    )
     plots: list[str] = Field(
         default_factory=list,
         description="Figures of this result: GET /v1/results/{key}/plots/{name}.png or .svg.",
@@ -117,6 +149,7 @@ class Readiness(BaseModel):
 
 class MethodComparison(BaseModel):
     method: str = Field(description="Method name.")
+    method_used: str = Field(description="Solver that ran ('auto' resolves to cma or magnus).")
     status: str = Field(description="'ok', 'diverging' or 'overflow' (see simulations).")
     solve_seconds: float = Field(description="Time inside the solver [s].")
     wall_seconds: float = Field(description="Whole run incl. eigenvalue traces [s].")

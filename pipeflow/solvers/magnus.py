@@ -63,7 +63,6 @@ Z' = S(t) Z over a period.
 from __future__ import annotations
 
 import math
-import time
 from typing import Any, ClassVar
 
 import numpy as np
@@ -72,12 +71,16 @@ from numpy.typing import NDArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import Loading, PipeModel
 from pipeflow.solvers.base import (
-    MAX_STEPS_CEILING,
     FloatArray,
     Problem,
+    Solver,
     SolverOutput,
+    SolverStats,
     given_step,
     register,
+    relative_difference,
+    step_budget,
+    step_counts,
 )
 
 GAUSS_OFFSET = math.sqrt(3.0) / 6.0
@@ -289,22 +292,12 @@ class MagnusGenerator:
         return np.where(np.isfinite(err), err, np.inf)
 
 
-def relative_difference(Z: FloatArray, Zc: FloatArray, size: int) -> float:
-    """max_k |Z_k - Zc_k| / max_k |Z_k| over the first ``size`` state components [-]."""
-    scale = float(np.max(np.linalg.norm(Z[:, :size], axis=1)))
-    if scale == 0.0:
-        return 0.0
-    with np.errstate(all="ignore"):
-        diff = float(np.max(np.linalg.norm(Z[:, :size] - Zc[:, :size], axis=1)))
-    return diff / scale if math.isfinite(diff) else math.inf
-
-
 def observed_rate(d1: float, Zc: FloatArray, Zcc: FloatArray, size: int, order: int) -> float:
     """Observed convergence rate log2(d2 / d1) [-], with d1 = |Z - Zc| of runs with the
     step and twice the step, and d2 = |Zc - Zcc| with four times the step (relative, max
     over time), clipped to [log2(RICHARDSON_DIVISOR + 1), order]: order 4 gives 4 in the
     asymptotic regime, while h |xi_max| > pi it is lower."""
-    d2 = relative_difference(Zc, Zcc, size)
+    d2 = relative_difference(Zcc, Zc, size)
     r = d2 / d1 if d1 > 0 else math.inf
     r = min(max(r, RICHARDSON_DIVISOR + 1.0), 2.0**order) if math.isfinite(r) else 2.0**order
     return math.log2(r)
@@ -368,7 +361,7 @@ def choose_orders(
     return np.where(six[owner], 6, 4).astype(np.int64), 6 * int(near.size)
 
 
-class Magnus:
+class Magnus(Solver):
     name: ClassVar[str] = "magnus"
     description: ClassVar[str] = (
         "Magnus integrator of order 4 or 6 (2 or 3 Gauss points, chosen per interval) on "
@@ -376,9 +369,10 @@ class Magnus:
         "exact for constant."
     )
     option_names: ClassVar[tuple[str, ...]] = ("step", "max_steps", "tolerance")
+    estimates_own_error: ClassVar[bool] = True
+    error_advice: ClassVar[str] = "use a smaller tolerance or step"
 
-    def solve(self, problem: Problem) -> SolverOutput:
-        t0 = time.perf_counter()
+    def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
         loading, t = problem.loading, problem.t
         opts = problem.options
         dt = np.diff(t)
@@ -387,12 +381,15 @@ class Magnus:
         scale = float(np.linalg.norm(problem.z0)) or 1.0
         gen = MagnusGenerator(problem.model, loading, scale)
         invariant = loading.is_time_invariant
-        budget = min(opts.max_steps, MAX_STEPS_CEILING)
+        budget = step_budget(opts)
         step = given_step(opts)
         if step is None and not (0 < opts.tolerance < 1):
-            raise InvalidInput("options.tolerance must be in (0, 1)", field="options.tolerance")
+            raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
         h0 = step if step is not None else t_end / PILOT_STEPS
-        substeps = _substeps(dt, h0, budget)
+        # bounded in floating point before the cast; the error check's run with twice the
+        # step takes half as many again, so the first run gets 2/3 of the budget
+        first = budget if invariant else (2 * budget) // 3
+        substeps = step_counts(dt, h0, first, "magnus", step is not None)
         if dt.size == 1 and not invariant:
             substeps = np.maximum(substeps, 2)  # the check needs a coarser run to compare with
         warnings: list[str] = []
@@ -418,7 +415,7 @@ class Magnus:
             self._check_budget(plan.steps + coarse.steps, budget, dt, substeps, opts.tolerance)
             Zc, used = propagate(problem, gen, t[idx], coarse)
             exps += used
-            d1 = relative_difference(Zaug[idx], Zc, N)
+            d1 = relative_difference(Zc, Zaug[idx], N)
             estimate = d1 / RICHARDSON_DIVISOR
             if step is not None or estimate <= opts.tolerance:
                 break
@@ -438,15 +435,13 @@ class Magnus:
             substeps = _substeps(dt, h0, budget, factor, substeps)
         Z = Zaug[:, :N].copy()
         h_used = dt / plan.substeps
+        stats.steps, stats.attempts, stats.matrix_exponentials = plan.steps, attempts, exps
         diagnostics: dict[str, Any] = {
             "time_invariant": invariant,
-            "step_source": "options.step" if opts.step is not None else "options.tolerance",
-            "steps": plan.steps,
+            "step_source": "step" if opts.step is not None else "tolerance",
             "step_max": float(h_used.max()),
             "step_min": float(h_used.min()),
             "steps_order_6": int(plan.substeps[plan.order == 6].sum()),
-            "attempts": attempts,
-            "matrix_exponentials": exps,
             "tolerance": opts.tolerance,
             "estimated_relative_error": estimate,
             "error_estimate_method": (
@@ -454,9 +449,7 @@ class Magnus:
                 if invariant
                 else f"difference from a run with twice the step, divided by {RICHARDSON_DIVISOR:g}"
             ),
-            "solve_seconds": time.perf_counter() - t0,
         }
-        problem.report(1.0)
         return SolverOutput(z=Z, diagnostics=diagnostics, warnings=warnings)
 
     @staticmethod
@@ -467,9 +460,9 @@ class Magnus:
             raise BudgetExceeded(
                 f"magnus needs {n_steps} steps of {float(np.max(dt / substeps)):.3g} s for "
                 f"this run (tolerance {tol:.3g}, including the error check), above the step "
-                f"budget of {budget}; raise options.max_steps, loosen options.tolerance or "
+                f"budget of {budget}; raise max_steps, loosen the tolerance or "
                 "use fewer modes",
-                field="options.max_steps",
+                parameter="max_steps",
             )
 
 

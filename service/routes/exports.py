@@ -1,10 +1,11 @@
-"""Stored results as pictures and tables: plots (PNG/SVG) and CSV.
+"""Stored results as pictures and tables: plots (PNG/SVG), CSV and Parquet.
 
 - ``GET /v1/results/{key}/plots/{name}.{fmt}``: a figure of the stored result, drawn by
   :mod:`pipeflow.plots` (the names a result supports are listed in its ``plots`` field).
-- CSV of ``GET /v1/results/{key}`` (``Accept: text/csv`` or ``?format=csv``): the route in
-  :mod:`service.routes.results` calls :func:`csv_response` from here, so one module owns
-  the content negotiation and the CSV tables of :mod:`pipeflow.export`.
+- CSV or Parquet of ``GET /v1/results/{key}`` (``Accept: text/csv`` /
+  ``application/vnd.apache.parquet`` or ``?format=csv|parquet``): the route in
+  :mod:`service.routes.results` calls :func:`table_response` from here, so one module owns
+  the content negotiation and the tables of :mod:`pipeflow.export`.
 
 Drawing happens in a thread (not on the event loop) under a lock: matplotlib's figure
 objects are independent, but its rc settings used while saving are process-global.
@@ -15,12 +16,20 @@ from __future__ import annotations
 import asyncio
 import json
 import threading
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Header, Path, Response
 
 from pipeflow import plots
-from pipeflow.export import CSV_MEDIA_TYPE, TABLES, ExportError, available_tables, to_csv
+from pipeflow.export import (
+    CSV_MEDIA_TYPE,
+    PARQUET_MEDIA_TYPE,
+    TABLES,
+    ExportError,
+    available_tables,
+    to_csv,
+    to_parquet,
+)
 from service.deps import StoreDep
 from service.problems import ProblemError, responses
 from service.schemas import KEY_PATTERN
@@ -32,16 +41,29 @@ _draw_lock = threading.Lock()
 #: stored results never change under a key (the key hashes the inputs and the version)
 IMMUTABLE = "public, max-age=86400, immutable"
 
-Table = Literal["history", "eigenvalues", "cma_exponents"]
-TABLE_DESCRIPTION = "CSV table: " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
+Table = Literal["history", "eigenvalues", "cma_exponents", "mode_shapes"]
+TABLE_DESCRIPTION = "CSV/Parquet table: " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
+#: format name -> media type of the tables (JSON is the result document itself)
+TABLE_MEDIA_TYPES = {"csv": CSV_MEDIA_TYPE, "parquet": PARQUET_MEDIA_TYPE}
+#: OpenAPI content of a 200 that may be a table (binary Parquet, CSV text)
+TABLE_CONTENT: dict[str, Any] = {
+    CSV_MEDIA_TYPE: {"schema": {"type": "string"}},
+    PARQUET_MEDIA_TYPE: {"schema": {"type": "string", "format": "binary"}},
+}
 
 
 def wants_csv(fmt: str | None, accept: str | None) -> bool:
     """CSV when ``?format=csv``, or when ``Accept`` prefers text/csv over JSON."""
+    return wanted_format(fmt, accept) == "csv"
+
+
+def wanted_format(fmt: str | None, accept: str | None) -> str:
+    """``"json"``, ``"csv"`` or ``"parquet"``: ``?format=`` if given, else the media type
+    ``Accept`` prefers among JSON, text/csv and application/vnd.apache.parquet."""
     if fmt is not None:
-        return fmt == "csv"
+        return fmt
     if not accept:
-        return False
+        return "json"
     ranked = []
     for i, part in enumerate(accept.split(",")):
         media, *params = (p.strip() for p in part.split(";"))
@@ -53,21 +75,29 @@ def wants_csv(fmt: str | None, accept: str | None) -> bool:
                 except ValueError:
                     q = 0.0
         ranked.append((q, -i, media.lower()))
+    by_media = {media: name for name, media in TABLE_MEDIA_TYPES.items()}
     for q, _, media in sorted(ranked, reverse=True):
         if q <= 0:
             continue
-        if media == CSV_MEDIA_TYPE:
-            return True
+        if media in by_media:
+            return by_media[media]
         if media in ("application/json", "application/*", "*/*", "application/problem+json"):
-            return False
-    return False
+            return "json"
+    return "json"
 
 
-def csv_response(key: str, body: bytes, table: str) -> Response:
-    """The CSV of table ``table`` of the stored result ``body`` (JSON bytes)."""
+def table_response(key: str, body: bytes, table: str, fmt: str) -> Response:
+    """Table ``table`` of the stored result ``body`` (JSON bytes) as ``fmt`` (csv, parquet)."""
     result = json.loads(body)
     try:
-        text = to_csv(result, table)
+        content: str | bytes = to_csv(result, table) if fmt == "csv" else to_parquet(result, table)
+    except ImportError as exc:  # pyarrow is an optional extra of the server
+        raise ProblemError(
+            406,
+            f"{exc}; ask for CSV instead",
+            slug="format-unavailable",
+            errors=[{"field": "format", "location": "query", "message": str(exc)}],
+        ) from None
     except ExportError as exc:
         tables = ", ".join(available_tables(result)) or "none"
         raise ProblemError(
@@ -76,12 +106,13 @@ def csv_response(key: str, body: bytes, table: str) -> Response:
             slug="no-such-table",
             errors=[{"field": "table", "location": "query", "message": exc.message}],
         ) from None
+    media = TABLE_MEDIA_TYPES[fmt]
     return Response(
-        text,
-        media_type=f"{CSV_MEDIA_TYPE}; charset=utf-8; header=present",
+        content,
+        media_type=f"{media}; charset=utf-8; header=present" if fmt == "csv" else media,
         headers={
-            "ETag": f'"{key}-{table}.csv"',
-            "Content-Disposition": f'inline; filename="{key[:12]}-{table}.csv"',
+            "ETag": f'"{key}-{table}.{fmt}"',
+            "Content-Disposition": f'inline; filename="{key[:12]}-{table}.{fmt}"',
             "Cache-Control": IMMUTABLE,
             "Vary": "Accept",
         },

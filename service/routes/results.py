@@ -10,7 +10,13 @@ from fastapi import APIRouter, Header, Path, Query, Response
 from service.compute import CACHE_HEADERS, result_response
 from service.deps import RunnerDep, StoreDep
 from service.problems import ProblemError, responses
-from service.routes.exports import TABLE_DESCRIPTION, Table, csv_response, wants_csv
+from service.routes.exports import (
+    TABLE_CONTENT,
+    TABLE_DESCRIPTION,
+    Table,
+    table_response,
+    wanted_format,
+)
 from service.schemas import KEY_PATTERN, CompareResponse, SimulationResponse
 from service.stability_schemas import (
     BetaMapResponse,
@@ -48,8 +54,8 @@ def _matches(if_none_match: str, key: str) -> bool:
     summary="A stored result",
     response_model=ResultDocument,
     responses={
-        200: {"headers": CACHE_HEADERS, "content": {"text/csv": {}}},
-        **responses(304, 404, 422),
+        200: {"headers": CACHE_HEADERS, "content": TABLE_CONTENT},
+        **responses(304, 404, 406, 422),
     },
 )
 async def get_result(
@@ -59,8 +65,10 @@ async def get_result(
     if_none_match: Annotated[str | None, Header()] = None,
     accept: Annotated[str | None, Header()] = None,
     format: Annotated[
-        Literal["json", "csv"] | None,
-        Query(description="json or csv; overrides Accept (for clients that cannot set it)."),
+        Literal["json", "csv", "parquet"] | None,
+        Query(
+            description="json, csv or parquet; overrides Accept (for clients that cannot set it)."
+        ),
     ] = None,
     table: Annotated[Table, Query(description=TABLE_DESCRIPTION)] = "history",
 ) -> Response:
@@ -68,13 +76,16 @@ async def get_result(
     it, or the result of a job), with
     ``ETag: "<key>"``; ``If-None-Match`` with that tag is answered 304.  With
     ``Accept: text/csv`` or ``?format=csv``: one CSV ``table`` whose header row names each
-    column with its unit, e.g. ``t [s],tip_displacement [m]``."""
-    if wants_csv(format, accept):
+    column with its unit, e.g. ``t [s],tip_displacement [m]``.  With
+    ``Accept: application/vnd.apache.parquet`` or ``?format=parquet``: the same table as
+    Parquet, float64 columns named without units and each unit in the field metadata."""
+    fmt = wanted_format(format, accept)
+    if fmt != "json":
         body = await asyncio.to_thread(store.get_result, key)
         if body is None:
             raise ProblemError(404, f"no result {key}", slug="unknown-key")
         # parse the stored JSON and write the table off the event loop: results can be MBs
-        return await asyncio.to_thread(csv_response, key, body, table)
+        return await asyncio.to_thread(table_response, key, body, table, fmt)
     if if_none_match is not None and _matches(if_none_match, key):
         if await asyncio.to_thread(store.has_result, key):
             return Response(status_code=304, headers={"ETag": f'"{key}"'})

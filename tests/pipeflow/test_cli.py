@@ -46,6 +46,13 @@ def test_run_json_then_csv_then_plot(
     assert lines[0].startswith("t [s],sigma_1 [1/s],omega_1 [rad/s]")
     assert len(lines) == 12
 
+    pq = pytest.importorskip("pyarrow.parquet")  # the parquet extra, in dev: CI runs it
+    parquet = tmp_path / "history.parquet"
+    assert main(["run", str(out), "--format", "parquet", "-o", str(parquet)]) == 0
+    table = pq.read_table(parquet)
+    assert table.column("tip_displacement").to_pylist() == result["tip_displacement"]
+    assert table.schema.field("t").metadata[b"unit"] == b"s"
+
     png = tmp_path / "tip.png"
     assert main(["plot", str(out), "--name", "tip_displacement", "--out", str(png)]) == 0
     assert png.read_bytes().startswith(b"\x89PNG")
@@ -95,7 +102,7 @@ def test_console_script_help_shows_the_papers_example() -> None:
         pytest.fail("the pipeflow console script is not installed (pip install -e .)")
     out = subprocess.run([exe, "run", "--help"], capture_output=True, text=True, check=True)
     assert "v = 0.4 t m/s, w0 = 100 rad/s" in out.stdout
-    assert "--format {json,csv}" in out.stdout
+    assert "--format {json,csv,parquet}" in out.stdout
 
 
 PIPE = PAPER_EXAMPLE["pipe"]

@@ -1,14 +1,15 @@
-"""CSV export of results: header names and units, exact round trip, every table."""
+"""CSV and Parquet export of results: header names and units, exact round trip, every table."""
 
 from __future__ import annotations
 
 import csv
 import io
+import sys
 from typing import Any
 
 import pytest
 
-from pipeflow.export import TABLES, ExportError, available_tables, to_csv
+from pipeflow.export import TABLES, ExportError, available_tables, table, to_csv, to_parquet
 from pipeflow.model import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
@@ -27,6 +28,8 @@ def result() -> dict[str, Any]:
         eigen_samples=11,
         positions=(0.0125,),
         include_modal=True,
+        mode_shape_times=(0.1,),
+        mode_shape_points=9,
     )
     return simulate(sim).to_dict()
 
@@ -83,3 +86,30 @@ def test_lines_end_with_crlf(result: dict[str, Any]) -> None:
     text = to_csv(result, "eigenvalues")
     assert text.endswith("\r\n")
     assert text.count("\r\n") == len(result["eigenvalues"]["t"]) + 1
+
+
+@pytest.mark.parametrize("name", list(TABLES))
+def test_parquet_round_trips_every_table_with_units(result: dict[str, Any], name: str) -> None:
+    """Parquet holds the CSV table's columns under the bare names, float64, bit-identical to
+    the JSON floats, with the unit of the CSV header in each field's metadata."""
+    pq = pytest.importorskip("pyarrow.parquet")  # in the dev extra: CI runs this
+    back = pq.read_table(io.BytesIO(to_parquet(result, name)))
+    header, columns = table(result, name)
+    assert back.schema.metadata[b"table"] == name.encode()
+    for label, values, fld in zip(header, columns, back.schema, strict=True):
+        assert f"{fld.name} [{fld.metadata[b'unit'].decode()}]" == label
+        assert str(fld.type) == "double"
+        assert back.column(fld.name).to_pylist() == values
+    if name == "history":
+        assert back.column("tip_displacement").to_pylist() == result["tip_displacement"]
+        assert back.schema.field("ddot_1").metadata[b"unit"] == b"m/s"
+
+
+def test_parquet_without_pyarrow_says_how_to_install(
+    result: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow now raises
+    with pytest.raises(ImportError, match=r"pip install 'pipeflow\[parquet\]'"):
+        to_parquet(result, "history")
+    with pytest.raises(ExportError, match="unknown table"):  # the table is checked first
+        to_parquet(result, "nope")

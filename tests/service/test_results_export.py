@@ -1,16 +1,17 @@
-"""CSV of stored results (Accept: text/csv, ?format=csv) and plot endpoints (PNG/SVG)."""
+"""CSV and Parquet of stored results (Accept / ?format=) and plot endpoints (PNG/SVG)."""
 
 from __future__ import annotations
 
 import csv
 import io
+import sys
 from collections.abc import Iterator
 from typing import Any, get_args
 
 import pytest
 
 from pipeflow.export import TABLES
-from service.routes.exports import Table, wants_csv
+from service.routes.exports import Table, wanted_format
 from tests.service.conftest import SMALL, make_client, wait_ready
 
 
@@ -77,19 +78,23 @@ def test_csv_errors_name_the_field(tc: Any, stored: dict[str, Any]) -> None:
 
 
 @pytest.mark.parametrize(
-    ("accept", "csv_wanted"),
+    ("accept", "wanted"),
     [
-        ("text/csv", True),
-        ("application/json", False),
-        ("application/json;q=0.5, text/csv", True),
-        ("text/csv;q=0.2, application/json", False),
-        ("text/csv;q=0", False),
-        ("*/*", False),
-        (None, False),
+        ("text/csv", "csv"),
+        ("application/json", "json"),
+        ("application/json;q=0.5, text/csv", "csv"),
+        ("text/csv;q=0.2, application/json", "json"),
+        ("text/csv;q=0", "json"),
+        ("*/*", "json"),
+        (None, "json"),
+        ("application/vnd.apache.parquet", "parquet"),
+        ("text/csv;q=0.5, application/vnd.apache.parquet", "parquet"),
+        ("application/vnd.apache.parquet;q=0.1, text/csv", "csv"),
     ],
 )
-def test_accept_negotiation(accept: str | None, csv_wanted: bool) -> None:
-    assert wants_csv(None, accept) is csv_wanted
+def test_accept_negotiation(accept: str | None, wanted: str) -> None:
+    assert wanted_format(None, accept) == wanted
+    assert wanted_format("csv", accept) == "csv"  # ?format= overrides Accept
 
 
 @pytest.mark.parametrize(
@@ -127,3 +132,91 @@ def test_table_parameter_lists_every_export_table() -> None:
     be built from a dict for the type checker): keep them equal, so no table is refused
     with 422 and none is advertised that the exporter lacks."""
     assert list(get_args(Table)) == list(TABLES)
+
+
+@pytest.mark.parametrize("how", ["query", "accept"])
+def test_parquet_round_trip_through_the_service(tc: Any, stored: dict[str, Any], how: str) -> None:
+    """The Parquet table holds the identical float64 values of the JSON result, with each
+    column's SI unit in its field metadata."""
+    pq = pytest.importorskip("pyarrow.parquet")  # in the dev extra: CI runs this
+    url = f"/v1/results/{stored['key']}"
+    if how == "query":
+        r = tc.get(url, params={"format": "parquet", "table": "eigenvalues"})
+    else:
+        r = tc.get(
+            url,
+            params={"table": "eigenvalues"},
+            headers={"Accept": "application/vnd.apache.parquet"},
+        )
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "application/vnd.apache.parquet"
+    assert r.headers["etag"] == f'"{stored["key"]}-eigenvalues.parquet"'
+    table = pq.read_table(io.BytesIO(r.content))
+    assert table.column_names[:4] == ["t", "sigma_1", "omega_1", "confidence_1"]
+    units = {f.name: f.metadata[b"unit"].decode() for f in table.schema}
+    assert units["t"] == "s" and units["sigma_2"] == "1/s" and units["omega_2"] == "rad/s"
+    assert table.column("t").to_pylist() == stored["eigenvalues"]["t"]
+    assert table.column("omega_2").to_pylist() == stored["eigenvalues"]["modes"][1]["omega"]
+
+
+def test_parquet_of_a_missing_table_names_the_field(tc: Any, stored: dict[str, Any]) -> None:
+    r = tc.get(f"/v1/results/{stored['key']}", params={"format": "parquet", "table": "mode_shapes"})
+    assert r.status_code == 404
+    assert r.headers["content-type"] == "application/problem+json"
+    assert r.json()["errors"][0]["field"] == "table"
+
+
+def test_mode_shapes_in_the_result_csv_and_plot(tc: Any) -> None:
+    spec = dict(SMALL, output={"mode_shapes": {"times": [0.0, 0.1], "points": 21}})
+    r = tc.post("/v1/simulations", json=spec)
+    assert r.status_code == 200, r.text
+    doc = r.json()
+    block = doc["mode_shapes"]
+    assert block["t"] == [0.0, 0.1] and len(block["x"]) == 21
+    assert block["x"][-1] == spec["pipe"]["L"]
+    assert [m["mode"] for m in block["modes"]] == [1, 2, 3]
+    assert "mode_shapes" in doc["plots"]
+    text = tc.get(f"/v1/results/{doc['key']}", params={"format": "csv", "table": "mode_shapes"})
+    header = _rows(text.text)[0]
+    assert header[:3] == ["x [m]", "real_1(t=0.0) [-]", "imag_1(t=0.0) [-]"]
+    assert len(header) == 1 + 2 * 3 * 2
+    png = tc.get(f"/v1/results/{doc['key']}/plots/mode_shapes.png")
+    assert png.status_code == 200 and png.content.startswith(b"\x89PNG")
+
+
+def test_mode_shape_times_outside_the_run_name_the_field(tc: Any) -> None:
+    spec = dict(SMALL, output={"mode_shapes": {"times": [0.1, 5.0]}})
+    r = tc.post("/v1/simulations", json=spec)
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["field"] == "output.mode_shapes.times.1"
+    bad_points = {"mode_shapes": {"times": [0.1], "points": 1}}
+    r = tc.post("/v1/simulations", json=dict(SMALL, output=bad_points))
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["field"] == "output.mode_shapes.points"
+
+
+def test_openapi_declares_the_table_formats(tc: Any) -> None:
+    op = tc.get("/openapi.json").json()["paths"]["/v1/results/{key}"]["get"]
+    content = op["responses"]["200"]["content"]
+    assert content["application/vnd.apache.parquet"]["schema"] == {
+        "type": "string",
+        "format": "binary",
+    }
+    assert "text/csv" in content and "application/json" in content
+    fmt = next(p for p in op["parameters"] if p["name"] == "format")
+    assert "parquet" in fmt["schema"]["anyOf"][0]["enum"]
+    tables = next(p for p in op["parameters"] if p["name"] == "table")
+    assert tables["schema"]["enum"] == list(TABLES)
+
+
+def test_parquet_without_pyarrow_on_the_server_is_406_naming_format(
+    tc: Any, stored: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """pyarrow is an optional extra of the server too: without it the answer says so (and
+    that CSV works) instead of failing with 500."""
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # the server's import now fails
+    r = tc.get(f"/v1/results/{stored['key']}", params={"format": "parquet"})
+    assert r.status_code == 406
+    assert r.headers["content-type"] == "application/problem+json"
+    assert r.json()["errors"][0]["field"] == "format"
+    assert "pip install 'pipeflow[parquet]'" in r.json()["detail"]

@@ -1,0 +1,114 @@
+"""Complex mode shapes of the frozen spectrum: what each eigenvalue branch looks like along x.
+
+At a time t the frozen state matrix S(t) has right eigenvectors z_j (balanced state
+``[d'/omega_ref, d]``, see :class:`pipeflow.model.PipeModel`); their displacement part d_j
+is a complex vector of Galerkin amplitudes, and the mode shape of branch j is
+
+    Phi_j(x, t) = sum_k d_jk phi_k(x / L)
+
+with phi_k the cantilever modes of :mod:`pipeflow.basis`.  Flow makes the shapes complex
+(travelling-wave content: the real and imaginary parts peak at different stations); without
+flow and spin they are real multiples of the cantilever modes.
+
+Normalisation: an eigenvector is defined up to one complex factor, so each shape is divided
+by its value at the station of largest modulus: that station reads exactly 1 + 0i and
+``max |Phi_j| = 1`` [-].
+
+Branch numbering is that of ``Result.frozen`` (the ``eigenvalues`` of a result): the same
+branches (the lowest modes at t = 0 and the least stable one), followed through the
+eigenvalue times and the requested times by left/right eigenvector correlation
+(:func:`pipeflow.spectra.assign`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pipeflow.basis import mode_shapes as cantilever_shapes
+from pipeflow.model import Loading, PipeModel
+from pipeflow.spectra import assign, decompose, match_branches, order_lowest
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+#: bounds a request may ask for (the cost is one eigen-decomposition per time)
+MAX_SHAPE_TIMES = 32
+MAX_SHAPE_POINTS = 2001
+DEFAULT_SHAPE_POINTS = 101
+
+
+@dataclass(frozen=True)
+class ModeShapes:
+    """Normalised complex mode shapes of the frozen spectrum at chosen times (SI units).
+
+    t : times [s], shape (T,).
+    x : stations along the pipe [m], shape (P,), from the clamped end 0 to the tip L.
+    xi : eigenvalues sigma + i omega of the branches at those times [1/s], shape (T, B).
+    shapes : Phi_j(x, t) [-], shape (T, B, P), max modulus 1 (see the module docstring).
+    mode : mode number of each branch (``Traces.mode``), shape (B,); None: 1, 2, ...
+    """
+
+    t: FloatArray
+    x: FloatArray
+    xi: ComplexArray
+    shapes: ComplexArray
+    mode: NDArray[np.intp] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form: ``{"t", "x", "modes": [{"mode", "sigma", "omega", "real", "imag"}]}``
+        with ``real``/``imag`` nested as [time][station]."""
+        return {
+            "t": self.t.tolist(),
+            "x": self.x.tolist(),
+            "modes": [
+                {
+                    "mode": int(self.mode[j]) if self.mode is not None else j + 1,
+                    "sigma": self.xi[:, j].real.tolist(),
+                    "omega": self.xi[:, j].imag.tolist(),
+                    "real": self.shapes[:, j].real.tolist(),
+                    "imag": self.shapes[:, j].imag.tolist(),
+                }
+                for j in range(self.xi.shape[1])
+            ],
+        }
+
+
+def frozen_mode_shapes(
+    model: PipeModel,
+    loading: Loading,
+    times: FloatArray,
+    branches: int | ComplexArray,
+    points: int = DEFAULT_SHAPE_POINTS,
+    track_times: FloatArray | None = None,
+) -> ModeShapes:
+    """Mode shapes of frozen branches at ``times`` [s]: the ``branches`` lowest, or the
+    branches whose eigenvalues at t = 0 are given (``Result.frozen.xi[0]``).
+
+    ``points`` evenly spaced stations from x = 0 to x = L [m] (both included).  Branches
+    are followed from t = 0 through ``track_times`` [s] (the result's eigenvalue times) and
+    ``times`` together, so branch j here is branch j of the result's ``eigenvalues``.
+    """
+    times = np.asarray(times, dtype=float)
+    grid = np.asarray(track_times if track_times is not None else [], dtype=float)
+    grid = np.unique(np.concatenate([[0.0], grid, times]))
+    S = model.state_matrix(loading.coefficients(grid))
+    w, V, W = decompose(S)
+    perm, _ = assign(w, V, W)
+    if isinstance(branches, int):
+        chosen = order_lowest(w[0], branches, model.pipe.damped)
+    else:
+        chosen = match_branches(w[0], branches)
+    at = np.searchsorted(grid, times)
+    cols = perm[at][:, chosen]  # (T, B): eigenvector index of branch j at each time
+    xi = np.take_along_axis(w[at], cols, axis=1)
+    n = model.n
+    d = np.take_along_axis(V[at][:, n:, :], cols[:, None, :], axis=2)  # (T, n, B)
+    x = np.linspace(0.0, model.pipe.L, points)
+    phi = cantilever_shapes(n, x / model.pipe.L)  # (n, P)
+    shapes = np.einsum("tkb,kp->tbp", d, phi)
+    peak = np.take_along_axis(shapes, np.argmax(np.abs(shapes), axis=2)[..., None], axis=2)
+    return ModeShapes(t=times, x=x, xi=xi, shapes=shapes / peak)
