@@ -571,7 +571,7 @@ def section_targets(s: Setup, summary: dict[str, Any], quick: bool) -> None:
         fractions = []
         for _ in range(s.repeats):
             o = SOLVERS["cma"].solve(p)
-            add_error_estimate("cma", p, o)
+            add_error_estimate(SOLVERS["cma"], p, o)
             d = o.diagnostics
             fractions.append((d["error_estimate_seconds"], d["solve_seconds"]))
         check, solve = min(fractions, key=lambda x: x[0] / x[1])
@@ -583,7 +583,7 @@ def section_targets(s: Setup, summary: dict[str, Any], quick: bool) -> None:
         ))  # fmt: skip
     p = problem(model, CASES["v=0.4t"], t)
     o = SOLVERS["rk4"].solve(p)
-    add_error_estimate("rk4", p, o)
+    add_error_estimate(SOLVERS["rk4"], p, o)
     r = o.diagnostics["error_estimate_seconds"] / o.diagnostics["solve_seconds"]
     lines.append((
         "rk4 error check <= 25% of the rk4 solve (v=0.4t)",

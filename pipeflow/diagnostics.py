@@ -85,7 +85,10 @@ def add_error_estimate(
         # first a fixed-step yardstick (CHECK_STEPS steps, its own error estimated by
         # step doubling); only where it cannot resolve the error it measures, a run to
         # a tolerance of RESOLUTION_FRACTION of that error
-        check = _yardstick(problem, t_check, step=float(t_check[-1]) / CHECK_STEPS)
+        # (the sampled intervals are uneven by one output step: a step no shorter than the
+        # longest keeps one step per interval instead of two on the longer ones)
+        step = max(float(t_check[-1]) / CHECK_STEPS, float(np.max(np.diff(t_check))))
+        check = _yardstick(problem, t_check, step=step)
         estimate = relative_difference(out.z[idx], check.z, problem.model.size)
         resolution = float(check.diagnostics.get("estimated_relative_error", 0.0))
         if resolution > max(CHECK_TOLERANCE, RESOLUTION_FRACTION * estimate):
