@@ -18,6 +18,7 @@ from service import problems
 from service.middleware import BodyLimit
 from service.routes import (
     compare,
+    docs,
     exports,
     health,
     jobs,
@@ -45,6 +46,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        settings.ensure_data_dir()
         store = Store(settings.db_path, settings.cache_max_bytes, settings.memory_cache_bytes)
         runner = Runner(settings, store)
         app.state.store = store
@@ -61,11 +63,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # served offline by service.routes.docs
+        redoc_url=None,
     )
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
-    for module in (simulations, jobs, compare, stability, sweeps, results, exports, health, viewer):
+    routers = (simulations, jobs, compare, stability, sweeps, results, exports, health)
+    for module in (*routers, docs, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:
