@@ -14,13 +14,14 @@ from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
-from service import problems
-from service.middleware import BodyLimit
+from service import observability, problems
+from service.middleware import BodyLimit, RequestContext
 from service.routes import (
     compare,
     exports,
     health,
     jobs,
+    metrics,
     results,
     simulations,
     stability,
@@ -42,6 +43,7 @@ RFC 9457 `application/problem+json`.
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the service; ``settings`` defaults to the environment's."""
     settings = settings or get_settings()
+    observability.configure_logging(settings.log_level, settings.log_format)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -55,6 +57,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await runner.stop()
             store.close()
+            observability.process_exited()
 
     app = FastAPI(
         title="pipeflow",
@@ -64,8 +67,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(RequestContext)  # outermost: 413s get a request id and a log line too
     problems.install(app)
-    for module in (simulations, jobs, compare, stability, sweeps, results, exports, health, viewer):
+    for module in (
+        simulations,
+        jobs,
+        compare,
+        stability,
+        sweeps,
+        results,
+        exports,
+        health,
+        metrics,
+        viewer,
+    ):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:

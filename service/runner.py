@@ -25,7 +25,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
 
-from service import worker
+from service import observability, worker
 from service.kinds import KINDS, JobKind
 from service.settings import Settings
 from service.store import Store
@@ -117,6 +117,7 @@ class Runner:
             max_workers=self.settings.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=worker.init,
+            initargs=(self.settings.log_level, self.settings.log_format),
         )
 
     @staticmethod
@@ -213,8 +214,15 @@ class Runner:
             if body is not None:  # computed between the caller's cache check and now
                 await asyncio.to_thread(self.store.finish_job, key, "succeeded")
                 return body
+        started = time.perf_counter()
         outcome = await self._execute(kind, key, spec)
         status, payload = outcome
+        observability.record_computation(
+            kind.name,
+            "error" if status == "error" else status,
+            time.perf_counter() - started,
+            payload if status == "ok" else None,
+        )
         if status == "ok":
             await asyncio.to_thread(self.store.put_result, key, kind.name, payload)
             await asyncio.to_thread(self.store.finish_job, key, "succeeded")
@@ -244,6 +252,7 @@ class Runner:
                     str(self.store.path),
                     self.settings.job_timeout_s,
                     self.settings.progress_interval_s,
+                    observability.request_id(),
                 )
             except BrokenProcessPool:
                 flight = self._flights.get(key)

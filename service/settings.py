@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -48,6 +49,13 @@ class Settings(BaseSettings):
     )
     progress_interval_s: float = Field(
         0.25, gt=0, description="How often a worker records progress and checks for cancel [s]."
+    )
+
+    log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"] = Field(
+        "INFO", description="Lowest level of log records written to stdout."
+    )
+    log_format: Literal["json", "text"] = Field(
+        "json", description="One JSON object per log line, or plain text for a terminal."
     )
 
     @property

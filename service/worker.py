@@ -9,12 +9,15 @@ numbers refused) and errors as problem dicts, never as pickled exceptions.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import time
 from collections.abc import Callable
 from typing import Any
 
-from service import store
+from service import observability, store
+
+log = logging.getLogger("service.worker")
 
 THREAD_VARIABLES = (
     "OMP_NUM_THREADS",
@@ -29,10 +32,12 @@ THREAD_VARIABLES = (
 Outcome = tuple[str, Any]
 
 
-def init() -> None:
-    """Process-pool initializer: one BLAS thread per worker, then warm the imports."""
+def init(log_level: str = "INFO", log_format: str = "json") -> None:
+    """Process-pool initializer: one BLAS thread per worker, the server's log settings,
+    then warm the imports."""
     for name in THREAD_VARIABLES:
         os.environ[name] = "1"
+    observability.configure_logging(log_level, log_format)
     import pipeflow.simulation  # noqa: F401  (imports numpy/scipy with the pinned env)
 
 
@@ -55,13 +60,43 @@ def run(
     db_path: str,
     timeout_s: float,
     interval_s: float,
+    request_id: str | None = None,
 ) -> Outcome:
     """Validate ``spec`` with ``spec_model``, run ``function(spec, progress)``, return bytes.
 
-    Progress is written to the job record at most every ``interval_s`` seconds, and each
+    ``request_id`` (of the request that started the computation) is set for the log lines
+    written meanwhile (:data:`service.observability.REQUEST_ID`).  Progress is written to
+    the job record at most every ``interval_s`` seconds, and each
     write checks the cancel flag and the runtime limit ``timeout_s`` [s]; the solver stops
     by the :class:`pipeflow.errors.Cancelled` raised from its progress callback.
     """
+    token = observability.REQUEST_ID.set(request_id)
+    started = time.perf_counter()
+    log.info("computation started", extra={"key": key, "function": function.__name__})
+    try:
+        outcome = _run(function, spec_model, spec, key, db_path, timeout_s, interval_s)
+        log.info(
+            "computation finished",
+            extra={
+                "key": key,
+                "outcome": outcome[0],
+                "duration_ms": round((time.perf_counter() - started) * 1e3, 3),
+            },
+        )
+    finally:
+        observability.REQUEST_ID.reset(token)
+    return outcome
+
+
+def _run(
+    function: Callable[[Any, Callable[[float], None]], dict[str, Any]],
+    spec_model: Any,
+    spec: dict[str, Any],
+    key: str,
+    db_path: str,
+    timeout_s: float,
+    interval_s: float,
+) -> Outcome:
     from numpy.linalg import LinAlgError
 
     from pipeflow.errors import Cancelled, PipeflowError

@@ -35,6 +35,7 @@ def test_operations_errors_and_example() -> None:
         "getResultPlot",
         "getHealth",
         "getReadiness",
+        "getMetrics",
     }
     for op in ops.values():
         for code, resp in op["responses"].items():
