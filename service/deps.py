@@ -6,6 +6,7 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
+from service.compute import Hit, accepts_gzip
 from service.runner import Runner
 from service.settings import Settings
 from service.store import Store
@@ -26,6 +27,12 @@ def get_store(request: Request) -> Store:
     return store
 
 
+def get_hit(request: Request) -> Hit:
+    """The hit path of this request: the app's hit cache and the client's gzip acceptance."""
+    return Hit(request.app.state.hits, accepts_gzip(request.headers.get("accept-encoding")))
+
+
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 RunnerDep = Annotated[Runner, Depends(get_runner)]
 StoreDep = Annotated[Store, Depends(get_store)]
+HitDep = Annotated[Hit, Depends(get_hit)]

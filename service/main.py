@@ -15,6 +15,7 @@ from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
 from service import observability, problems
+from service.compute import HitCache
 from service.middleware import BodyLimit, RequestContext
 from service.routes import (
     compare,
@@ -66,6 +67,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
     )
     app.state.settings = settings
+    app.state.hits = HitCache(settings.hit_cache_bytes)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(RequestContext)  # outermost: 413s get a request id and a log line too
     problems.install(app)

@@ -43,6 +43,11 @@ class Settings(BaseSettings):
     memory_cache_bytes: int = Field(
         64 << 20, ge=0, description="Bound on the in-memory front of the result cache [bytes]."
     )
+    hit_cache_bytes: int = Field(
+        64 << 20,
+        ge=0,
+        description="Bound on the pre-encoded (and gzipped) cache-hit answers in memory [bytes].",
+    )
     retry_after_s: int = Field(5, ge=1, description="Retry-After sent with 503 responses [s].")
     job_retention_s: float = Field(
         7 * 86400.0, gt=0, description="Finished job records older than this are pruned [s]."

@@ -2,20 +2,20 @@
 
 Imported by freshly spawned workers, so it must not import numpy (or pipeflow) at module
 level: :func:`init` pins the BLAS thread pools to one thread first, then imports the
-numerical stack.  Results travel back as JSON bytes (serialised here, with non-finite
-numbers refused) and errors as problem dicts, never as pickled exceptions.
+numerical stack, and warms up (:func:`warm_up`).  Results travel back as JSON bytes
+(serialised here by :func:`service.encoding.dumps`: non-finite numbers become null) and
+errors as problem dicts, never as pickled exceptions.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import time
 from collections.abc import Callable
 from typing import Any
 
-from service import observability, store
+from service import encoding, observability, store
 
 log = logging.getLogger("service.worker")
 
@@ -40,6 +40,38 @@ def init(log_level: str = "INFO", log_format: str = "json") -> None:
     observability.configure_logging(log_level, log_format)
     import pipeflow.simulation  # noqa: F401  (imports numpy/scipy with the pinned env)
 
+    warm_up()
+
+
+#: the warm-up case: the paper's pipe, 2 modes, 11 samples (milliseconds per method)
+_WARM_UP_METHODS = ("cma", "magnus", "rk4")
+_warmed_up = [False]
+
+
+def warm_up() -> None:
+    """Import everything a computation needs (every job kind's module) and run a tiny
+    simulation per solver through the job function and the encoder, so the first-use
+    costs (lazy imports inside scipy and pipeflow, pydantic's validators, matplotlib for
+    the plot names) are paid before the worker takes its first job.  A failure here is
+    logged, never fatal: the job would then pay (and report) it."""
+    started = time.perf_counter()
+    try:
+        from pipeflow.spec import PAPER_EXAMPLE
+        from service import kinds
+
+        small = dict(PAPER_EXAMPLE, modes=2, time={"t_end": 0.01, "samples": 11})
+        for method in _WARM_UP_METHODS:
+            spec = kinds.SIMULATION.spec.model_validate(dict(small, method=method))
+            encoding.dumps(kinds.SIMULATION.function(spec, lambda fraction: None))
+    except Exception:
+        log.exception("worker warm-up failed")
+        return
+    _warmed_up[0] = True
+    log.info(
+        "worker warmed up",
+        extra={"duration_ms": round((time.perf_counter() - started) * 1e3, 3)},
+    )
+
 
 def ping() -> dict[str, Any]:
     """What a worker looks like from inside (used by readiness warm-up and tests)."""
@@ -49,6 +81,8 @@ def ping() -> dict[str, Any]:
         "pid": os.getpid(),
         "threads": {name: os.environ.get(name) for name in THREAD_VARIABLES},
         "numpy_loaded": "numpy" in sys.modules,
+        "kinds_loaded": "service.kinds" in sys.modules,
+        "warmed_up": _warmed_up[0],
     }
 
 
@@ -136,9 +170,7 @@ def _run(
                 problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
             )
         try:
-            body = json.dumps(result, separators=(",", ":"), allow_nan=False).encode()
-        except ValueError:  # Inf or NaN: JSON has neither
-            return ("error", out_of_range_problem("the result holds Inf or NaN"))
+            body = encoding.dumps(result)  # non-finite numbers -> null (the one rule)
         except Exception as exc:
             return (
                 "error",

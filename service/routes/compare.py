@@ -16,7 +16,7 @@ from fastapi.responses import Response
 from pipeflow.compare import CompareSpec
 from pipeflow.spec import PAPER_EXAMPLE
 from service.compute import CACHE_HEADERS, Refresh, run_sync
-from service.deps import RunnerDep, StoreDep
+from service.deps import HitDep, RunnerDep, StoreDep
 from service.kinds import COMPARE
 from service.problems import responses
 from service.schemas import CompareResponse
@@ -44,10 +44,10 @@ CompareBody = Annotated[
     responses={200: {"headers": CACHE_HEADERS}, **responses(409, 413, 422, 503)},
 )
 async def compare_methods(
-    spec: CompareBody, runner: RunnerDep, store: StoreDep, refresh: Refresh = False
+    spec: CompareBody, runner: RunnerDep, store: StoreDep, hit: HitDep, refresh: Refresh = False
 ) -> Response:
     """Run ``simulation`` with each of ``methods``; for each, the solve and wall time [s],
     the speed-up against the slowest, its estimated relative error [-] and its relative
     difference from the most accurate method (``baseline``) on the modal state and on the
     tip displacement [-]."""
-    return await run_sync(runner, store, COMPARE, spec, refresh)
+    return await run_sync(runner, store, COMPARE, spec, refresh, hit)

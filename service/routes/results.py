@@ -7,8 +7,8 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Header, Path, Query, Response
 
-from service.compute import CACHE_HEADERS, result_response
-from service.deps import RunnerDep, StoreDep
+from service.compute import CACHE_HEADERS, hit_response, result_response
+from service.deps import HitDep, RunnerDep, StoreDep
 from service.problems import ProblemError, responses
 from service.routes.exports import (
     TABLE_CONTENT,
@@ -62,6 +62,7 @@ async def get_result(
     key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
     store: StoreDep,
     runner: RunnerDep,
+    hit: HitDep,
     if_none_match: Annotated[str | None, Header()] = None,
     accept: Annotated[str | None, Header()] = None,
     format: Annotated[
@@ -86,11 +87,16 @@ async def get_result(
             raise ProblemError(404, f"no result {key}", slug="unknown-key")
         # parse the stored JSON and write the table off the event loop: results can be MBs
         return await asyncio.to_thread(table_response, key, body, table, fmt)
+    encoded = hit.cache.get(key) if hit.cache is not None else None
     if if_none_match is not None and _matches(if_none_match, key):
-        if await asyncio.to_thread(store.has_result, key):
-            return Response(status_code=304, headers={"ETag": f'"{key}"'})
+        if encoded is not None or await asyncio.to_thread(store.has_result, key):
+            return Response(
+                status_code=304, headers={"ETag": f'"{key}"', "Vary": "Accept-Encoding"}
+            )
+    if encoded is not None:
+        return result_response(key, True, encoded, hit.gzip)
     body = await asyncio.to_thread(store.get_result, key)
     if body is None:
         pending = " yet; its job is still in progress" if runner.is_active(key) else ""
         raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
-    return result_response(key, True, body)
+    return await hit_response(key, body, hit)

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Body, Response
 
 from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
 from service.compute import CACHE_HEADERS, Refresh, run_sync
-from service.deps import RunnerDep, StoreDep
+from service.deps import HitDep, RunnerDep, StoreDep
 from service.kinds import SIMULATION
 from service.problems import responses
 from service.schemas import SimulationResponse
@@ -39,9 +39,9 @@ SpecBody = Annotated[
     },
 )
 async def run_simulation(
-    spec: SpecBody, runner: RunnerDep, store: StoreDep, refresh: Refresh = False
+    spec: SpecBody, runner: RunnerDep, store: StoreDep, hit: HitDep, refresh: Refresh = False
 ) -> Response:
     """Validate the spec, then answer with the result: cached if an equivalent request
     (same key) was computed before, otherwise computed in a worker process.  Identical
     concurrent requests share one computation."""
-    return await run_sync(runner, store, SIMULATION, spec, refresh)
+    return await run_sync(runner, store, SIMULATION, spec, refresh, hit)

@@ -15,7 +15,7 @@ from fastapi.responses import JSONResponse, Response
 
 from pipeflow.stability_spec import PAPER_PIPE_JSON, StabilitySpec
 from service.compute import CACHE_HEADERS, JOB_ACCEPTED, Refresh, accept_job, run_sync
-from service.deps import RunnerDep, StoreDep
+from service.deps import HitDep, RunnerDep, StoreDep
 from service.kinds import STABILITY
 from service.problems import responses
 from service.schemas import JobStatus
@@ -58,7 +58,7 @@ StabilityBody = Annotated[
     responses={200: {"headers": CACHE_HEADERS}, **responses(409, 413, 422, 503)},
 )
 async def run_stability(
-    spec: StabilityBody, runner: RunnerDep, store: StoreDep, refresh: Refresh = False
+    spec: StabilityBody, runner: RunnerDep, store: StoreDep, hit: HitDep, refresh: Refresh = False
 ) -> Response:
     """Every crossing of the stability boundary (sigma = 0) for flow velocities v [m/s] in
     ``velocity_range`` at constant spin w0 [rad/s]: flutter or divergence, loss or gain, the
@@ -67,7 +67,7 @@ async def run_stability(
     non-dimensional u_cr, beta and gamma are in ``dimensionless``.  The v < 0 part of the
     range (reverse flow, the aspirating pipe) gets the caveat in ``reverse_flow`` and no
     threshold.  Cached like simulations (``X-Cache``, ``?refresh=true``)."""
-    return await run_sync(runner, store, STABILITY, spec, refresh)
+    return await run_sync(runner, store, STABILITY, spec, refresh, hit)
 
 
 @router.post(

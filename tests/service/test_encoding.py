@@ -1,0 +1,38 @@
+"""The service's JSON encoder follows pipeflow's one non-finite rule (json_safe -> null)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from pipeflow.simulation import json_safe
+from pipeflow.spec import SimulationSpec
+from service import encoding
+from service.kinds import run_simulation
+from tests.service.conftest import SMALL
+
+
+def test_non_finite_numbers_are_null_as_json_safe_says() -> None:
+    data = {
+        "a": [1.0, math.inf, -math.inf, math.nan, 0.1, 1e-5, 1e300, -0.0],
+        "b": {"x": np.float64(np.inf), "y": np.float64(2.5), "n": np.int64(7)},
+        "c": (np.float32(0.5), None, True, "s"),
+        "d": np.array([1.0, np.nan, 3.0]),
+    }
+    decoded = json.loads(encoding.dumps(data))
+    expected = json_safe({**data, "d": data["d"].tolist()})
+    assert decoded == expected
+    assert decoded["a"][1:4] == [None, None, None]
+    assert decoded["b"]["x"] is None
+
+
+def test_a_result_decodes_to_the_same_numbers_as_the_json_module() -> None:
+    """Bit-for-bit: every float of a real result round-trips through both encoders (both
+    write the shortest repr that reads back exactly), so the decoded documents are equal."""
+    result = run_simulation(SimulationSpec.model_validate(SMALL), lambda fraction: None)
+    ours = json.loads(encoding.dumps(result))
+    reference = json.loads(json.dumps(result, allow_nan=False))
+    assert ours == reference
+    assert ours["tip_displacement"] == result["tip_displacement"]
