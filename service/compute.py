@@ -194,6 +194,30 @@ def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
     )
 
 
+#: bound on the memo of :func:`request_key` [entries]
+KEY_MEMO_SIZE = 4096
+_keys: OrderedDict[tuple[str, str], str] = OrderedDict()
+
+
+def request_key(kind: JobKind, spec: BaseModel) -> str:
+    """:meth:`JobKind.key` of ``spec``, memoised on the spec's JSON dump.
+
+    The key hashes the RFC 8785 form of ``spec.model_dump(mode="json")`` (pure Python,
+    ~0.3 ms, the largest cost of a cache hit); ``model_dump_json`` writes the same field
+    values in ~20 us, so equal dumps have equal keys and the memo returns the key computed
+    the first time.  Called on the event loop only."""
+    memo = (kind.name, spec.model_dump_json())
+    key = _keys.get(memo)
+    if key is None:
+        key = kind.key(spec)
+        _keys[memo] = key
+        if len(_keys) > KEY_MEMO_SIZE:
+            _keys.popitem(last=False)
+    else:
+        _keys.move_to_end(memo)
+    return key
+
+
 async def run_sync(
     runner: Runner,
     store: Store,
@@ -206,7 +230,7 @@ async def run_sync(
 
     With ``hit`` (the app's hit cache, see :class:`Hit`), a hit is answered from memory as
     its pre-encoded bytes, gzip when the client accepts it."""
-    key = kind.key(spec)
+    key = request_key(kind, spec)
     cache = hit.cache if hit is not None else None
     if not refresh:
         encoded = cache.get(key) if cache is not None else None
@@ -233,7 +257,7 @@ async def submit_job(
     runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
 ) -> tuple[str, Job]:
     """Accept a job for ``spec`` (idempotent: the id is the parameter hash)."""
-    key = kind.key(spec)
+    key = request_key(kind, spec)
     canonical = kind.canonical(spec)
     if not refresh and not runner.is_active(key) and await asyncio.to_thread(store.has_result, key):
         await asyncio.to_thread(store.mark_succeeded, key, kind.name, canonical)

@@ -134,3 +134,26 @@ def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
         wait_ready(c)
         inside = c.portal.call(c.app.state.runner.call, worker.ping)  # type: ignore[attr-defined]
     assert inside["kinds_loaded"] and inside["warmed_up"]
+
+
+def test_request_key_memo_equals_the_key() -> None:
+    """The memoised key is JobKind.key for every spec, first call and memo hit alike."""
+    from pipeflow.spec import SimulationSpec
+    from service.compute import request_key
+    from service.kinds import SIMULATION
+
+    variants = [
+        SMALL,
+        dict(SMALL, modes=4),
+        dict(SMALL, method="rk4", options={"step": 1e-5}),
+        dict(SMALL, method="rk4", options={"step": 2e-5}),
+        dict(SMALL, method="magnus", options={"tolerance": 1e-6}),
+        dict(SMALL, initial={"u0": 0.002}),
+    ]
+    keys = []
+    for data in variants:
+        spec = SimulationSpec.model_validate(data)
+        for _ in range(2):
+            assert request_key(SIMULATION, spec) == SIMULATION.key(spec)
+        keys.append(request_key(SIMULATION, spec))
+    assert len(set(keys)) == len(keys)
