@@ -56,8 +56,12 @@ def warm_up() -> None:
     logged, never fatal: the job would then pay (and report) it."""
     started = time.perf_counter()
     try:
+        from numpy.linalg import LinAlgError  # noqa: F401  (what run() imports, all of it)
+
+        from pipeflow.errors import Cancelled, PipeflowError  # noqa: F401
         from pipeflow.spec import PAPER_EXAMPLE
         from service import kinds
+        from service.problems import pipeflow_problem, problem  # noqa: F401  (FastAPI: ~1 s)
 
         small = dict(PAPER_EXAMPLE, modes=2, time={"t_end": 0.01, "samples": 11})
         for method in _WARM_UP_METHODS:
@@ -83,6 +87,7 @@ def ping() -> dict[str, Any]:
         "numpy_loaded": "numpy" in sys.modules,
         "kinds_loaded": "service.kinds" in sys.modules,
         "warmed_up": _warmed_up[0],
+        "modules": sorted(sys.modules),
     }
 
 

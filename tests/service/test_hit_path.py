@@ -127,13 +127,29 @@ def test_hit_cache_is_bounded_lru() -> None:
     assert big.gzip is not None and gzip.decompress(big.gzip) == big.identity
 
 
+#: packages whose first import in a worker would make its first job slow (seconds)
+HEAVY = ("pipeflow", "service", "fastapi", "starlette", "pydantic", "numpy", "scipy", "matplotlib")
+
+
 def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
-    """Ready means warmed up: the job kinds are imported and a tiny run of each solver
-    went through the job function and the encoder in every worker."""
+    """Ready means warmed up: a tiny run of each solver went through the job function and
+    the encoder, and a first real job (here a simulation, a stability analysis and a
+    failing run answered with a problem) imports no module of the heavy packages that the
+    worker had not imported before it (service.problems, i.e. FastAPI, once cost ~1 s)."""
+    stab = {"pipe": SMALL["pipe"], "modes": 4, "velocity_range": [0, 40], "points": 41}
+    bad_step = dict(SMALL, method="rk4", options={"step": 0.01})  # unstable: 422 problem
     with make_client(tmp_path, workers=1) as c:
         wait_ready(c)
-        inside = c.portal.call(c.app.state.runner.call, worker.ping)  # type: ignore[attr-defined]
-    assert inside["kinds_loaded"] and inside["warmed_up"]
+        call = c.app.state.runner.call  # type: ignore[attr-defined]
+        before = c.portal.call(call, worker.ping)
+        assert before["kinds_loaded"] and before["warmed_up"]
+        assert c.post("/v1/simulations", json=SMALL).status_code == 200
+        assert c.post("/v1/stability", json=stab).status_code == 200
+        assert c.post("/v1/simulations", json=bad_step).status_code == 422
+        after = c.portal.call(call, worker.ping)
+    assert after["pid"] == before["pid"]
+    new = set(after["modules"]) - set(before["modules"])
+    assert not {m for m in new if m.split(".")[0] in HEAVY}
 
 
 def test_request_key_memo_equals_the_key() -> None:
