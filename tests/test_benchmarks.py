@@ -66,7 +66,7 @@ def test_service_benchmark_smoke(tmp_path: Path) -> None:
     assert "## other section\n\nkept" in text
     section = text.split("## Service benchmark: smoke", 1)[1]
     rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line]
-    assert len(rows) == 1 + 6, rows  # header + the six targets
+    assert len(rows) == 1 + 7, rows  # header + the six targets (wrk with and without gzip)
     for what in ("cold LTI", "fresh worker", "paper example", "one client", "wrk", "mixed"):
         assert any(what in r for r in rows), what
     assert re.search(r"\| 0 errors / [1-9]\d*", section), section
