@@ -484,6 +484,12 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
                 "wrk_health": health["raw"],
                 "mixed": {k: v for k, v in mixed.items() if k not in ("hit", "miss")},
             }
+        # the server's own warnings and errors (its log is gone with the temporary directory)
+        raw["server_problems"] = [
+            line[:400]
+            for line in (work / "server.log").read_text().splitlines()
+            if '"level":"WARNING"' in line or '"level":"ERROR"' in line
+        ]
     return rows, raw
 
 
@@ -534,6 +540,9 @@ def main(argv: list[str] | None = None) -> int:
             "paper example requests [ms]: " + ", ".join(f"{x * 1e3:.0f}" for x in raw["paper"]),
             "",
             f"mixed load: {json.dumps(raw['mixed'])}",
+            "",
+            f"server warnings and errors: {len(raw['server_problems'])}"
+            + "".join(f"\n    {line}" for line in raw["server_problems"][:5]),
         ]
     )
     print(text, flush=True)
