@@ -130,3 +130,8 @@ def default_quadrature_order(n: int) -> int:
     ``q`` points is exact to rounding once ``q`` exceeds about ``lambda_n + 30``.
     """
     return int(max(48, np.ceil(cantilever_roots(n)[-1] + 40)))
+
+
+def tip_slopes(n: int) -> FloatArray:
+    """``phi_j'(1)``, the slopes d phi_j / d xi at the free end [-] (tip-inertia terms)."""
+    return mode_shapes(n, np.array([1.0]), 1)[:, 0]

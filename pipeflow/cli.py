@@ -94,7 +94,7 @@ def _read_json(path: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise PipeflowError(f"{path} is not valid JSON: {exc}", field="input") from exc
+        raise PipeflowError(f"{path} is not valid JSON: {exc}", parameter="input") from exc
 
 
 def _unwrap(data: Any) -> Any:
@@ -128,12 +128,11 @@ def _progress(args: argparse.Namespace, label: str) -> ProgressBar:
 
 
 def _run_local(spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
-    from pipeflow.simulation import simulate
-    from pipeflow.spec import SimulationSpec
+    from pipeflow.spec import SimulationSpec, run_simulation
 
     spec = SimulationSpec.model_validate(spec_data)
     try:
-        result = simulate(spec.to_simulation(), progress=bar)
+        result = run_simulation(spec, progress=bar)
     finally:
         bar.close()
     return result.to_dict()
@@ -259,7 +258,7 @@ def cmd_stability(args: argparse.Namespace) -> int:
         raise PipeflowError(
             "not a stability spec: give 'velocity_range' (critical velocity) or a sweep "
             f"'kind' ({', '.join(SWEEP_KINDS)}); see 'pipeflow stability --help'",
-            field="kind",
+            parameter="kind",
         )
     result = _result_for(args, data)
     _write_json(args, result)
@@ -418,7 +417,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"error: {line}", file=sys.stderr)
         return 2
     except PipeflowError as exc:
-        where = f"{exc.field}: " if exc.field else ""
+        name = exc.field if exc.field is not None else exc.parameter
+        where = f"{name}: " if name else ""
         print(f"error: {where}{exc.message}", file=sys.stderr)
         return 2
     except (ValueError, KeyError, ImportError) as exc:

@@ -23,35 +23,28 @@ from pipeflow.errors import InvalidInput
 from pipeflow.model import build_model
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS
-from pipeflow.solvers.base import ProgressCallback
-from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec, StrictModel
+from pipeflow.solvers.base import ProgressCallback, relative_difference
+from pipeflow.spec import (
+    PAPER_EXAMPLE,
+    SIMULATION_FIELDS,
+    SimulationSpec,
+    StrictModel,
+    request_fields,
+)
 
-#: the reference integrator's error is taken as this multiple of its rtol when ranking
-#: (measured: rtol 1e-12 gives ~3e-10 on the paper's example)
-REFERENCE_ERROR_PER_RTOL = 300.0
 MAX_METHODS = 8
 
 
 def _accuracy(result: Result) -> float:
-    """Claimed relative error of a result [-], used to pick the most accurate method."""
-    d = result.diagnostics
-    if result.simulation.method == "reference":
-        return REFERENCE_ERROR_PER_RTOL * float(result.simulation.options.rtol)
-    value = d.get("estimated_relative_error")
-    if isinstance(value, int | float) and math.isfinite(value):
-        return float(value)
-    return math.inf
+    """Claimed relative error of a result [-], used to pick the most accurate method: the
+    solver that ran it says (``Solver.claimed_error``)."""
+    solver = SOLVERS[result.method_used]
+    return solver.claimed_error(result.simulation.options, result.diagnostics)
 
 
-def _relative(a: np.ndarray, b: np.ndarray) -> float:
-    """max |a - b| / max |b| over the rows (states) or entries (tip) [-]."""
-    if a.ndim == 1:
-        scale = float(np.max(np.abs(b))) if b.size else 0.0
-        diff = float(np.max(np.abs(a - b))) if b.size else 0.0
-    else:
-        scale = float(np.max(np.linalg.norm(b, axis=1))) if b.size else 0.0
-        diff = float(np.max(np.linalg.norm(a - b, axis=1))) if b.size else 0.0
-    return diff / scale if scale > 0 else diff
+def default_methods() -> list[str]:
+    """The methods :func:`compare` runs when given none (``Solver.compared_by_default``)."""
+    return [name for name, solver in SOLVERS.items() if solver.compared_by_default]
 
 
 def compare(
@@ -59,13 +52,13 @@ def compare(
     methods: Sequence[str] | None = None,
     progress: ProgressCallback | None = None,
 ) -> dict[str, Any]:
-    """Run ``sim`` with each of ``methods`` (default: every registered method but
-    ``reference``) and compare.
+    """Run ``sim`` with each of ``methods`` (default: :func:`default_methods`, every
+    registered method but ``reference`` and ``auto``) and compare.
 
     Returns a JSON-ready dictionary::
 
         {"baseline": name of the most accurate method (smallest estimated error),
-         "methods": [{"method", "status", "solve_seconds" [s], "wall_seconds" [s],
+         "methods": [{"method", "method_used", "status", "solve_seconds" [s], "wall_seconds" [s],
                       "speedup_vs_slowest" [-], "estimated_relative_error" [-],
                       "difference_from_baseline" [-] (balanced state),
                       "tip_difference_from_baseline" [-], "warnings", "diagnostics"}, ...],
@@ -75,18 +68,18 @@ def compare(
     baseline, on the balanced state (modal displacements and scaled velocities) and on the
     tip displacement.  Where a response overflowed, only the common finite part is compared.
     """
-    names = list(methods) if methods is not None else [m for m in SOLVERS if m != "reference"]
+    names = list(methods) if methods is not None else default_methods()
     if not names:
-        raise InvalidInput("give at least one method to compare", field="methods")
+        raise InvalidInput("give at least one method to compare", parameter="methods")
     if len(names) > MAX_METHODS or len(set(names)) != len(names):
         raise InvalidInput(
-            f"give at most {MAX_METHODS} distinct methods to compare", field="methods"
+            f"give at most {MAX_METHODS} distinct methods to compare", parameter="methods"
         )
     for i, name in enumerate(names):
         if name not in SOLVERS:
             raise InvalidInput(
-                f"unknown method {name!r}; choose from {', '.join(sorted(SOLVERS))}",
-                field=f"methods.{i}",
+                f"methods[{i}]: unknown method {name!r}; choose from {', '.join(sorted(SOLVERS))}",
+                parameter="methods",
             )
     model = build_model(sim.pipe, sim.modes, sim.quadrature_order)
     runs: list[tuple[Result, float]] = []
@@ -113,13 +106,14 @@ def compare(
         rows.append(
             {
                 "method": result.simulation.method,
+                "method_used": result.method_used,
                 "status": result.status,
                 "solve_seconds": solve_s,
                 "wall_seconds": wall,
                 "speedup_vs_slowest": slowest / solve_s if solve_s > 0 else None,
                 "estimated_relative_error": acc if math.isfinite(acc) else None,
-                "difference_from_baseline": _relative(z[:n], base_z[:n]),
-                "tip_difference_from_baseline": _relative(
+                "difference_from_baseline": relative_difference(z[:n], base_z[:n]),
+                "tip_difference_from_baseline": relative_difference(
                     result.tip_displacement[:n], base.tip_displacement[:n]
                 ),
                 "compared_samples": n,
@@ -150,10 +144,11 @@ class CompareSpec(StrictModel):
         "method that reads them."
     )
     methods: list[str] = Field(
-        default_factory=lambda: [m for m in SOLVERS if m != "reference"],
+        default_factory=default_methods,
         min_length=1,
         max_length=MAX_METHODS,
-        description="Distinct method names to run (default: every method but 'reference').",
+        description="Distinct method names to run (default: every method but 'reference' "
+        "and 'auto').",
         json_schema_extra={"items": {"enum": list(sorted(SOLVERS))}},
     )
 
@@ -179,4 +174,6 @@ class CompareSpec(StrictModel):
 
 def run_compare(spec: CompareSpec, progress: ProgressCallback | None = None) -> dict[str, Any]:
     """:func:`compare` on a validated :class:`CompareSpec` (the service's job function)."""
-    return compare(spec.simulation.to_simulation(), spec.methods, progress)
+    fields = {"methods": "methods", **{k: f"simulation.{v}" for k, v in SIMULATION_FIELDS.items()}}
+    with request_fields(fields):
+        return compare(spec.simulation.to_simulation(), spec.methods, progress)

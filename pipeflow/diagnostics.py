@@ -6,7 +6,8 @@ solver itself cannot see (physics notes, section 2).  RK4's error depends on its
 :func:`add_error_estimate` measures both against an independent, accurate solution: a
 ``magnus`` run at a looser tolerance (:data:`CHECK_TOLERANCE`) on at most
 :data:`CHECK_SAMPLES` of the output times, which costs a fraction of the CMA run itself.
-Methods that control their own error (``magnus``, ``reference``) report it themselves.
+Methods that control their own error (``magnus``, ``reference``) report it themselves,
+and ``cma`` on constant coefficients knows it is exact: each solver says which applies.
 
 Every estimate is a relative error of the balanced state (modal displacements and
 velocities over the reference frequencies, in metres), max over time of the difference
@@ -25,8 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow.errors import PipeflowError
-from pipeflow.solvers import SOLVERS, Problem, SolverOutput
-from pipeflow.solvers.magnus import relative_difference
+from pipeflow.solvers import SOLVERS, Problem, Solver, SolverOutput
+from pipeflow.solvers.base import relative_difference
 
 #: relative error above which a result carries a warning [-]
 WARN_THRESHOLD = 1e-4
@@ -34,8 +35,8 @@ WARN_THRESHOLD = 1e-4
 CHECK_TOLERANCE = 1e-6
 #: at most this many output times are checked (evenly spread, first and last included)
 CHECK_SAMPLES = 257
-#: methods whose error is measured here (the others estimate their own)
-CHECKED_METHODS = ("cma", "rk4")
+#: the method that serves as the yardstick
+CHECK_METHOD = "magnus"
 
 
 def check_indices(n_times: int, samples: int = CHECK_SAMPLES) -> NDArray[np.int64]:
@@ -46,23 +47,23 @@ def check_indices(n_times: int, samples: int = CHECK_SAMPLES) -> NDArray[np.int6
 
 
 def add_error_estimate(
-    method: str, problem: Problem, out: SolverOutput, threshold: float = WARN_THRESHOLD
+    solver: Solver, problem: Problem, out: SolverOutput, threshold: float = WARN_THRESHOLD
 ) -> None:
-    """Add ``estimated_relative_error`` (and how it was obtained) to ``out``; warn above
-    ``threshold``.  Mutates ``out.diagnostics`` and ``out.warnings``."""
+    """Add ``estimated_relative_error`` (and how it was obtained) to the output ``out`` of
+    ``solver``; warn above ``threshold``.  Mutates ``out.diagnostics`` and ``out.warnings``.
+
+    The solver says what applies: it estimates its own error
+    (``Solver.estimates_own_error``), knows it exactly (``Solver.exact_error``), or is
+    measured against a :data:`CHECK_METHOD` run here."""
     diag = out.diagnostics
-    if method not in CHECKED_METHODS:
+    if solver.estimates_own_error:
         if "estimated_relative_error" in diag:
-            _warn(method, float(diag["estimated_relative_error"]), threshold, out)
+            _warn(solver, float(diag["estimated_relative_error"]), threshold, out)
         return
     t0 = time.perf_counter()
-    if method == "cma" and problem.loading.is_time_invariant:
-        # exact up to rounding, amplified by the eigenvector condition number
-        cond = float(diag.get("eigenvector_condition_max", 1.0))
-        diag["estimated_relative_error"] = float(np.finfo(float).eps * max(cond, 1.0))
-        diag["error_estimate_method"] = (
-            "exact for constant coefficients: rounding only (eps x eigenvector condition)"
-        )
+    exact = solver.exact_error(problem, out)
+    if exact is not None:
+        diag["estimated_relative_error"], diag["error_estimate_method"] = exact
         return
     finite = np.all(np.isfinite(out.z), axis=1)
     last = int(np.argmin(finite)) if not finite.all() else out.z.shape[0]
@@ -78,16 +79,16 @@ def add_error_estimate(
         replace(problem.options, step=None, tolerance=CHECK_TOLERANCE),
     )
     try:
-        check = SOLVERS["magnus"].solve(sub)
+        check = SOLVERS[CHECK_METHOD].solve(sub)
     except PipeflowError as exc:
         diag["error_estimate_method"] = f"unavailable: {exc.message}"
         return
-    estimate = relative_difference(check.z, out.z[idx], problem.model.size)
+    estimate = relative_difference(out.z[idx], check.z, problem.model.size)
     resolution = float(check.diagnostics.get("estimated_relative_error", 0.0))
     diag["estimated_relative_error"] = estimate
     diag["error_estimate_method"] = (
-        f"comparison with a magnus run (tolerance {CHECK_TOLERANCE:g}) at {idx.size} of the "
-        "output times"
+        f"comparison with a {CHECK_METHOD} run (tolerance {CHECK_TOLERANCE:g}) at {idx.size} "
+        "of the output times"
     )
     diag["error_estimate_resolution"] = resolution
     # the same on the tip displacement u(L, t), the quantity most users plot; it is often
@@ -95,26 +96,18 @@ def add_error_estimate(
     model = problem.model
     tip_check = model.from_balanced(check.z[:, : model.size])[0] @ model.tip
     tip_out = model.from_balanced(out.z[idx])[0] @ model.tip
-    tip_scale = float(np.max(np.abs(tip_check)))
-    if tip_scale > 0:
-        diag["estimated_tip_relative_error"] = float(
-            np.max(np.abs(tip_out - tip_check)) / tip_scale
-        )
+    if np.any(tip_check != 0):
+        diag["estimated_tip_relative_error"] = relative_difference(tip_out, tip_check)
     diag["error_estimate_seconds"] = time.perf_counter() - t0
-    _warn(method, estimate, threshold, out)
+    _warn(solver, estimate, threshold, out)
 
 
-def _warn(method: str, estimate: float, threshold: float, out: SolverOutput) -> None:
+def _warn(solver: Solver, estimate: float, threshold: float, out: SolverOutput) -> None:
     if not (estimate > threshold or math.isnan(estimate)):
         return
-    advice: dict[str, str] = {
-        "cma": "CMA is exact only for constant flow and spin; use method 'magnus'",
-        "rk4": "use a smaller options.step or method 'magnus'",
-        "magnus": "use a smaller options.tolerance or options.step",
-    }
     out.warnings.append(
-        f"estimated relative error of this {method} result is {estimate:.2g}, above "
-        f"{threshold:g}: {advice.get(method, 'use a more accurate method')}"
+        f"estimated relative error of this {solver.name} result is {estimate:.2g}, above "
+        f"{threshold:g}: {solver.error_advice}"
     )
 
 

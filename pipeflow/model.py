@@ -11,8 +11,13 @@ is projected onto ``n`` cantilever modes (eq. 2-3).  The result is
     M d'' + C(t) d' + K(t) d = F(t),
     C = v C_v,  K = K_0 + v' K_vdot + v^2 K_v2 + w0^2 K_w2,  F = w0' F_wdot,
 
-with constant matrices.  We project the PDE itself: the paper's eq. (7) has the w0^2
-integrals with factors 1/2 and 1/4 where eq. (1) gives 1 and 1/2, and only the eq. (1)
+with constant matrices.  Beyond the paper (issue 14; derivation in ``docs/model.md``):
+Kelvin-Voigt and viscous damping (a constant C_0 in S_0), a tip mass and rotary inertia
+(in M, K_w2 and F_wdot), a hub radius (K_w2, F_wdot) and out-of-plane motion (no
+-(M1+M2) w0^2 u, no forcing); all off by default.
+
+We project the PDE itself: the paper's eq. (7) has the w0^2 integrals with factors 1/2
+and 1/4 where eq. (1) gives 1 and 1/2, and only the eq. (1)
 projection reproduces the rotating-beam tables (Wright et al. 1982).
 
 State form (eq. 13-14) in *balanced* coordinates
@@ -32,6 +37,7 @@ from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from pipeflow.basis import (
@@ -41,11 +47,18 @@ from pipeflow.basis import (
     gauss_legendre_unit,
     mode_shapes,
     paper_scale,
+    tip_slopes,
     tip_values,
 )
 from pipeflow.profiles import Profile
 
 FloatArray = NDArray[np.float64]
+
+
+#: the planes of motion: "in-plane" (the paper's eq. (1), chordwise) or "out-of-plane" (flapwise)
+PLANES = ("in-plane", "out-of-plane")
+#: the numeric fields beyond the paper's model (SI units, see :class:`Pipe`), all >= 0
+EXTENSION_FIELDS = ("kelvin_voigt", "viscous", "tip_mass", "tip_inertia", "hub_radius")
 
 
 @dataclass(frozen=True)
@@ -59,6 +72,17 @@ class Pipe:
     L : length of the pipe [m].
     M1 : mass of the pipe per unit length [kg/m].
     M2 : mass of the fluid per unit length [kg/m].
+    kelvin_voigt : internal (Kelvin-Voigt) damping alpha [s]: E -> E (1 + alpha d/dt).
+    viscous : external viscous damping c per unit length [N s/m^2].
+    tip_mass : point mass m_t at the free end [kg] (a nozzle, a fitting).
+    tip_inertia : rotary inertia J_t of the tip body about the bending axis through the
+        tip [kg m^2].
+    hub_radius : distance R of the clamped end from the rotation axis [m].
+    plane : "in-plane" (the paper's eq. (1): chordwise, with the -(M1+M2) w0^2 u softening
+        and the angular-acceleration forcing) or "out-of-plane" (flapwise: neither term).
+
+    The last six describe the pipe as mounted (damping, tip body, hub); all default to the
+    paper's model, which they then reproduce bit for bit (``docs/model.md``).
     """
 
     E: float
@@ -66,6 +90,12 @@ class Pipe:
     L: float
     M1: float
     M2: float
+    kelvin_voigt: float = 0.0
+    viscous: float = 0.0
+    tip_mass: float = 0.0
+    tip_inertia: float = 0.0
+    hub_radius: float = 0.0
+    plane: str = "in-plane"
 
     def __post_init__(self) -> None:
         for name in ("E", "I", "L"):
@@ -78,6 +108,43 @@ class Pipe:
                 raise ValueError(f"pipe.{name} must be finite and >= 0, got {val}")
         if self.M1 + self.M2 <= 0:
             raise ValueError("pipe.M1 + pipe.M2 must be > 0")
+        for name in EXTENSION_FIELDS:
+            val = getattr(self, name)
+            if not (math.isfinite(val) and val >= 0):
+                raise ValueError(f"pipe.{name} must be finite and >= 0, got {val}")
+        if self.plane not in PLANES:
+            raise ValueError(f"unknown plane {self.plane!r}; use one of {', '.join(PLANES)}")
+
+    @property
+    def in_plane(self) -> bool:
+        """True for the in-plane (chordwise) motion of the paper's eq. (1)."""
+        return self.plane == "in-plane"
+
+    @property
+    def damped(self) -> bool:
+        """True with any damping: modes are then ordered by natural frequency (an over-damped
+        mode's two real roots are one mode, :func:`pipeflow.spectra.damped_modes`)."""
+        return bool(self.kelvin_voigt or self.viscous)
+
+    @property
+    def is_paper_model(self) -> bool:
+        """No damping, no tip body, no hub, in-plane: exactly the paper's model."""
+        return self.in_plane and not any(getattr(self, n) for n in EXTENSION_FIELDS)
+
+    def dimensionless_groups(self) -> dict[str, float]:
+        """The groups of the extended model [-] (Paidoussis 1998, eq. (3.71), for the first
+        two): ``alpha`` = kelvin_voigt sqrt(EI/(M1+M2)) / L^2 (= kelvin_voigt / time_scale),
+        ``sigma`` = viscous L^2 / sqrt(EI (M1+M2)), ``tip_mass_ratio`` = m_t / ((M1+M2) L),
+        ``tip_inertia_ratio`` = J_t / ((M1+M2) L^3), ``hub_ratio`` delta = R / L (Hodges &
+        Rutkowski 1981; Banerjee 2000)."""
+        m, L = self.mass, self.L
+        return {
+            "alpha": self.kelvin_voigt / self.time_scale,
+            "sigma": self.viscous * L**2 / math.sqrt(self.EI * m),
+            "tip_mass_ratio": self.tip_mass / (m * L),
+            "tip_inertia_ratio": self.tip_inertia / (m * L**3),
+            "hub_ratio": self.hub_radius / L,
+        }
 
     @property
     def EI(self) -> float:
@@ -128,6 +195,18 @@ REVERSE_FLOW_CAVEAT = (
 )
 
 
+def basis_caveats(pipe: Pipe) -> list[str]:
+    """What a result must say about the cantilever-mode basis for this pipe (one text for
+    all analyses): the tip body's rotary inertia converges only like 1/modes."""
+    if not pipe.tip_inertia:
+        return []
+    return [
+        "pipe.tip_inertia: the cantilever modes lack the tip curvature its boundary condition "
+        "needs, so eigenvalues converge only like 1/modes (about 1e-2 relative for the third "
+        "mode at 40 modes when J_t/(m L^3) = 0.01, docs/model.md sec. 5); use many modes"
+    ]
+
+
 #: The worked example of the paper, section 5 (A = 1.57e-8 m^2 is not needed by the model).
 PAPER_PIPE = Pipe(E=7.8e9, I=1.21e-17, L=0.025, M1=1.884e-5, M2=1.6485e-5)
 
@@ -139,7 +218,8 @@ class ModeIntegrals:
     Entry (i, j) of each matrix is the integral over [0, 1] of the named product, with
     primes meaning d/dxi: ``gram = phi_i phi_j``, ``b = phi_i phi_j'``, ``c = phi_i phi_j''``,
     ``xb = xi phi_i phi_j'``, ``tc = (1 - xi^2) phi_i phi_j''``, ``k4 = phi_i phi_j''''``;
-    ``xf = xi phi_i`` is a vector.
+    ``d = phi_i' phi_j'``, ``xd = xi phi_i' phi_j'``; ``xf = xi phi_i`` and ``f = phi_i`` are
+    vectors, and so are the end values ``tip = phi_i(1)`` and ``tip_slope = phi_i'(1)``.
     """
 
     n: int
@@ -151,6 +231,11 @@ class ModeIntegrals:
     tc: FloatArray
     k4: FloatArray
     xf: FloatArray
+    d: FloatArray
+    xd: FloatArray
+    f: FloatArray
+    tip: FloatArray
+    tip_slope: FloatArray
 
 
 @lru_cache(maxsize=64)
@@ -182,6 +267,11 @@ def mode_integrals(n: int, quadrature_order: int | None = None) -> ModeIntegrals
         tc=ro((pw * (1.0 - xi**2)) @ p2.T),
         k4=ro(pw @ p4.T),
         xf=ro(pw @ xi),
+        d=ro((p1 * w) @ p1.T),
+        xd=ro((p1 * (w * xi)) @ p1.T),
+        f=ro(pw.sum(axis=1)),
+        tip=ro(tip_values(n)),
+        tip_slope=ro(tip_slopes(n)),
     )
 
 
@@ -259,7 +349,8 @@ class PipeModel:
 
     Attributes (SI units, n = number of modes)
     ----------
-    M : mass matrix [kg] (our modes are normalised: M = (M1+M2) L I).
+    M : mass matrix [kg] (our modes are normalised: M = (M1+M2) L I without a tip body).
+    C_0 : constant damping matrix [kg/s] (Kelvin-Voigt alpha K_0 plus viscous c L I).
     C_v : gyroscopic matrix per unit flow velocity [kg/m]; C = v C_v [kg/s].
     K_0 : bending stiffness [N/m].
     K_vdot : per unit flow acceleration [kg/m]; multiplied by dv/dt [m/s^2].
@@ -273,6 +364,7 @@ class PipeModel:
     n: int
     quadrature_order: int
     M: FloatArray = field(repr=False)
+    C_0: FloatArray = field(repr=False)
     C_v: FloatArray = field(repr=False)
     K_0: FloatArray = field(repr=False)
     K_vdot: FloatArray = field(repr=False)
@@ -281,6 +373,7 @@ class PipeModel:
     F_wdot: FloatArray = field(repr=False)
     omega_ref: FloatArray = field(repr=False)
     # balanced state-space pieces: S(t) = S_0 + v S_v + vdot S_vdot + v^2 S_v2 + w0^2 S_w2
+    # (the damping C_0 is constant, so it sits in S_0's upper-left block)
     S_0: FloatArray = field(repr=False)
     S_v: FloatArray = field(repr=False)
     S_vdot: FloatArray = field(repr=False)
@@ -331,9 +424,14 @@ class PipeModel:
         return np.asarray(d @ shapes)
 
     def natural_frequencies(self) -> FloatArray:
-        """No-flow, no-spin natural frequencies [rad/s] (Rao, Table 8.1 roots)."""
-        lam = np.asarray(cantilever_roots(self.n))
-        return lam**2 * math.sqrt(self.pipe.EI / (self.pipe.mass * self.pipe.L**4))
+        """Undamped no-flow, no-spin natural frequencies [rad/s] (Rao, Table 8.1 roots; with
+        a tip body, the Galerkin eigenvalues of (K_0, M)), ascending."""
+        p = self.pipe
+        if not (p.tip_mass or p.tip_inertia):
+            lam = np.asarray(cantilever_roots(self.n))
+            return lam**2 * math.sqrt(p.EI / (p.mass * p.L**4))
+        w2 = scipy.linalg.eigh(self.K_0, self.M, eigvals_only=True)
+        return np.sqrt(np.sort(w2))
 
     def initial_state(
         self, u0: float, du0: float, shape: str = "paper"
@@ -360,9 +458,15 @@ class PipeModel:
 
 @lru_cache(maxsize=64)
 def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> PipeModel:
-    """Assemble the Galerkin model for ``n`` modes (cached per pipe, n and order)."""
+    """Assemble the Galerkin model for ``n`` modes (cached per pipe, n and order).
+
+    The terms beyond the paper (damping, tip body, hub radius, out-of-plane) are derived in
+    ``docs/model.md``; each is added only when its field is non-zero, so the paper's model
+    gives the same arrays, bit for bit, as before they existed.
+    """
     g = mode_integrals(n, quadrature_order)
     L, m, M1, M2, EI = pipe.L, pipe.mass, pipe.M1, pipe.M2, pipe.EI
+    R, mt, Jt = pipe.hub_radius, pipe.tip_mass, pipe.tip_inertia
     # dimensional integrals: dx = L dxi, d/dx = (1/L) d/dxi
     gram = L * g.gram
     M = m * gram
@@ -370,10 +474,35 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     K_0 = EI / L**3 * g.k4
     K_vdot = M2 * g.b
     K_v2 = M2 / L * g.c
-    K_w2 = -m * gram + M1 * L * g.xb - 0.5 * M1 * L * g.tc
-    F_wdot = -m * L**2 * g.xf
+    # centrifugal tension M1 w0^2 (L^2 - x^2)/2 (strong form), and in-plane the -m w0^2 u term
+    K_w2 = (-m * gram + M1 * L * g.xb if pipe.in_plane else M1 * L * g.xb) - 0.5 * M1 * L * g.tc
+    F_wdot = -m * L**2 * g.xf if pipe.in_plane else np.zeros(n)
+    C_0 = np.zeros((n, n))
+    tip = g.tip
+    slope = g.tip_slope / L  # d phi_j / dx at x = L [1/m]
+    if R:
+        # tension M1 w0^2 R (L - x), zero at the tip: weak form = strong form
+        K_w2 = K_w2 + M1 * R * (g.d - g.xd)
+        if pipe.in_plane:
+            F_wdot = F_wdot - m * R * L * g.f
+    if mt:
+        M = M + mt * np.outer(tip, tip)
+        # the tip mass's tension m_t w0^2 (R + L) along the whole pipe (weak form: the
+        # natural boundary condition EI u_xxx - T(L) u_x = ... carries its tip part)
+        K_w2 = K_w2 + mt * (R + L) / L * g.d
+        if pipe.in_plane:
+            K_w2 = K_w2 - mt * np.outer(tip, tip)
+            F_wdot = F_wdot - mt * (R + L) * tip
+    if Jt:
+        M = M + Jt * np.outer(slope, slope)
+        if pipe.in_plane:
+            F_wdot = F_wdot - Jt * slope
+    if pipe.kelvin_voigt:
+        C_0 = C_0 + pipe.kelvin_voigt * K_0
+    if pipe.viscous:
+        C_0 = C_0 + pipe.viscous * gram
 
-    Minv = np.linalg.inv(M)  # M is diagonal up to rounding; n <= 40
+    Minv = np.linalg.inv(M)  # M is diagonal up to rounding without a tip body; n <= 40
     omega_ref = np.sqrt(np.diag(K_0) / np.diag(M))
     T = np.concatenate([omega_ref, np.ones(n)])  # y = T z
 
@@ -386,18 +515,18 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
         return S * (1.0 / T)[:, None] * T[None, :]
 
     zero = np.zeros((n, n))
-    S_0 = balanced(zero, -Minv @ K_0, True)
+    damped = bool(pipe.kelvin_voigt or pipe.viscous)
+    S_0 = balanced(-Minv @ C_0 if damped else zero, -Minv @ K_0, True)
     S_v = balanced(-Minv @ C_v, zero, False)
     S_vdot = balanced(zero, -Minv @ K_vdot, False)
     S_v2 = balanced(zero, -Minv @ K_v2, False)
     S_w2 = balanced(zero, -Minv @ K_w2, False)
     f_wdot = np.concatenate([(Minv @ F_wdot) / omega_ref, np.zeros(n)])
-    tip = tip_values(n)
-    arrays = [M, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref]
-    arrays += [S_0, S_v, S_vdot, S_v2, S_w2, f_wdot, tip]
+    arrays = [M, C_0, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref]
+    arrays += [S_0, S_v, S_vdot, S_v2, S_w2, f_wdot]
     for a in arrays:
         a.setflags(write=False)
     return PipeModel(
-        pipe, n, g.quadrature_order, M, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref,
+        pipe, n, g.quadrature_order, M, C_0, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref,
         S_0, S_v, S_vdot, S_v2, S_w2, f_wdot, tip,
     )  # fmt: skip

@@ -14,9 +14,10 @@ Normalisation: an eigenvector is defined up to one complex factor, so each shape
 by its value at the station of largest modulus: that station reads exactly 1 + 0i and
 ``max |Phi_j| = 1`` [-].
 
-Branch numbering is that of ``Result.frozen`` (the ``eigenvalues`` of a result): branches
-are chosen at t = 0 (lowest frequencies) and followed through the eigenvalue times and the
-requested times by left/right eigenvector correlation (:func:`pipeflow.eigen.assign`).
+Branch numbering is that of ``Result.frozen`` (the ``eigenvalues`` of a result): the same
+branches (the lowest modes at t = 0 and the least stable one), followed through the
+eigenvalue times and the requested times by left/right eigenvector correlation
+(:func:`pipeflow.spectra.assign`).
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow.basis import mode_shapes as cantilever_shapes
-from pipeflow.eigen import assign, decompose, order_lowest
 from pipeflow.model import Loading, PipeModel
+from pipeflow.spectra import assign, decompose, match_branches, order_lowest
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -48,12 +49,14 @@ class ModeShapes:
     x : stations along the pipe [m], shape (P,), from the clamped end 0 to the tip L.
     xi : eigenvalues sigma + i omega of the branches at those times [1/s], shape (T, B).
     shapes : Phi_j(x, t) [-], shape (T, B, P), max modulus 1 (see the module docstring).
+    mode : mode number of each branch (``Traces.mode``), shape (B,); None: 1, 2, ...
     """
 
     t: FloatArray
     x: FloatArray
     xi: ComplexArray
     shapes: ComplexArray
+    mode: NDArray[np.intp] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form: ``{"t", "x", "modes": [{"mode", "sigma", "omega", "real", "imag"}]}``
@@ -63,7 +66,7 @@ class ModeShapes:
             "x": self.x.tolist(),
             "modes": [
                 {
-                    "mode": j + 1,
+                    "mode": int(self.mode[j]) if self.mode is not None else j + 1,
                     "sigma": self.xi[:, j].real.tolist(),
                     "omega": self.xi[:, j].imag.tolist(),
                     "real": self.shapes[:, j].real.tolist(),
@@ -78,11 +81,12 @@ def frozen_mode_shapes(
     model: PipeModel,
     loading: Loading,
     times: FloatArray,
-    branches: int,
+    branches: int | ComplexArray,
     points: int = DEFAULT_SHAPE_POINTS,
     track_times: FloatArray | None = None,
 ) -> ModeShapes:
-    """Mode shapes of the ``branches`` lowest frozen branches at ``times`` [s].
+    """Mode shapes of frozen branches at ``times`` [s]: the ``branches`` lowest, or the
+    branches whose eigenvalues at t = 0 are given (``Result.frozen.xi[0]``).
 
     ``points`` evenly spaced stations from x = 0 to x = L [m] (both included).  Branches
     are followed from t = 0 through ``track_times`` [s] (the result's eigenvalue times) and
@@ -94,7 +98,10 @@ def frozen_mode_shapes(
     S = model.state_matrix(loading.coefficients(grid))
     w, V, W = decompose(S)
     perm, _ = assign(w, V, W)
-    chosen = order_lowest(w[0], branches)
+    if isinstance(branches, int):
+        chosen = order_lowest(w[0], branches, model.pipe.damped)
+    else:
+        chosen = match_branches(w[0], branches)
     at = np.searchsorted(grid, times)
     cols = perm[at][:, chosen]  # (T, B): eigenvector index of branch j at each time
     xi = np.take_along_axis(w[at], cols, axis=1)

@@ -91,6 +91,51 @@ def _draw_argand(ax: Axes, r: dict[str, Any], label: str | None) -> None:
         # mark the start of each branch: the direction of travel is the information here
         ax.plot(mode["sigma"][:1], mode["omega"][:1], "o", ms=3, color=line.get_color())
     ax.axvline(0.0, color="0.6", lw=0.8, zorder=0)
+    # the critical point: the first loss of stability along the sweep (sigma = 0, omega > 0)
+    loss = [c for c in r.get("zero_crossings", []) if c["direction"] == "loss"]
+    if loss:
+        c = loss[0]
+        unit = r.get("parameter", {}).get("unit", "")
+        ax.plot([0.0], [c["frequency"]], "*", ms=12, color="k", zorder=5,
+                label=f"critical point: {c['value']:.4g} {unit}, mode {c['mode']}")  # fmt: skip
+
+
+def _draw_campbell(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    """ROSS-style Campbell diagram: |omega| [rad/s] of each tracked branch against spin
+    [rad/s], coloured by the damping ratio; excitation lines n w0; their crossings marked."""
+    import numpy as np
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import Normalize
+
+    x = np.asarray(r["parameter"]["values"], dtype=float)
+    zeta_all = [z for m in r["modes"] for z in m["damping_ratio"] if z is not None]
+    lo, hi = (min(zeta_all), max(zeta_all)) if zeta_all else (0.0, 1.0)
+    norm = Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1e-12)
+    top = 0.0
+    for mode in r["modes"]:
+        y = np.array([np.nan if v is None else v for v in mode["omega"]], dtype=float)
+        z = np.array([np.nan if v is None else v for v in mode["damping_ratio"]], dtype=float)
+        pts = np.column_stack([x, y])
+        segments = np.stack([pts[:-1], pts[1:]], axis=1)
+        lc = LineCollection(list(segments), cmap="viridis", norm=norm, linewidths=2.5)
+        lc.set_array(0.5 * (z[:-1] + z[1:]))
+        ax.add_collection(lc)
+        if np.isfinite(y).any():
+            top = max(top, float(np.nanmax(y)))
+            k = int(np.nanargmax(y))
+            ax.annotate(f"mode {mode['mode']}", (x[k], y[k]), fontsize=7, ha="right", va="bottom")
+    ax.figure.colorbar(lc, ax=ax, label="damping ratio ζ [-] (< 0: growing)")
+    exc = r.get("excitation") or {}
+    styles = ("--", "-.", ":", (0, (5, 1, 1, 1, 1, 1)))
+    for i, n in enumerate(exc.get("orders", [])):
+        ax.plot(x, n * x, ls=styles[i % len(styles)], lw=1.0, color="0.25", label=f"{n:g}x")
+    crossings = exc.get("crossings", [])
+    if crossings:
+        ax.plot([c["spin"] for c in crossings], [c["frequency"] for c in crossings], "o",
+                ms=6, mfc="none", mec="k", label=label or "crossings")  # fmt: skip
+    ax.set_xlim(float(x[0]), float(x[-1]))
+    ax.set_ylim(0.0, 1.05 * top if top > 0 else 1.0)
+    ax.legend(fontsize=8, loc="upper left")
 
 
 def _draw_stations(ax: Axes, r: dict[str, Any], label: str | None) -> None:
@@ -224,6 +269,14 @@ PLOTS: dict[str, PlotKind] = {
             "frequency ω [rad/s]",
             _draw_argand,
             lambda r: _has_eigen(r) or _is_sweep(r),
+        ),
+        PlotKind(
+            "campbell",
+            "Campbell diagram: frequencies, excitation lines n x ω0, crossings (o)",
+            "spin ω0 [rad/s]",
+            "frequency |ω| [rad/s]",
+            _draw_campbell,
+            lambda r: r.get("kind") == "campbell" and bool(r.get("modes")),
         ),
         PlotKind(
             "sweep_frequency",

@@ -6,6 +6,7 @@ command line build a :class:`Simulation` from their JSON spec and call it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -15,9 +16,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow.diagnostics import add_error_estimate
-from pipeflow.eigen import Traces, track
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
+from pipeflow.model import (
+    REVERSE_FLOW_CAVEAT,
+    Loading,
+    Pipe,
+    PipeModel,
+    basis_caveats,
+    build_model,
+)
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -29,6 +36,7 @@ from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
+from pipeflow.spectra import Traces, rounding_level, select, spectrum
 
 FloatArray = NDArray[np.float64]
 
@@ -44,9 +52,12 @@ class Simulation:
     initial_shape : "paper" (eq. 3's phi_1, tip value 2.7244 u0) or "tip" (u0 is the tip).
     modes : number of Galerkin modes n (1..40).
     t_end : simulated duration [s]; samples : number of output times (incl. 0 and t_end).
-    method : solver name (see ``pipeflow.solvers.SOLVERS``); options : its options.
+    method : solver name (see ``pipeflow.solvers.SOLVERS``); "auto" (the default) runs
+        "cma" for constant flow and spin, where it is exact, and "magnus" otherwise;
+        options : its options.
     positions : extra stations x [m] (0..L) whose displacement is reported.
-    eigen_modes : how many of the lowest eigenvalue branches to trace (at most ``modes``).
+    eigen_modes : how many of the lowest eigenvalue branches to trace (at most ``modes``);
+        the least stable branch of the whole frozen spectrum is traced too, and flagged.
     eigen_samples : number of times at which frozen eigenvalues are computed.
     include_modal : also return the modal coordinates d [m] and d' [m/s].
     divergence_bound : tip amplitude [m] beyond which the run is flagged as diverging
@@ -66,7 +77,7 @@ class Simulation:
     modes: int = 10
     t_end: float = 1.0
     samples: int = 2001
-    method: str = "cma"
+    method: str = "auto"
     options: Options = field(default_factory=Options)
     positions: tuple[float, ...] = ()
     eigen_modes: int = 3
@@ -101,6 +112,9 @@ class Result(NotebookViews):
     status: str  # "ok", "diverging" or "overflow"
     initial_tip_displacement: float  # [m]
     divergence_time: float | None  # [s]
+    method_used: str = ""  # the solver that ran ("auto" resolves to "cma" or "magnus")
+    method_reason: str = ""  # one line: why that solver
+    first_unstable_time: float | None = None  # [s] first output time with a frozen sigma > 0
     mode_shapes: ModeShapes | None = None  # when ``simulation.mode_shape_times`` asks
 
     @property
@@ -114,13 +128,14 @@ class Result(NotebookViews):
         """JSON-ready dictionary: lists of floats, every number finite."""
         modal = self.simulation.include_modal if include_modal is None else include_modal
 
-        def traces(tr: Traces) -> list[dict[str, Any]]:
+        def traces(tr: Traces, flagged: bool = False) -> list[dict[str, Any]]:
             return [
                 {
-                    "mode": j + 1,
+                    "mode": tr.mode_number(j),
                     "sigma": _finite(tr.sigma[:, j]),
                     "omega": _finite(tr.omega[:, j]),
                     "confidence": _finite(tr.confidence[:, j]),
+                    **({"least_stable": tr.least_stable == j} if flagged else {}),
                 }
                 for j in range(tr.xi.shape[1])
             ]
@@ -128,6 +143,9 @@ class Result(NotebookViews):
         out: dict[str, Any] = {
             "status": self.status,
             "method": self.simulation.method,
+            "method_used": self.method_used,
+            "method_reason": self.method_reason,
+            "first_unstable_time": self.first_unstable_time,
             "t": _finite(self.t),
             "tip_displacement": _finite(self.tip_displacement),
             "initial_tip_displacement": self.initial_tip_displacement,
@@ -136,7 +154,7 @@ class Result(NotebookViews):
                 {"x": x, "u": _finite(self.displacements[i])}
                 for i, x in enumerate(self.simulation.positions)
             ],
-            "eigenvalues": {"t": _finite(self.eigen_t), "modes": traces(self.frozen)},
+            "eigenvalues": {"t": _finite(self.eigen_t), "modes": traces(self.frozen, True)},
             "fundamental": {
                 "sigma": _finite(self.frozen.sigma[:, 0]),
                 "omega": _finite(self.frozen.omega[:, 0]),
@@ -179,43 +197,40 @@ def validate(sim: Simulation) -> None:
     if sim.method not in SOLVERS:
         raise InvalidInput(
             f"unknown method {sim.method!r}; choose one of {', '.join(sorted(SOLVERS))}",
-            field="method",
+            parameter="method",
         )
     if not (math.isfinite(sim.t_end) and sim.t_end > 0):
-        raise InvalidInput("t_end must be finite and > 0 s", field="time.t_end")
+        raise InvalidInput("t_end must be finite and > 0 s", parameter="t_end")
     if sim.samples < 2:
-        raise InvalidInput("samples must be >= 2", field="time.samples")
+        raise InvalidInput("samples must be >= 2", parameter="samples")
     if not 1 <= sim.modes <= 40:
-        raise InvalidInput("modes must be between 1 and 40", field="modes")
+        raise InvalidInput("modes must be between 1 and 40", parameter="modes")
     if sim.initial_shape not in ("paper", "tip"):
         raise InvalidInput(
             f"unknown initial shape {sim.initial_shape!r}; use 'paper' or 'tip'",
-            field="initial.shape",
+            parameter="initial_shape",
         )
     if sim.eigen_modes < 1:
-        raise InvalidInput("eigen_modes must be >= 1", field="output.eigen_modes")
-    for name, prof in (("flow.velocity", sim.flow), ("rotation.omega0", sim.spin)):
+        raise InvalidInput("eigen_modes must be >= 1", parameter="eigen_modes")
+    for name, prof in (("flow", sim.flow), ("spin", sim.spin)):
         if prof.domain_end() < sim.t_end:
             raise InvalidInput(
                 f"table ends at {prof.domain_end()} s, before t_end = {sim.t_end} s",
-                field=name,
+                parameter=name,
             )
     for i, x in enumerate(sim.positions):
         if not 0.0 <= x <= sim.pipe.L:
-            raise InvalidInput(f"position {x} m is outside [0, L]", field=f"positions.{i}")
+            raise InvalidInput(f"positions[{i}] = {x} m is outside [0, L]", parameter="positions")
     if len(sim.mode_shape_times) > MAX_SHAPE_TIMES:
-        raise InvalidInput(
-            f"at most {MAX_SHAPE_TIMES} mode-shape times", "output.mode_shapes.times"
-        )
+        raise InvalidInput(f"at most {MAX_SHAPE_TIMES} mode-shape times", "mode_shape_times")
     for i, t in enumerate(sim.mode_shape_times):
         if not 0.0 <= t <= sim.t_end:
             raise InvalidInput(
-                f"mode-shape time {t} s is outside [0, t_end]", f"output.mode_shapes.times.{i}"
+                f"mode_shape_times[{i}] = {t} s is outside [0, t_end]", "mode_shape_times"
             )
     if not 2 <= sim.mode_shape_points <= MAX_SHAPE_POINTS:
         raise InvalidInput(
-            f"mode-shape points must be between 2 and {MAX_SHAPE_POINTS}",
-            "output.mode_shapes.points",
+            f"mode-shape points must be between 2 and {MAX_SHAPE_POINTS}", "mode_shape_points"
         )
 
 
@@ -229,8 +244,9 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
     z0 = model.to_balanced(d0, v0)
     problem = Problem(model, loading, z0, t, sim.options, progress)
-    out = SOLVERS[sim.method].solve(problem)
-    add_error_estimate(sim.method, problem, out)  # how far to trust it (pipeflow.diagnostics)
+    solver, reason = SOLVERS[sim.method].choose(problem)
+    out = solver.solve(problem)
+    add_error_estimate(solver, problem, out)  # how far to trust it (pipeflow.diagnostics)
 
     Z = out.z
     status = "ok"
@@ -252,8 +268,22 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
 
     eigen_t = np.linspace(0.0, sim.t_end, max(2, min(sim.eigen_samples, sim.samples)))
     n_eig = min(sim.eigen_modes, sim.modes)  # more branches than modes do not exist
-    frozen = frozen_traces(model, loading, eigen_t, n_eig)
-    exponents = cma_exponents(model, loading, eigen_t, n_eig)
+    spec = frozen_spectrum(model, loading, eigen_t)
+    frozen = select(*spec, n_eig, least_stable=True, damped=sim.pipe.damped)
+    # the same branches of P(t)/t (P(t)/t -> S(0) at t = 0: the same first point)
+    branches = frozen.xi[0]
+    if loading.is_time_invariant:
+        exponents = select(*spec, branches)  # P(t)/t = S: the same spectrum
+    else:
+        exponents = cma_exponents(model, loading, eigen_t, branches)
+    # the whole frozen spectrum decides growth, not only the traced branches
+    sigma_max = spec[0].real.max(axis=1)  # per eigen_t [1/s]
+    unstable = np.flatnonzero(sigma_max > rounding_level(spec[0]))
+    first_unstable = (
+        first_unstable_time(model, loading, eigen_t, int(unstable[0]), problem.t)
+        if unstable.size
+        else None
+    )
 
     shapes = None
     if sim.mode_shape_times:
@@ -261,17 +291,18 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
             model,
             loading,
             np.asarray(sim.mode_shape_times, dtype=float),
-            n_eig,
+            branches,
             sim.mode_shape_points,
             track_times=eigen_t,
         )
+        shapes = dataclasses.replace(shapes, mode=frozen.mode)
 
     initial_tip = float(d0 @ model.tip)
     bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
     over = np.flatnonzero(np.abs(tip) > bound)
     divergence_time = float(t[over[0]]) if over.size else None
-    # a growth rate above rounding of the spectrum (1e-9 of |xi|) means a growing mode
-    growing = bool(np.any(frozen.sigma[-1] > 1e-9 * np.abs(frozen.xi[-1])))
+    # a growth rate above rounding of the spectrum at the end means a growing mode
+    growing = bool(unstable.size and unstable[-1] == eigen_t.size - 1)
     if status == "ok" and (divergence_time is not None or growing):
         status = "diverging"
     if divergence_time is not None:
@@ -281,14 +312,15 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         )
     if np.any(sim.flow.value(eigen_t) < 0):
         warnings.append(REVERSE_FLOW_CAVEAT)
-    diagnostics = {"method": sim.method, **out.diagnostics}
+    warnings.extend(basis_caveats(sim.pipe))
+    diagnostics = {"method": sim.method, "method_used": solver.name, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,
         state_size=model.size,
         quadrature_order=model.quadrature_order,
         samples=int(t.size),
         time_invariant=loading.is_time_invariant,
-        max_growth_rate=float(np.max(frozen.sigma)),
+        max_growth_rate=float(np.max(sigma_max)),
         wall_seconds=time.perf_counter() - wall0,
     )
     return Result(
@@ -307,20 +339,63 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         status=status,
         initial_tip_displacement=initial_tip,
         divergence_time=divergence_time,
+        method_used=solver.name,
+        method_reason=reason,
+        first_unstable_time=first_unstable,
         mode_shapes=shapes,
     )
 
 
-def frozen_traces(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
-    """Tracked eigenvalues of the frozen state matrix S(t) [1/s] at ``times`` [s]."""
-    return track(model.state_matrix(loading.coefficients(times)), modes)
+def frozen_spectrum(
+    model: PipeModel, loading: Loading, times: FloatArray
+) -> tuple[NDArray[np.complex128], FloatArray, NDArray[np.intp]]:
+    """Every branch of the frozen state matrix S(t) [1/s] at ``times`` [s], followed
+    (:func:`pipeflow.spectra.spectrum`; a damped pipe's modes numbered by natural
+    frequency): one decomposition when S is constant."""
+    damped = model.pipe.damped
+    if loading.is_time_invariant:
+        S = model.state_matrix(loading.coefficients(times[:1]))
+        xi, conf, mode = spectrum(S, damped)
+        return np.repeat(xi, times.size, axis=0), np.repeat(conf, times.size, axis=0), mode
+    return spectrum(model.state_matrix(loading.coefficients(times)), damped)
 
 
-def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: int) -> Traces:
+def first_unstable_time(
+    model: PipeModel, loading: Loading, eigen_t: FloatArray, k: int, t: FloatArray
+) -> float:
+    """The first output time [s] (of ``t``) at which the frozen spectrum has a sigma above
+    rounding, given that eigenvalue time ``eigen_t[k]`` is the first such one: the output
+    times in (eigen_t[k-1], eigen_t[k]] are checked (eigenvalues only), the earliest
+    unstable one returned (``eigen_t[k]`` itself if none of them is)."""
+    if k == 0:
+        return float(t[0])
+    inside = t[(t > eigen_t[k - 1]) & (t < eigen_t[k])]
+    if inside.size:
+        xi = np.asarray(
+            np.linalg.eigvals(model.state_matrix(loading.coefficients(inside))), complex
+        )
+        over = np.flatnonzero(xi.real.max(axis=1) > rounding_level(xi))
+        if over.size:
+            return float(inside[over[0]])
+    return float(eigen_t[k])
+
+
+def frozen_traces(
+    model: PipeModel, loading: Loading, times: FloatArray, modes: int, least_stable: bool = False
+) -> Traces:
+    """Tracked eigenvalues of the frozen state matrix S(t) [1/s] at ``times`` [s]: the
+    ``modes`` lowest branches (and the least stable one, flagged)."""
+    return select(*frozen_spectrum(model, loading, times), modes, least_stable, model.pipe.damped)
+
+
+def cma_exponents(
+    model: PipeModel, loading: Loading, times: FloatArray, modes: int | NDArray[np.complex128]
+) -> Traces:
     """Tracked eigenvalues of P(t)/t [1/s], the exponents the paper's CMA applies.
 
     At t = 0 the limit P(t)/t -> S(0) is used.  For constant coefficients these equal the
-    frozen eigenvalues; for varying ones they are the time-averaged spectrum.
+    frozen eigenvalues; for varying ones they are the time-averaged spectrum.  ``modes``:
+    how many of the lowest branches, or their eigenvalues at t = 0 (``Traces.xi[0]``).
     """
     t = np.asarray(times, dtype=float)
     mats = np.empty((t.size, model.size, model.size))
@@ -328,7 +403,7 @@ def cma_exponents(model: PipeModel, loading: Loading, times: FloatArray, modes: 
     mats[~pos] = model.state_matrix(loading.coefficients(t[~pos]))
     if pos.any():
         mats[pos] = model.integrated_state_matrix(loading.integrals(t[pos])) / t[pos, None, None]
-    return track(mats, modes)
+    return select(*spectrum(mats, model.pipe.damped), modes, damped=model.pipe.damped)
 
 
 def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, Any]:
@@ -347,4 +422,5 @@ def dimensionless(pipe: Pipe, loading: Loading, times: FloatArray) -> dict[str, 
         "gamma_max_abs": float(np.max(np.abs(g))),
         "time_scale": pipe.time_scale,
         "tau_end": float(times[-1] / pipe.time_scale),
+        **pipe.dimensionless_groups(),
     }

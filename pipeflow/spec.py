@@ -9,18 +9,22 @@ cache key is computed from.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Annotated, Any, Literal, Protocol
 
 import rfc8785
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pipeflow import __version__, profiles
+from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
 from pipeflow.modeshapes import DEFAULT_SHAPE_POINTS, MAX_SHAPE_POINTS, MAX_SHAPE_TIMES
-from pipeflow.simulation import Simulation
+from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
-from pipeflow.solvers.base import MAX_STEPS_CEILING
+from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
 
 MAX_SAMPLES = 200_001
 MAX_TABLE_POINTS = 10_000
@@ -32,6 +36,80 @@ MAX_PROFILE_VALUE = 1e7
 MAX_COEFFICIENT = 1e9
 MIN_MASS = 1e-15
 BoundedValue = Annotated[float, Field(ge=-MAX_PROFILE_VALUE, le=MAX_PROFILE_VALUE)]
+#: the mounting of the pipe beyond the paper's model (issue 14; docs/model.md): one
+#: definition each, used by every simulation and stability request
+HubRadius = Annotated[
+    float,
+    Field(
+        ge=0,
+        le=1e5,
+        description="Distance R of the clamped end from the rotation axis [m]; 0 (default): on "
+        "the axis, as in the paper. Adds the centrifugal tension M1 w0^2 R (L - x).",
+    ),
+]
+Plane = Annotated[
+    Literal["in-plane", "out-of-plane"],
+    Field(
+        description="Plane of the vibration: 'in-plane' (default; the paper's eq. (1), "
+        "chordwise, with the -(M1+M2) w0^2 u softening and the forcing by the angular "
+        "acceleration) or 'out-of-plane' (flapwise, perpendicular to the rotation plane: "
+        "neither of those two terms)."
+    ),
+]
+
+
+#: library parameter (of :class:`~pipeflow.simulation.Simulation` and
+#: :class:`~pipeflow.solvers.Options`) -> the request field of :class:`SimulationSpec` it
+#: comes from; the one place where library error names become JSON paths
+SIMULATION_FIELDS: dict[str, str] = {
+    "pipe": "pipe",
+    "flow": "flow.velocity",
+    "spin": "rotation.omega0",
+    "omega0": "rotation.omega0",
+    "u0": "initial.u0",
+    "du0": "initial.du0",
+    "initial_shape": "initial.shape",
+    "modes": "modes",
+    "t_end": "time.t_end",
+    "samples": "time.samples",
+    "method": "method",
+    "positions": "output.positions",
+    "eigen_modes": "output.eigen_modes",
+    "eigen_samples": "output.eigen_samples",
+    "include_modal": "output.modal",
+    "divergence_bound": "output.divergence_bound",
+    "mode_shape_times": "output.mode_shapes.times",
+    "mode_shape_points": "output.mode_shapes.points",
+    **{f.name: f"options.{f.name}" for f in dataclasses.fields(Options)},
+}
+
+
+def request_field(exc: PipeflowError, fields: Mapping[str, str], prefix: str = "") -> PipeflowError:
+    """Set ``exc.field`` to the request field of its library ``parameter`` (``fields``,
+    then ``prefix`` for a nested request), unless a caller already did; returns ``exc``."""
+    if exc.field is None and exc.parameter is not None:
+        exc.at(prefix + fields.get(exc.parameter, exc.parameter))
+    return exc
+
+
+@contextmanager
+def request_fields(fields: Mapping[str, str], prefix: str = "") -> Iterator[None]:
+    """Library errors raised inside name request fields (:func:`request_field`)."""
+    try:
+        yield
+    except PipeflowError as exc:
+        request_field(exc, fields, prefix)
+        raise
+
+
+def library_check(check: Callable[..., object], fields: Mapping[str, str], *args: Any) -> None:
+    """Run a library check (budget, common period...) at validation time, so a request the
+    library would refuse is a 422 naming the field at submission, not a job that fails later
+    (a pydantic validator must raise ValueError: the field leads its message)."""
+    try:
+        check(*args)
+    except PipeflowError as exc:
+        raise ValueError(f"{request_field(exc, fields).field}: {exc.message}") from None
 
 
 class StrictModel(BaseModel):
@@ -49,6 +127,26 @@ class StrictModel(BaseModel):
         return self.model_dump(mode="json")
 
 
+class DampingSpec(StrictModel):
+    """Damping of the pipe (issue 14): internal (Kelvin-Voigt) and external viscous."""
+
+    kelvin_voigt: float = Field(
+        0.0,
+        ge=0,
+        le=1e3,
+        description="Internal (Kelvin-Voigt) damping alpha [s]: E -> E (1 + alpha d/dt), a "
+        "damping matrix alpha K; 0 (default): none. Dimensionless alpha / time_scale "
+        "(Paidoussis 1998, eq. 3.71).",
+    )
+    viscous: float = Field(
+        0.0,
+        ge=0,
+        le=1e9,
+        description="External viscous damping c per unit length [N s/m^2] (force c du/dt per "
+        "metre); 0 (default): none. Dimensionless c L^2 / sqrt(EI (M1+M2)).",
+    )
+
+
 class PipeSpec(StrictModel):
     """Pipe and fluid properties (the paper's section 5 values are the example)."""
 
@@ -62,6 +160,26 @@ class PipeSpec(StrictModel):
     M2: float = Field(
         ge=0, le=1e6, description="Mass of the conveyed fluid per unit length [kg/m]."
     )
+    damping: DampingSpec = Field(
+        default_factory=DampingSpec,
+        description="Structural damping; both zero (default) is the paper's undamped pipe.",
+    )
+    tip_mass: float = Field(
+        0.0,
+        ge=0,
+        le=1e9,
+        description="Point mass m_t at the free end, e.g. a nozzle [kg]; 0 (default): none. "
+        "Adds its inertia, its centrifugal tension m_t w0^2 (R + L) and, in plane, its "
+        "softening and its forcing.",
+    )
+    tip_inertia: float = Field(
+        0.0,
+        ge=0,
+        le=1e12,
+        description="Rotary inertia J_t of the tip body about the bending axis through the "
+        "tip [kg m^2]; 0 (default): none. The cantilever-mode Galerkin converges only like "
+        "1/modes for it (about 1e-2 relative at 40 modes for J_t/(m L^3) = 0.01).",
+    )
 
     @model_validator(mode="after")
     def _mass(self) -> PipeSpec:
@@ -69,8 +187,22 @@ class PipeSpec(StrictModel):
             raise ValueError(f"M1 + M2 must be >= {MIN_MASS:g} kg/m")
         return self
 
-    def to_pipe(self) -> Pipe:
-        return Pipe(E=self.E, I=self.I, L=self.L, M1=self.M1, M2=self.M2)
+    def to_pipe(self, hub_radius: float = 0.0, plane: str = "in-plane") -> Pipe:
+        """The library's :class:`~pipeflow.model.Pipe`, mounted at ``hub_radius`` [m] and
+        vibrating in ``plane`` (both given by the request's rotation and plane fields)."""
+        return Pipe(
+            E=self.E,
+            I=self.I,
+            L=self.L,
+            M1=self.M1,
+            M2=self.M2,
+            kelvin_voigt=self.damping.kelvin_voigt,
+            viscous=self.damping.viscous,
+            tip_mass=self.tip_mass,
+            tip_inertia=self.tip_inertia,
+            hub_radius=hub_radius,
+            plane=plane,
+        )
 
 
 class ConstantProfile(StrictModel):
@@ -163,6 +295,7 @@ class RotationSpec(StrictModel):
     omega0: ProfileSpec = Field(
         default_factory=ConstantProfile, description="Spin w0(t) of the hub [rad/s]."
     )
+    hub_radius: HubRadius = 0.0
 
 
 class FlowSpec(StrictModel):
@@ -295,7 +428,7 @@ class SimulationSpec(StrictModel):
                     "initial": {"u0": 0.001, "du0": 0.0},
                     "modes": 10,
                     "time": {"t_end": 1.0, "samples": 2001},
-                    "method": "cma",
+                    "method": "auto",
                 }
             ]
         },
@@ -303,12 +436,13 @@ class SimulationSpec(StrictModel):
 
     pipe: PipeSpec
     rotation: RotationSpec = Field(default_factory=RotationSpec)
+    plane: Plane = "in-plane"
     flow: FlowSpec = Field(default_factory=FlowSpec)
     initial: InitialSpec = Field(default_factory=InitialSpec)
     modes: int = Field(10, ge=1, le=40, description="Number of Galerkin (cantilever) modes.")
     time: TimeSpec = Field(default_factory=TimeSpec)
     method: str = Field(
-        "cma",
+        "auto",
         description="Solver: " + "; ".join(f"'{n}': {s.description}" for n, s in SOLVERS.items()),
         json_schema_extra={"enum": list(sorted(SOLVERS))},
     )
@@ -345,7 +479,7 @@ class SimulationSpec(StrictModel):
     def to_simulation(self) -> Simulation:
         opts = self.options
         return Simulation(
-            pipe=self.pipe.to_pipe(),
+            pipe=self.pipe.to_pipe(self.rotation.hub_radius, self.plane),
             flow=self.flow.velocity.to_profile(),
             spin=self.rotation.omega0.to_profile(),
             u0=self.initial.u0,
@@ -380,6 +514,13 @@ class SimulationSpec(StrictModel):
         if data["output"]["mode_shapes"] is None:
             del data["output"]["mode_shapes"]  # requests from before the field keep their key
         return data
+
+
+def run_simulation(spec: SimulationSpec, progress: ProgressCallback | None = None) -> Result:
+    """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
+    the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
+    with request_fields(SIMULATION_FIELDS):
+        return simulate(spec.to_simulation(), progress=progress)
 
 
 #: the paper's section-5 example, v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s

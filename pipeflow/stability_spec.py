@@ -15,17 +15,24 @@ cache key.  The run functions return JSON-ready dicts (every float finite) and t
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field, TypeAdapter, model_validator
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.errors import PipeflowError
-from pipeflow.model import PAPER_PIPE
+from pipeflow.model import PAPER_PIPE, Pipe
 from pipeflow.simulation import json_safe
-from pipeflow.spec import ConstantProfile, HarmonicProfile, PipeSpec, StrictModel
+from pipeflow.spec import (
+    ConstantProfile,
+    HarmonicProfile,
+    HubRadius,
+    PipeSpec,
+    Plane,
+    StrictModel,
+    library_check,
+    request_fields,
+)
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
@@ -34,7 +41,8 @@ from pipeflow.stability.sweeps import Parameter, sweep
 Progress = Callable[[float], None]
 
 #: the paper's section-5 pipe, for the schema examples
-PAPER_PIPE_JSON: Any = dataclasses.asdict(PAPER_PIPE)
+#: (E, I, L, M1, M2 only: the paper's pipe needs none of the fields beyond its model)
+PAPER_PIPE_JSON: Any = {name: getattr(PAPER_PIPE, name) for name in ("E", "I", "L", "M1", "M2")}
 MAX_SWEEP_POINTS = 2001
 MAX_MAP_SIDE = 200
 MAX_CHART_SIDE = 101
@@ -45,6 +53,15 @@ MAX_SPEED = 1e6
 MAX_SPIN = 1e7
 
 
+#: library parameter -> request field where they differ (the stability specs otherwise use
+#: the library's names: modes, velocity_range, points, tolerance...)
+STABILITY_FIELDS: dict[str, str] = {
+    "flow": "flow.velocity",
+    "spin": "rotation.omega0",
+    "omega0": "rotation.omega0",
+}
+
+
 def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
     lo, hi = value
     if not lo < hi:
@@ -53,10 +70,28 @@ def _check_range(value: tuple[float, float], name: str, bound: float, unit: str)
         raise ValueError(f"{name} must lie within +-{bound:g} {unit}")
 
 
-class ConstantRotation(StrictModel):
+class Hub(StrictModel):
+    """Where the pipe is mounted on the rotating hub (for analyses that sweep the spin)."""
+
+    hub_radius: HubRadius = 0.0
+
+
+class ConstantRotation(Hub):
     omega0: ConstantProfile = Field(
         default_factory=ConstantProfile, description="Constant spin w0 of the hub [rad/s]."
     )
+
+
+class _Mounted(StrictModel):
+    """A request with a pipe, a hub radius (``rotation.hub_radius``) and a ``plane``."""
+
+    pipe: PipeSpec
+    rotation: Hub = Field(default_factory=Hub)
+    plane: Plane = "in-plane"
+
+    def mounted_pipe(self) -> Pipe:
+        """The library's pipe with this request's hub radius and plane."""
+        return self.pipe.to_pipe(self.rotation.hub_radius, self.plane)
 
 
 class ConstantFlow(StrictModel):
@@ -76,7 +111,7 @@ SpinRange = Annotated[
 Modes = Annotated[int, Field(ge=1, le=MAX_MODES, description="Galerkin (cantilever) modes n.")]
 
 
-class StabilitySpec(StrictModel):
+class StabilitySpec(_Mounted):
     """Critical flow velocity of a pipe at constant spin over a velocity range."""
 
     model_config = ConfigDict(
@@ -112,8 +147,7 @@ class StabilitySpec(StrictModel):
         return self
 
 
-class _TrackedSweep(StrictModel):
-    pipe: PipeSpec
+class _TrackedSweep(_Mounted):
     modes: Modes = 10
     points: int = Field(201, ge=2, le=MAX_SWEEP_POINTS, description="Evenly spaced points [-].")
     tracked_modes: int = Field(
@@ -147,9 +181,10 @@ class _TrackedSweep(StrictModel):
         value_range: tuple[float, float],
         fixed: float,
         progress: Progress | None,
+        orders: tuple[float, ...] = (),
     ) -> dict[str, Any]:
         return sweep(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             parameter,
             value_range,
             fixed=fixed,
@@ -159,6 +194,7 @@ class _TrackedSweep(StrictModel):
             min_confidence=self.min_confidence,
             max_points=self.max_points,
             progress=progress,
+            orders=orders,
         ).to_dict()
 
 
@@ -185,6 +221,12 @@ class CampbellSweep(_TrackedSweep):
     kind: Literal["campbell"] = "campbell"
     flow: ConstantFlow = Field(default_factory=ConstantFlow)
     spin_range: SpinRange
+    orders: list[Annotated[float, Field(gt=0, le=100)]] = Field(
+        [1.0, 2.0],
+        max_length=8,
+        description="Excitation orders n [-]: the lines omega = n w0 (1x synchronous, 2x, "
+        "0.5x, ...) whose crossings with the tracked branches are located and reported.",
+    )
 
     @model_validator(mode="after")
     def _ranges(self) -> CampbellSweep:
@@ -193,10 +235,12 @@ class CampbellSweep(_TrackedSweep):
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.sweeps.sweep` over spin (``to_dict`` form)."""
-        return self._sweep("spin", self.spin_range, self.flow.velocity.value, progress)
+        return self._sweep(
+            "spin", self.spin_range, self.flow.velocity.value, progress, tuple(self.orders)
+        )
 
 
-class SpinMapSweep(StrictModel):
+class SpinMapSweep(_Mounted):
     """Growth-rate map over (spin, flow velocity) and the critical velocity at each spin."""
 
     kind: Literal["spin_map"] = "spin_map"
@@ -219,7 +263,7 @@ class SpinMapSweep(StrictModel):
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.maps.spin_map` (``to_dict`` form)."""
         return spin_map(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.velocity_range,
             self.spin_range,
             modes=self.modes,
@@ -243,6 +287,27 @@ class BetaMapSweep(StrictModel):
     gamma: float = Field(0.0, ge=0, le=1e3, description="Spin number w0 L^2 sqrt((M1+M2)/EI) [-].")
     beta_points: int = Field(50, ge=1, le=400, description="Mass-ratio samples [-].")
     u_points: int = Field(201, ge=3, le=MAX_SWEEP_POINTS, description="Flow-number samples [-].")
+    alpha: float = Field(
+        0.0,
+        ge=0,
+        le=1e3,
+        description="Kelvin-Voigt damping kelvin_voigt / time_scale = alpha sqrt(EI/(M1+M2)) / "
+        "L^2 [-] (Paidoussis 1998, eq. 3.71); 0: undamped.",
+    )
+    sigma: float = Field(
+        0.0,
+        ge=0,
+        le=1e6,
+        description="Viscous damping c L^2 / sqrt(EI (M1+M2)) [-] (Paidoussis 1998, eq. 3.71).",
+    )
+    tip_mass_ratio: float = Field(
+        0.0, ge=0, le=1e6, description="Tip mass over pipe-and-fluid mass, m_t/((M1+M2) L) [-]."
+    )
+    tip_inertia_ratio: float = Field(
+        0.0, ge=0, le=1e6, description="Tip rotary inertia J_t/((M1+M2) L^3) [-]."
+    )
+    hub_ratio: float = Field(0.0, ge=0, le=1e5, description="Hub radius over length, R/L [-].")
+    plane: Plane = "in-plane"
 
     @model_validator(mode="after")
     def _ranges(self) -> BetaMapSweep:
@@ -265,10 +330,18 @@ class BetaMapSweep(StrictModel):
             beta_points=self.beta_points,
             u_points=self.u_points,
             progress=progress,
+            groups={
+                "alpha": self.alpha,
+                "sigma": self.sigma,
+                "tip_mass_ratio": self.tip_mass_ratio,
+                "tip_inertia_ratio": self.tip_inertia_ratio,
+                "hub_ratio": self.hub_ratio,
+            },
+            plane=self.plane,
         ).to_dict()
 
 
-class ResonanceChartSweep(StrictModel):
+class ResonanceChartSweep(_Mounted):
     """Floquet chart of pulsating flow v = mean + a sin(Omega t) over (a, Omega)."""
 
     kind: Literal["resonance_chart"] = "resonance_chart"
@@ -300,7 +373,7 @@ class ResonanceChartSweep(StrictModel):
             raise ValueError("frequency_range must be > 0 rad/s")
         _library_check(
             check_chart_work,
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.modes,
             self.amplitude_points,
             self.frequency_points,
@@ -311,7 +384,7 @@ class ResonanceChartSweep(StrictModel):
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.floquet.resonance_chart` (``to_dict`` form)."""
         return resonance_chart(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.mean_velocity,
             self.amplitude_range,
             self.frequency_range,
@@ -330,7 +403,7 @@ class PeriodicFlow(StrictModel):
     )
 
 
-class PeriodicRotation(StrictModel):
+class PeriodicRotation(Hub):
     omega0: ConstantProfile | HarmonicProfile = Field(
         default_factory=ConstantProfile,
         discriminator="kind",
@@ -338,7 +411,7 @@ class PeriodicRotation(StrictModel):
     )
 
 
-class FloquetSweep(StrictModel):
+class FloquetSweep(_Mounted):
     """Floquet multipliers of one case with harmonic flow and/or spin (one period)."""
 
     kind: Literal["floquet"] = "floquet"
@@ -360,7 +433,7 @@ class FloquetSweep(StrictModel):
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.floquet.floquet` (``to_dict`` form)."""
         return floquet(
-            self.pipe.to_pipe(),
+            self.mounted_pipe(),
             self.flow.velocity.to_profile(),
             self.rotation.omega0.to_profile(),
             modes=self.modes,
@@ -390,24 +463,21 @@ def parse_sweep(data: Any) -> Any:
 
 
 def _library_check(check: Callable[..., object], *args: Any) -> None:
-    """Run a library check (budget, common period) at validation time, so a request the
-    library would refuse is a 422 naming the field at submission, not a job that fails later."""
-    try:
-        check(*args)
-    except PipeflowError as exc:
-        raise ValueError(f"{exc.field}: {exc.message}") from None
+    """:func:`pipeflow.spec.library_check` with :data:`STABILITY_FIELDS`."""
+    library_check(check, STABILITY_FIELDS, *args)
 
 
 def run_stability(spec: StabilitySpec, progress: Progress | None = None) -> dict[str, Any]:
     """Critical velocities for a :class:`StabilitySpec`: JSON-ready dict (SI units)."""
-    res = critical_velocities(
-        spec.pipe.to_pipe(),
-        omega0=spec.rotation.omega0.value,
-        velocity_range=spec.velocity_range,
-        modes=spec.modes,
-        points=spec.points,
-        progress=progress,
-    )
+    with request_fields(STABILITY_FIELDS):
+        res = critical_velocities(
+            spec.mounted_pipe(),
+            omega0=spec.rotation.omega0.value,
+            velocity_range=spec.velocity_range,
+            modes=spec.modes,
+            points=spec.points,
+            progress=progress,
+        )
     return {"kind": "stability", **json_safe(res.to_dict())}
 
 
@@ -416,4 +486,5 @@ def run_sweep(spec: Any, progress: Progress | None = None) -> dict[str, Any]:
     ``kind`` echoed first."""
     if not isinstance(spec, SWEEP_KINDS):
         raise TypeError(f"not a sweep spec: {type(spec).__name__}")
-    return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))
+    with request_fields(STABILITY_FIELDS):
+        return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))

@@ -58,9 +58,8 @@ class ServiceError(PipeflowError):
             detail = "; ".join(
                 f"{e.get('field') or 'body'}: {e.get('message', '')}" for e in errors
             )
-        super().__init__(
-            f"{status} {problem.get('title', '')}: {detail}".strip(), first.get("field")
-        )
+        super().__init__(f"{status} {problem.get('title', '')}: {detail}".strip())
+        self.at(first.get("field"))  # the request field the service named
         self.status = status
         self.problem = problem
         self.errors = errors

@@ -21,9 +21,8 @@ from pydantic import BaseModel
 
 from pipeflow.compare import CompareSpec, run_compare
 from pipeflow.plots import available_plots
-from pipeflow.simulation import simulate
 from pipeflow.solvers.base import ProgressCallback
-from pipeflow.spec import SimulationSpec, hash_canonical
+from pipeflow.spec import SimulationSpec, hash_canonical, run_simulation
 from pipeflow.stability_spec import (
     ArgandSweep,
     BetaMapSweep,
@@ -60,15 +59,15 @@ def register(kind: JobKind) -> JobKind:
     return kind
 
 
-def run_simulation(spec: SimulationSpec, progress: ProgressCallback) -> dict[str, Any]:
+def run_simulation_job(spec: SimulationSpec, progress: ProgressCallback) -> dict[str, Any]:
     """One simulation as JSON (see :meth:`pipeflow.simulation.Result.to_dict`), with the
     names of its figures (``plots``, see ``GET /v1/results/{key}/plots/{name}.png``)."""
-    result = simulate(spec.to_simulation(), progress=progress).to_dict()
+    result = run_simulation(spec, progress).to_dict()
     result["plots"] = available_plots(result)
     return result
 
 
-SIMULATION = register(JobKind("simulation", SimulationSpec, run_simulation))
+SIMULATION = register(JobKind("simulation", SimulationSpec, run_simulation_job))
 COMPARE = register(JobKind("compare", CompareSpec, run_compare))
 
 

@@ -136,12 +136,14 @@ def problem(
 
 
 def pipeflow_problem(exc: PipeflowError) -> dict[str, Any]:
-    """422 problem for a refusal by the library, pointing at ``exc.field``."""
+    """422 problem for a refusal by the library, pointing at the request field (``exc.field``,
+    set by the schema layer; the library's ``exc.parameter`` if it set none)."""
     name = type(exc).__name__
     slug = re.sub(r"(?<!^)(?=[A-Z])", "-", name).lower()
+    field = exc.field if exc.field is not None else exc.parameter
     err: dict[str, Any] = {
-        "field": exc.field,
-        "pointer": _pointer(exc.field.split(".")) if exc.field else None,
+        "field": field,
+        "pointer": _pointer(field.split(".")) if field else None,
         "location": "body",
         "message": exc.message,
         "type": slug,
@@ -149,6 +151,9 @@ def pipeflow_problem(exc: PipeflowError) -> dict[str, Any]:
     doc = problem(422, exc.message, slug=slug, errors=[err])
     if hasattr(exc, "largest_stable_step"):
         doc["largest_stable_step"] = exc.largest_stable_step
+    smallest = getattr(exc, "smallest_step", None)
+    if smallest is not None:
+        doc["smallest_step"] = smallest
     return doc
 
 

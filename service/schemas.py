@@ -17,11 +17,16 @@ KEY_PATTERN = r"^[0-9a-f]{64}$"
 
 
 class Trace(BaseModel):
-    mode: int = Field(description="Branch number, 1 = lowest frequency at t = 0.")
+    mode: int = Field(description="Mode number, 1 = lowest frequency at t = 0.")
     sigma: list[float] = Field(description="Real part of xi = sigma + i omega: damping [1/s].")
     omega: list[float] = Field(description="Imaginary part: frequency [rad/s].")
     confidence: list[float] = Field(
         description="Tracking confidence in [0, 1] (eigenvector correlation between steps)."
+    )
+    least_stable: bool | None = Field(
+        None,
+        description="Frozen spectrum only: this is the least stable branch of the whole "
+        "spectrum (largest sigma over time), traced whether or not it is among the lowest.",
     )
 
 
@@ -72,7 +77,13 @@ class SimulationResponse(BaseModel):
         description="ok; diverging (a growing mode or the tip passed the divergence bound); "
         "overflow (samples after double-precision overflow are omitted)."
     )
-    method: str = Field(description="Solver used.")
+    method: str = Field(description="Method as requested ('auto' by default).")
+    method_used: str = Field(description="Solver that ran ('auto' resolves to cma or magnus).")
+    method_reason: str = Field(description="One line: why that solver.")
+    first_unstable_time: float | None = Field(
+        description="First output time [s] at which any branch of the frozen spectrum "
+        "has sigma > 0 (beyond rounding), or null if none."
+    )
     t: list[float] = Field(description="Output times [s].")
     tip_displacement: list[float] = Field(description="Tip displacement u(L, t) [m].")
     initial_tip_displacement: float = Field(description="u(L, 0) [m].")
@@ -138,6 +149,7 @@ class Readiness(BaseModel):
 
 class MethodComparison(BaseModel):
     method: str = Field(description="Method name.")
+    method_used: str = Field(description="Solver that ran ('auto' resolves to cma or magnus).")
     status: str = Field(description="'ok', 'diverging' or 'overflow' (see simulations).")
     solve_seconds: float = Field(description="Time inside the solver [s].")
     wall_seconds: float = Field(description="Whole run incl. eigenvalue traces [s].")

@@ -67,6 +67,11 @@ class StabilityDimensionless(BaseModel):
         description="The velocity range as flow numbers [-] (null when M2 = 0)."
     )
     time_scale: float = Field(description="L^2 sqrt((M1+M2)/EI) [s].")
+    alpha: float = Field(description="Kelvin-Voigt damping kelvin_voigt / time_scale [-].")
+    sigma: float = Field(description="Viscous damping c L^2 / sqrt(EI (M1+M2)) [-].")
+    tip_mass_ratio: float = Field(description="m_t / ((M1+M2) L) [-].")
+    tip_inertia_ratio: float = Field(description="J_t / ((M1+M2) L^3) [-].")
+    hub_ratio: float = Field(description="Hub radius over length R/L [-].")
 
 
 class ReverseFlow(BaseModel):
@@ -104,7 +109,8 @@ class StabilityResponse(_Result):
         "each located to 1e-10 relative."
     )
     dimensionless: StabilityDimensionless = Field(
-        description="Paidoussis' groups: beta, gamma, u_cr, time scale."
+        description="Paidoussis' groups: beta, gamma, u_cr, time scale, and the extended "
+        "model's alpha, sigma, tip_mass_ratio, tip_inertia_ratio, hub_ratio."
     )
     omega0: float = Field(description="Spin w0 [rad/s].")
     modes: int = Field(description="Galerkin modes used [-].")
@@ -151,6 +157,34 @@ class SweepBranch(BaseModel):
     )
 
 
+class ExcitationCrossing(BaseModel):
+    order: float = Field(description="Order n of the excitation line omega = n w0 [-].")
+    mode: int = Field(description="Mode number of the crossing branch.")
+    spin: float = Field(description="Spin w0 at the crossing [rad/s].")
+    spin_rpm: float = Field(description="The same [rpm].")
+    frequency: float = Field(description="Frequency there, n w0 [rad/s].")
+    frequency_hz: float = Field(description="The same [Hz].")
+    sigma: float = Field(description="Damping of the branch there [1/s] (> 0: unstable).")
+    damping_ratio: float = Field(description="zeta = -sigma/|xi| there [-].")
+
+
+class Excitation(BaseModel):
+    orders: list[float] = Field(description="The excitation orders n requested [-].")
+    crossings: list[ExcitationCrossing] = Field(
+        description="Every crossing of a tracked branch with a line omega = n w0, by order then "
+        "spin, located by root-finding on the frozen spectrum to 1e-12 relative."
+    )
+
+
+class ZeroCrossing(BaseModel):
+    mode: int = Field(description="Mode number of the crossing branch.")
+    value: float = Field(description="Swept parameter at sigma = 0 [m/s or rad/s].")
+    frequency: float = Field(description="|omega| there [rad/s] (0: divergence).")
+    direction: Literal["loss", "gain"] = Field(
+        description="loss: unstable beyond, with increasing parameter; gain: stable again."
+    )
+
+
 class SweepResponse(_Result):
     """Tracked eigenvalues xi = sigma + i omega against flow velocity or spin."""
 
@@ -162,6 +196,13 @@ class SweepResponse(_Result):
     )
     inserted: list[bool] = Field(description="Per point: added by refinement.")
     modes: list[SweepBranch] = Field(description="The tracked branches, lowest first.")
+    excitation: Excitation | None = Field(
+        None, description="Campbell: the excitation lines' crossings with the tracked branches."
+    )
+    zero_crossings: list[ZeroCrossing] = Field(
+        default_factory=list,
+        description="Where a tracked branch crosses sigma = 0 (Argand: the critical points).",
+    )
     dimensionless: dict[str, float] = Field(
         description="beta [-], time_scale [s], and gamma (argand) or flow_number (campbell) [-]."
     )
@@ -219,6 +260,11 @@ class BetaMapResponse(_Result):
 
     kind: Literal["beta_map"] = Field(description="Result kind.")
     gamma: float = Field(description="Spin number [-].")
+    groups: dict[str, float] = Field(
+        description="alpha, sigma, tip_mass_ratio, tip_inertia_ratio, hub_ratio [-] (the same "
+        "at every beta)."
+    )
+    plane: Literal["in-plane", "out-of-plane"] = Field(description="Plane of the vibration.")
     betas: list[float] = Field(description="Mass ratios M2/(M1+M2) [-].")
     u_range: list[float] = Field(description="[u_min, u_max] flow numbers [-].")
     u_cr: list[float | None] = Field(description="Per beta: critical flow number [-], or null.")

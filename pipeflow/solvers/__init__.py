@@ -1,7 +1,7 @@
 """Solvers of the state equation, chosen by name from :data:`SOLVERS`."""
 
-from pipeflow.solvers import cma, magnus, reference, rk4
-from pipeflow.solvers.base import SOLVERS, Options, Problem, Solver, SolverOutput
+from pipeflow.solvers import auto, cma, magnus, reference, rk4
+from pipeflow.solvers.base import SOLVERS, Options, Problem, Solver, SolverOutput, SolverStats
 
 __all__ = [
     "SOLVERS",
@@ -9,6 +9,8 @@ __all__ = [
     "Problem",
     "Solver",
     "SolverOutput",
+    "SolverStats",
+    "auto",
     "cma",
     "magnus",
     "reference",

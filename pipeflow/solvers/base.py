@@ -1,16 +1,19 @@
-"""What every solver takes and returns, and the registry they are chosen from."""
+"""What every solver takes and returns, the base class they share, and the registry."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pipeflow.errors import InvalidInput
+from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import Loading, PipeModel
 
 FloatArray = NDArray[np.float64]
@@ -48,7 +51,7 @@ def given_step(options: Options) -> float | None:
     """``options.step`` [s] if given, after checking it is finite and > 0 (InvalidInput)."""
     step = options.step
     if step is not None and not (math.isfinite(step) and step > 0):
-        raise InvalidInput("options.step must be finite and > 0 s", field="options.step")
+        raise InvalidInput("step must be finite and > 0 s", parameter="step")
     return step
 
 
@@ -69,20 +72,163 @@ class Problem:
 
 
 @dataclass
+class SolverStats:
+    """Work counters of one solve, the same record for every method (like the counters
+    of scipy's ``OdeResult``: ``nfev``...).  A counter a method does not use stays 0.
+
+    steps : time steps of the accepted run [-].
+    rhs_evaluations : evaluations of S(t) z + f(t) (``nfev``) [-].
+    matrix_exponentials : matrix exponentials formed, all attempts and checks included [-].
+    eigendecompositions : eigen-decompositions of (integrated) state matrices [-].
+    attempts : runs made to meet a tolerance (1 for a single run) [-].
+    solve_seconds : wall time of the solve [s].
+    """
+
+    steps: int = 0
+    rhs_evaluations: int = 0
+    matrix_exponentials: int = 0
+    eigendecompositions: int = 0
+    attempts: int = 1
+    solve_seconds: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass
 class SolverOutput:
-    """Balanced states at the output times plus what the solver wants to say about them."""
+    """Balanced states at the output times plus what the solver wants to say about them.
+
+    ``diagnostics`` carries the method's own entries and, after :meth:`Solver.solve`, the
+    counters of ``stats``; ``method`` is the name of the solver that produced ``z``.
+    """
 
     z: FloatArray  # (len(t), 2n)
     diagnostics: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    stats: SolverStats = field(default_factory=SolverStats)
+    method: str = ""
 
 
-class Solver(Protocol):
+class Solver(ABC):
+    """A method for the state equation: the template every solver fills in.
+
+    :meth:`solve` owns what every method shares (timing, the counters of
+    :class:`SolverStats`, final progress); a method implements :meth:`_solve_impl`, which
+    fills the counters it uses, and bounds its step counts with :func:`step_counts`.
+    What the rest of the library needs to know about a method is asked here, never by
+    branching on its name:
+
+    option_names : the :class:`Options` it reads (the others do not change its result).
+    estimates_own_error : it reports ``estimated_relative_error`` itself; otherwise
+        :func:`pipeflow.diagnostics.add_error_estimate` measures it.
+    error_advice : what to do when its error is too large (for the warning).
+    compared_by_default : :func:`pipeflow.compare.compare` runs it when given no methods.
+    """
+
     name: ClassVar[str]
     description: ClassVar[str]
     option_names: ClassVar[tuple[str, ...]]
+    estimates_own_error: ClassVar[bool] = False
+    error_advice: ClassVar[str] = "use a more accurate method"
+    compared_by_default: ClassVar[bool] = True
 
-    def solve(self, problem: Problem) -> SolverOutput: ...
+    def solve(self, problem: Problem) -> SolverOutput:
+        """Solve ``problem``; the output's diagnostics include the counters and the time."""
+        t0 = time.perf_counter()
+        stats = SolverStats()
+        out = self._solve_impl(problem, stats)
+        stats.solve_seconds = time.perf_counter() - t0
+        out.stats = stats
+        out.method = out.method or self.name
+        out.diagnostics.update(stats.as_dict())
+        problem.report(1.0)
+        return out
+
+    @abstractmethod
+    def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
+        """The method itself: states at ``problem.t``, counting its work in ``stats``."""
+
+    def choose(self, problem: Problem) -> tuple[Solver, str]:
+        """The solver that will run ``problem`` and why (one line): this one, as requested."""
+        return self, f"{self.name} as requested"
+
+    def exact_error(self, problem: Problem, out: SolverOutput) -> tuple[float, str] | None:
+        """``(estimate, how)`` when this method knows its error without a check (exact up
+        to rounding for this problem), else None."""
+        return None
+
+    def claimed_error(self, options: Options, diagnostics: dict[str, Any]) -> float:
+        """Relative error [-] this result claims, for ranking methods (inf if unknown)."""
+        value = diagnostics.get("estimated_relative_error")
+        if isinstance(value, int | float) and math.isfinite(value):
+            return float(value)
+        return math.inf
+
+
+def relative_difference(a: Any, ref: Any, size: int | None = None) -> float:
+    """max_k |a_k - ref_k| / max_k |ref_k| [-]: the one relative difference of pipeflow.
+
+    Rows k of 2-D arrays are states (Euclidean norm over their first ``size`` components,
+    all by default), entries of 1-D arrays are samples (e.g. a tip history).  0 when both
+    vanish, inf when only ``a`` does not or the difference is not finite.
+    """
+    a, ref = np.asarray(a), np.asarray(ref)
+    if ref.size == 0:
+        return 0.0
+    if ref.ndim == 1:
+        a, ref = a[:, None], ref[:, None]
+    cols = slice(None) if size is None else slice(0, size)
+    with np.errstate(all="ignore"):
+        scale = float(np.max(np.linalg.norm(ref[:, cols], axis=1)))
+        diff = float(np.max(np.linalg.norm(a[:, cols] - ref[:, cols], axis=1)))
+    if not math.isfinite(diff):
+        return math.inf
+    if scale == 0.0:
+        return 0.0 if diff == 0.0 else math.inf
+    return diff / scale
+
+
+def step_budget(options: Options) -> int:
+    """Steps one run may take: ``options.max_steps``, never above :data:`MAX_STEPS_CEILING`."""
+    return int(min(options.max_steps, MAX_STEPS_CEILING))
+
+
+def step_counts(
+    dt: FloatArray,
+    h: float,
+    budget: int,
+    method: str,
+    user_step: bool,
+    extra: float = 0.0,
+) -> NDArray[np.int64]:
+    """Sub-steps per output interval so that none is longer than ``h`` [s], bounded.
+
+    Every count is computed and checked in floating point before any integer cast (a step
+    of 1e-300 s gives an infinite count, which would wrap to a negative int64).  When the
+    total plus ``extra`` (steps the caller adds, e.g. an error check) exceeds ``budget``,
+    :class:`BudgetExceeded` names ``step`` if the step was the user's (``user_step``),
+    else ``max_steps``, and says the smallest step the budget allows.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        counts = np.maximum(1.0, np.ceil(dt / h * (1 - 1e-12)))
+        total = float(np.sum(counts)) + extra
+    if not total <= budget:  # also catches inf and nan
+        per_interval = budget // dt.size if dt.size else 0
+        smallest = float(np.max(dt)) / per_interval if per_interval >= 1 else math.inf
+        shown = f"{total:.3g}" if math.isfinite(total) else "more than 1e308"
+        advice = (
+            f"the smallest step this budget allows is {smallest:.3g} s"
+            if math.isfinite(smallest)
+            else "the budget does not cover one step per output interval: use fewer samples"
+        )
+        raise BudgetExceeded(
+            f"{method} needs {shown} steps of {min(h, float(np.max(dt))):.3g} s for this run, "
+            f"above the step budget of {budget}: {advice}, or raise max_steps",
+            parameter="step" if user_step else "max_steps",
+            smallest_step=smallest if math.isfinite(smallest) else None,
+        )
+    return counts.astype(np.int64)
 
 
 SOLVERS: dict[str, Solver] = {}

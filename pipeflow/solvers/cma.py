@@ -11,7 +11,6 @@ with Gauss-Legendre quadrature fine enough for the fastest retained mode.
 
 from __future__ import annotations
 
-import time
 from typing import Any, ClassVar
 
 import numpy as np
@@ -19,7 +18,15 @@ from numpy.typing import NDArray
 from scipy.linalg import expm
 
 from pipeflow.errors import BudgetExceeded
-from pipeflow.solvers.base import FloatArray, Problem, SolverOutput, register, spectral_radius
+from pipeflow.solvers.base import (
+    FloatArray,
+    Problem,
+    Solver,
+    SolverOutput,
+    SolverStats,
+    register,
+    spectral_radius,
+)
 
 #: at most this many exp(-P) evaluations for the Duhamel integral
 MAX_DUHAMEL_NODES = 400_000
@@ -53,26 +60,29 @@ def exp_apply(
     return out, cond, bad
 
 
-class CMA:
+class CMA(Solver):
     name: ClassVar[str] = "cma"
     description: ClassVar[str] = (
         "Complex modal analysis (Wang & Zhong 2018): exp of the integrated state matrix. "
         "Exact for constant coefficients; an approximation (first Magnus term) otherwise."
     )
     option_names: ClassVar[tuple[str, ...]] = ("condition_limit",)
+    error_advice: ClassVar[str] = (
+        "CMA is exact only for constant flow and spin; use method 'magnus' (or 'auto')"
+    )
 
-    def solve(self, problem: Problem) -> SolverOutput:
-        t0 = time.perf_counter()
+    def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
         loading, t = problem.loading, problem.t
         limit = problem.options.condition_limit
         diagnostics: dict[str, object] = {"time_invariant": loading.is_time_invariant}
         warnings: list[str] = []
         if loading.is_time_invariant:
             z, cond, fallbacks = self._time_invariant(problem)
-            diagnostics["eigendecompositions"] = 1
+            stats.eigendecompositions = 1
         else:
             z, cond, fallbacks = self._time_variant(problem, warnings)
-            diagnostics["eigendecompositions"] = int(t.size)
+            stats.eigendecompositions = int(t.size)
+        stats.matrix_exponentials = int(fallbacks)
         diagnostics["eigenvector_condition_max"] = float(np.max(cond))
         diagnostics["expm_fallbacks"] = int(fallbacks)
         if fallbacks:
@@ -81,9 +91,18 @@ class CMA:
                 f"{float(np.max(cond)):.3g} > {limit:.3g}) at {fallbacks} time(s): "
                 "used a Pade matrix exponential there"
             )
-        diagnostics["solve_seconds"] = time.perf_counter() - t0
-        problem.report(1.0)
         return SolverOutput(z=z, diagnostics=diagnostics, warnings=warnings)
+
+    def exact_error(self, problem: Problem, out: SolverOutput) -> tuple[float, str] | None:
+        """Constant coefficients: exact up to rounding, amplified by the eigenvector
+        condition number."""
+        if not problem.loading.is_time_invariant:
+            return None
+        cond = float(out.diagnostics.get("eigenvector_condition_max", 1.0))
+        return (
+            float(np.finfo(float).eps * max(cond, 1.0)),
+            "exact for constant coefficients: rounding only (eps x eigenvector condition)",
+        )
 
     def _time_invariant(self, problem: Problem) -> tuple[FloatArray, FloatArray, int]:
         # P(t) = t S: one eigen-decomposition serves every output time (eq. 25-26)
@@ -141,7 +160,7 @@ class CMA:
                 f"the Duhamel integral of this varying-spin run needs {total} matrix "
                 f"exponentials (limit {MAX_DUHAMEL_NODES}); use fewer modes or the "
                 "'magnus' method",
-                field="modes",
+                parameter="modes",
             )
         x, wq = np.polynomial.legendre.leggauss(q)
         owner = np.repeat(np.arange(dt.size), pieces)  # interval of each piece

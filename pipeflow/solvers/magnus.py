@@ -37,7 +37,6 @@ The first attempt uses one step per output interval, or at least 256 steps over 
 from __future__ import annotations
 
 import math
-import time
 from typing import Any, ClassVar
 
 import numpy as np
@@ -46,12 +45,16 @@ from numpy.typing import NDArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import Loading, PipeModel
 from pipeflow.solvers.base import (
-    MAX_STEPS_CEILING,
     FloatArray,
     Problem,
+    Solver,
     SolverOutput,
+    SolverStats,
     given_step,
     register,
+    relative_difference,
+    step_budget,
+    step_counts,
 )
 
 GAUSS_OFFSET = math.sqrt(3.0) / 6.0
@@ -208,16 +211,6 @@ class MagnusGenerator:
         return expm_stack(self.omega(starts, h))
 
 
-def relative_difference(Z: FloatArray, Zc: FloatArray, size: int) -> float:
-    """max_k |Z_k - Zc_k| / max_k |Z_k| over the first ``size`` state components [-]."""
-    scale = float(np.max(np.linalg.norm(Z[:, :size], axis=1)))
-    if scale == 0.0:
-        return 0.0
-    with np.errstate(all="ignore"):
-        diff = float(np.max(np.linalg.norm(Z[:, :size] - Zc[:, :size], axis=1)))
-    return diff / scale if math.isfinite(diff) else math.inf
-
-
 def coarse_grid(t: FloatArray, substeps: NDArray[np.int64]) -> tuple[NDArray[np.int64], Any]:
     """Every other output time (and the last) and sub-steps giving twice the step there."""
     K = t.size - 1
@@ -231,16 +224,17 @@ def coarse_grid(t: FloatArray, substeps: NDArray[np.int64]) -> tuple[NDArray[np.
     return idx, coarse
 
 
-class Magnus:
+class Magnus(Solver):
     name: ClassVar[str] = "magnus"
     description: ClassVar[str] = (
         "4th-order Magnus (two Gauss points, one commutator) on steps chosen for "
         "options.tolerance: accurate for time-variant flow and spin; exact for constant."
     )
     option_names: ClassVar[tuple[str, ...]] = ("step", "max_steps", "tolerance")
+    estimates_own_error: ClassVar[bool] = True
+    error_advice: ClassVar[str] = "use a smaller tolerance or step"
 
-    def solve(self, problem: Problem) -> SolverOutput:
-        t0 = time.perf_counter()
+    def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
         loading, t = problem.loading, problem.t
         opts = problem.options
         dt = np.diff(t)
@@ -250,15 +244,18 @@ class Magnus:
         gen = MagnusGenerator(problem.model, loading, scale)
         invariant = loading.is_time_invariant
         uniform = bool(np.allclose(dt, dt[0], rtol=1e-9, atol=0.0))
-        budget = min(opts.max_steps, MAX_STEPS_CEILING)
+        budget = step_budget(opts)
         step = given_step(opts)
         if step is not None:
             h0 = step
         else:
             if not (0 < opts.tolerance < 1):
-                raise InvalidInput("options.tolerance must be in (0, 1)", field="options.tolerance")
+                raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
             h0 = t_end / PILOT_STEPS
-        substeps = _substeps(dt, h0)
+        # bounded in floating point before the cast; the error check's run with twice the
+        # step takes half as many again, so the first run gets 2/3 of the budget
+        first = budget if invariant else (2 * budget) // 3
+        substeps = step_counts(dt, h0, first, "magnus", step is not None)
         if dt.size == 1 and not invariant:
             substeps = np.maximum(substeps, 2)  # the check needs a coarser run to compare with
         warnings: list[str] = []
@@ -284,7 +281,7 @@ class Magnus:
                 )
                 Zc, used = self._propagate(problem, gen, t[idx], coarse)
                 exps += used
-            estimate = relative_difference(Zaug[idx], Zc, N) / RICHARDSON_DIVISOR
+            estimate = relative_difference(Zc, Zaug[idx], N) / RICHARDSON_DIVISOR
             if opts.step is not None or estimate <= opts.tolerance:
                 break
             if attempts >= MAX_ATTEMPTS or not math.isfinite(estimate):
@@ -295,19 +292,18 @@ class Magnus:
                 break
             # global error ~ h^4: shrink the step to reach SAFETY * tolerance
             factor = (estimate / (SAFETY * opts.tolerance)) ** 0.25
-            wanted = np.ceil(substeps * factor).astype(np.int64)
+            # bounded before the cast: a count beyond the budget is refused just below
+            wanted = np.minimum(np.ceil(substeps * factor), budget + 1.0).astype(np.int64)
             previous = (substeps, Zaug)
             substeps = np.where(wanted <= 2 * substeps, 2 * substeps, wanted)
         Z = Zaug[:, :N].copy()
         h_used = dt / substeps
+        stats.steps, stats.attempts, stats.matrix_exponentials = n_steps, attempts, exps
         diagnostics: dict[str, Any] = {
             "time_invariant": invariant,
-            "step_source": "options.step" if opts.step is not None else "options.tolerance",
-            "steps": n_steps,
+            "step_source": "step" if opts.step is not None else "tolerance",
             "step_max": float(h_used.max()),
             "step_min": float(h_used.min()),
-            "attempts": attempts,
-            "matrix_exponentials": exps,
             "tolerance": opts.tolerance,
             "estimated_relative_error": estimate,
             "error_estimate_method": (
@@ -315,9 +311,7 @@ class Magnus:
                 if invariant
                 else f"difference from a run with twice the step, divided by {RICHARDSON_DIVISOR:g}"
             ),
-            "solve_seconds": time.perf_counter() - t0,
         }
-        problem.report(1.0)
         return SolverOutput(z=Z, diagnostics=diagnostics, warnings=warnings)
 
     @staticmethod
@@ -328,9 +322,9 @@ class Magnus:
             raise BudgetExceeded(
                 f"magnus needs {n_steps} steps of {float(np.max(dt / substeps)):.3g} s for "
                 f"this run (tolerance {tol:.3g}, including the error check), above the step "
-                f"budget of {budget}; raise options.max_steps, loosen options.tolerance or "
+                f"budget of {budget}; raise max_steps, loosen the tolerance or "
                 "use fewer modes",
-                field="options.max_steps",
+                parameter="max_steps",
             )
 
     def _propagate(
@@ -376,11 +370,6 @@ class Magnus:
             k = stop
             problem.report(k / dt.size)
         return Zaug, exps
-
-
-def _substeps(dt: FloatArray, h: float) -> NDArray[np.int64]:
-    """Sub-steps per output interval so that none is longer than h [s]."""
-    return np.maximum(1, np.ceil(dt / h * (1 - 1e-12))).astype(np.int64)
 
 
 register(Magnus())

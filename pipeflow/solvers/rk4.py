@@ -10,21 +10,23 @@ fastest mode has |lambda| ~ 8e4 1/s, hence the tiny steps and the paper's long C
 
 from __future__ import annotations
 
-import time
 from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pipeflow.errors import BudgetExceeded, UnstableStep
+from pipeflow.errors import UnstableStep
 from pipeflow.solvers.base import (
-    MAX_STEPS_CEILING,
     FloatArray,
     Problem,
+    Solver,
     SolverOutput,
+    SolverStats,
     frozen_eigenvalues,
     given_step,
     register,
+    step_budget,
+    step_counts,
 )
 
 #: default fraction of the largest stable step used when the user gives none
@@ -66,15 +68,15 @@ def largest_stable_step(eigenvalues: NDArray[np.complex128]) -> float:
     return float(np.min(lo / np.abs(lam)))
 
 
-class RK4:
+class RK4(Solver):
     name: ClassVar[str] = "rk4"
     description: ClassVar[str] = (
         "Classical fixed-step 4th-order Runge-Kutta; step chosen for stability unless given."
     )
     option_names: ClassVar[tuple[str, ...]] = ("step", "max_steps")
+    error_advice: ClassVar[str] = "use a smaller step or method 'magnus'"
 
-    def solve(self, problem: Problem) -> SolverOutput:
-        t0 = time.perf_counter()
+    def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
         model, loading, t = problem.model, problem.loading, problem.t
         opts = problem.options
         step = given_step(opts)
@@ -85,32 +87,24 @@ class RK4:
                     f"RK4 step {step:.6g} s is outside the stability region for this "
                     f"run (largest stable step {h_stable:.6g} s, from the spectral radius "
                     "of the state matrix; paper eq. 32)",
-                    field="options.step",
+                    parameter="step",
                     largest_stable_step=h_stable,
                 )
             h_target = step
         else:
             h_target = SAFETY * h_stable
         dt = np.diff(t)
-        substeps = np.maximum(1, np.ceil(dt / h_target - 1e-9)).astype(np.int64)
+        substeps = step_counts(dt, h_target, step_budget(opts), "RK4", step is not None)
         n_steps = int(substeps.sum())
-        budget = min(opts.max_steps, MAX_STEPS_CEILING)
-        if n_steps > budget:
-            raise BudgetExceeded(
-                f"RK4 needs {n_steps} steps of {float(np.max(dt / substeps)):.3g} s for this "
-                f"run, above the step budget of {budget}; shorten t_end, use fewer modes, "
-                "or use the 'cma' or 'magnus' method",
-                field="options.max_steps",
-            )
         Z = self._integrate(problem, substeps)
         h_used = dt / substeps
+        stats.steps = n_steps
+        stats.rhs_evaluations = 4 * n_steps
         diagnostics = {
-            "steps": n_steps,
             "step_max": float(h_used.max()),
             "step_min": float(h_used.min()),
             "largest_stable_step": h_stable,
             "stability_margin": float(h_stable / h_used.max()),
-            "solve_seconds": time.perf_counter() - t0,
         }
         return SolverOutput(z=Z, diagnostics=diagnostics)
 

@@ -8,8 +8,10 @@ the motion is a sum of ``exp(xi t)`` with xi = sigma + i omega its eigenvalues: 
 
 Conventions used by the whole :mod:`pipeflow.stability` package
 
+- Branches are followed, and numbered, by :mod:`pipeflow.spectra` (:func:`follow`,
+  :func:`mode_numbers`), the tracker the simulation's traces use too.
 - A branch is *unstable* where sigma > ``tol``, with ``tol`` a rounding level of the
-  spectrum (``MARGINAL_RTOL`` times the spectral radius).  At v = 0 the undamped model
+  spectrum (:func:`~pipeflow.spectra.rounding_level`).  At v = 0 the undamped model
   has every eigenvalue on the imaginary axis (sigma = 0 to rounding); that point counts
   as stable, which is what the sign of d sigma/dv says just above it (the Coriolis term
   2 M2 v u_xt removes energy through the free end for v > 0).
@@ -21,36 +23,33 @@ Conventions used by the whole :mod:`pipeflow.stability` package
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq, minimize_scalar
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.eigen import assign, decompose
 from pipeflow.errors import InvalidInput
-from pipeflow.model import Coefficients, Pipe, PipeModel
+from pipeflow.model import PLANES, Coefficients, Pipe, PipeModel
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 Progress = Callable[[float], None]
 
-#: sigma below this fraction of the spectral radius is rounding, not growth
-MARGINAL_RTOL = 1e-11
 
-
-def check_modes(modes: int, field: str = "modes") -> None:
+def check_modes(modes: int, parameter: str = "modes") -> None:
     if not 1 <= int(modes) <= MAX_MODES:
-        raise InvalidInput(f"modes must be between 1 and {MAX_MODES}, got {modes}", field=field)
+        raise InvalidInput(
+            f"modes must be between 1 and {MAX_MODES}, got {modes}", parameter=parameter
+        )
 
 
-def check_range(lo: float, hi: float, field: str) -> None:
+def check_range(lo: float, hi: float, parameter: str) -> None:
     if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise InvalidInput(f"{field} must be finite, got [{lo}, {hi}]", field=field)
+        raise InvalidInput(f"{parameter} must be finite, got [{lo}, {hi}]", parameter=parameter)
     if not lo < hi:
-        raise InvalidInput(f"{field} must be increasing, got [{lo}, {hi}]", field=field)
+        raise InvalidInput(f"{parameter} must be increasing, got [{lo}, {hi}]", parameter=parameter)
 
 
 def frozen_matrices(model: PipeModel, v: ArrayLike, vdot: ArrayLike, w2: ArrayLike) -> FloatArray:
@@ -87,11 +86,6 @@ def growth_rate(model: PipeModel, v: ArrayLike, w0: ArrayLike) -> FloatArray:
     return np.asarray(eigenvalues(model, v, w0).real.max(axis=-1))
 
 
-def rounding_level(xi: ComplexArray) -> FloatArray:
-    """Per-point level [1/s] below which sigma is rounding (``MARGINAL_RTOL`` x radius)."""
-    return np.asarray(MARGINAL_RTOL * np.max(np.abs(xi), axis=-1))
-
-
 def damping_ratio(xi: ComplexArray) -> FloatArray:
     """zeta = -sigma / |xi| [-] (1 for a decaying real eigenvalue, < 0 when growing)."""
     mag = np.abs(xi)
@@ -100,130 +94,40 @@ def damping_ratio(xi: ComplexArray) -> FloatArray:
     return np.asarray(z)
 
 
-def mode_numbers(w: ComplexArray) -> NDArray[np.intp]:
-    """Mode number (1-based, by frequency) of each eigenvalue of one point; pairs share it.
-
-    A conjugate pair is one mode, and so is a real pair +-s (a divergent mode of the
-    conservative v = 0 system); other real eigenvalues are modes of frequency 0 (they
-    come first).
-    """
-    scale = max(float(np.max(np.abs(w))), 1e-300)
-    tol = 1e-9 * scale
-    real = np.abs(w.imag) <= tol
-    lower = w.imag < -tol
-    for i in np.flatnonzero(real & (w.real < 0)):
-        mirror = real & (w.real > 0) & (np.abs(w.real + w[i].real) <= 1e-6 * scale)
-        if mirror.any():
-            lower[i] = True
-    upper = np.flatnonzero(~lower)
-    order = upper[np.lexsort((w.real[upper], np.abs(w.imag[upper])))]
-    number = np.zeros(w.size, dtype=np.intp)
-    number[order] = np.arange(1, order.size + 1)
-    for i in np.flatnonzero(lower):
-        partner = order[np.argmin(np.abs(w[order] - np.conj(w[i])) * np.abs(w[order] + w[i]))]
-        number[i] = number[partner]
-    return number
+#: the :class:`Pipe` field that carries each group of :meth:`Pipe.dimensionless_groups` on
+#: the unit pipe of :func:`nondimensional_pipe`, where group and field are equal
+GROUP_FIELDS = {
+    "alpha": "kelvin_voigt",
+    "sigma": "viscous",
+    "tip_mass_ratio": "tip_mass",
+    "tip_inertia_ratio": "tip_inertia",
+    "hub_ratio": "hub_radius",
+}
 
 
-@dataclass
-class Branches:
-    """Every eigenvalue branch of ``S(p)`` followed along a 1-D parameter grid ``p``.
-
-    ``xi[k, j]``: branch j at ``p[k]`` [1/s]; ``confidence[k, j]``: the eigenvector overlap
-    that linked point k to k-1 (1 at k = 0); ``mode[j]``: its mode number at ``p[0]``;
-    ``inserted[k]``: point k was added by refinement.  ``W`` holds the left eigenvectors
-    (rows, ordered like ``xi``) for evaluating a branch between grid points.
-    """
-
-    p: FloatArray
-    xi: ComplexArray
-    confidence: FloatArray
-    mode: NDArray[np.intp]
-    inserted: NDArray[np.bool_]
-    W: ComplexArray
-    matrices: Callable[[FloatArray], FloatArray]
-
-    def branch_at(self, j: int, k: int, p: float) -> complex:
-        """Eigenvalue [1/s] of branch j at parameter ``p`` (near the grid interval of point k).
-
-        Picked by the largest overlap of the left eigenvector of branch j at ``p[k]`` with
-        the right eigenvectors at ``p``.
-        """
-        # anchor at the nearer grid point, so that the grid values are reproduced exactly
-        if k + 1 < self.p.size and abs(p - self.p[k + 1]) < abs(p - self.p[k]):
-            k += 1
-        w, V, _ = decompose(self.matrices(np.array([float(p)])))
-        overlap = np.abs(self.W[k, j] @ V[0])
-        if not np.all(np.isfinite(overlap)):
-            return complex(w[0][np.argmin(np.abs(w[0] - self.xi[k, j]))])
-        return complex(w[0][np.argmax(overlap)])
-
-    def upper(self, j: int, k: int) -> bool:
-        """Branch j at point k has omega >= 0 (one member of a pair, or real)."""
-        return bool(self.xi[k, j].imag >= -1e-9 * abs(self.xi[k, j]))
-
-
-def follow(
-    matrices: Callable[[FloatArray], FloatArray],
-    grid: ArrayLike,
-    watch: Callable[[ComplexArray], NDArray[np.intp]] | None = None,
-    min_confidence: float = 0.0,
-    max_points: int = 0,
-    max_levels: int = 6,
-    progress: Progress | None = None,
-) -> Branches:
-    """Follow all eigenvalue branches of ``matrices(p)`` along ``grid``, refining as needed.
-
-    Where the tracking confidence of a watched branch (``watch(xi[0])`` gives their
-    indices; all branches by default) drops below ``min_confidence`` between two points, the
-    midpoint is inserted, up to ``max_levels`` halvings and ``max_points`` points in all.
-    Near a coalescence of eigenvalues (exceptional point) the eigenvectors become parallel
-    and the confidence stays low however fine the grid: the refinement stops there and the
-    low confidence is reported.
-    """
-    p = np.asarray(grid, dtype=float)
-    inserted = np.zeros(p.size, dtype=bool)
-    w, V, W = decompose(matrices(p))
-    perm, conf = assign(w, V, W)
-    watched = np.arange(w.shape[1]) if watch is None else watch(w[0])
-    for level in range(max_levels):
-        if min_confidence <= 0 or p.size >= max_points:
-            break
-        low = np.min(conf[:, watched], axis=1)
-        bad = np.flatnonzero(low[1:] < min_confidence)  # interval (k, k+1)
-        bad = bad[: max(0, max_points - p.size)]
-        if bad.size == 0:
-            break
-        new = 0.5 * (p[bad] + p[bad + 1])
-        w2, V2, W2 = decompose(matrices(new))
-        order = np.argsort(np.concatenate([p, new]), kind="stable")
-        p = np.concatenate([p, new])[order]
-        inserted = np.concatenate([inserted, np.ones(new.size, dtype=bool)])[order]
-        w = np.concatenate([w, w2])[order]
-        V = np.concatenate([V, V2])[order]
-        W = np.concatenate([W, W2])[order]
-        perm, conf = assign(w, V, W)
-        if progress is not None:
-            progress(min(0.9, 0.5 + 0.1 * level))
-    xi = np.take_along_axis(w, perm, axis=1)
-    Wb = np.take_along_axis(W, perm[:, :, None], axis=1)
-    return Branches(
-        p=p,
-        xi=xi,
-        confidence=conf,
-        mode=mode_numbers(w[0]),
-        inserted=inserted,
-        W=Wb,
-        matrices=matrices,
-    )
-
-
-def nondimensional_pipe(beta: float) -> Pipe:
+def nondimensional_pipe(
+    beta: float, groups: Mapping[str, float] | None = None, plane: str = "in-plane"
+) -> Pipe:
     """A pipe with E = I = L = 1, M1 + M2 = 1, M2 = beta: then v = u / sqrt(beta), w0 = gamma
-    and time is tau (Paidoussis' non-dimensional groups, physics notes section 1)."""
+    and time is tau (Paidoussis' non-dimensional groups, physics notes section 1).
+
+    ``groups``: the extended model's groups (keys of :data:`GROUP_FIELDS`: alpha, sigma,
+    tip_mass_ratio, tip_inertia_ratio, hub_ratio; missing ones are 0), ``plane`` its plane.
+    """
     if not 0 < beta < 1:
-        raise InvalidInput(f"beta must be in (0, 1), got {beta}", field="beta")
-    return Pipe(E=1.0, I=1.0, L=1.0, M1=1.0 - beta, M2=beta)
+        raise InvalidInput(f"beta must be in (0, 1), got {beta}", parameter="beta")
+    extra: dict[str, float] = {}
+    for name, value in (groups or {}).items():
+        if name not in GROUP_FIELDS:
+            raise InvalidInput(
+                f"unknown group {name!r}; use {', '.join(GROUP_FIELDS)}", parameter="groups"
+            )
+        if not (math.isfinite(value) and value >= 0):
+            raise InvalidInput(f"{name} must be finite and >= 0, got {value}", parameter=name)
+        extra[GROUP_FIELDS[name]] = float(value)
+    if plane not in PLANES:
+        raise InvalidInput(f"unknown plane {plane!r}", parameter="plane")
+    return Pipe(E=1.0, I=1.0, L=1.0, M1=1.0 - beta, M2=beta, plane=plane, **extra)
 
 
 def sign_changes(

@@ -24,16 +24,14 @@ from typing import Any, Literal
 import numpy as np
 
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats, build_model
+from pipeflow.spectra import Branches, follow, rounding_level
 from pipeflow.stability.core import (
-    Branches,
     FloatArray,
     Progress,
     check_modes,
     check_range,
-    follow,
     growth_rate,
-    rounding_level,
     sign_changes,
     stable_intervals,
     state_matrices,
@@ -128,6 +126,7 @@ class CriticalVelocity:
                 None if p.M2 == 0 else [float(p.flow_number(x)) for x in self.velocity_range]
             ),
             "time_scale": p.time_scale,
+            **p.dimensionless_groups(),
         }
 
     def to_dict(self) -> dict[str, Any]:
@@ -177,9 +176,9 @@ def critical_velocities(
     v_min, v_max = float(velocity_range[0]), float(velocity_range[1])
     check_range(v_min, v_max, "velocity_range")
     if points < 3:
-        raise InvalidInput("points must be >= 3", field="points")
+        raise InvalidInput("points must be >= 3", parameter="points")
     model = build_model(pipe, modes)
-    warnings: list[str] = []
+    warnings: list[str] = basis_caveats(pipe)
     reverse: dict[str, Any] | None = None
     if v_min < 0:
         rate = float(growth_rate(model, v_min, omega0)[0])
@@ -220,7 +219,7 @@ def critical_velocities(
         progress(0.0)
     br = follow(
         matrices, grid, min_confidence=0.5, max_points=2 * grid.size, max_levels=4,
-        progress=progress,
+        progress=progress, damped=pipe.damped,
     )  # fmt: skip
     tol = rounding_level(br.xi)
     start = int(np.searchsorted(br.p, lo))

@@ -84,7 +84,7 @@ def _converged_monodromy(
             raise BudgetExceeded(
                 f"the monodromy matrix did not converge to {tolerance:g} within {MAX_STEPS} "
                 "steps per period; loosen the tolerance or use fewer modes",
-                field="tolerance",
+                parameter="tolerance",
             )
         steps *= 2
         cur = _monodromy_steps(model, coefficients, period, steps)
@@ -110,7 +110,7 @@ def check_chart_work(
         raise BudgetExceeded(
             f"the chart would cost about {work:.3g} units > {MAX_CHART_WORK:.3g}; use fewer "
             "points or modes, or a higher lowest frequency",
-            field="frequency_points",
+            parameter="frequency_points",
         )
 
 
@@ -173,6 +173,7 @@ class Floquet:
             "dimensionless": {
                 "beta": self.pipe.beta,
                 "time_scale": self.pipe.time_scale,
+                **self.pipe.dimensionless_groups(),
                 "period": self.period / self.pipe.time_scale,
             },
             "warnings": list(self.warnings),
@@ -199,7 +200,7 @@ def _mean(profile: Profile) -> float:
         return float(profile.mean)
     if isinstance(profile, Constant):
         return float(profile.val)
-    raise InvalidInput("periodic profiles must be constant or harmonic", field="profile")
+    raise InvalidInput("periodic profiles must be constant or harmonic", parameter="profile")
 
 
 def period_of(flow: Profile, spin: Profile) -> float:
@@ -209,19 +210,21 @@ def period_of(flow: Profile, spin: Profile) -> float:
     freqs = [p.frequency for p in harmonic if p.amplitude != 0] or [
         p.frequency for p in harmonic[:1]
     ]
-    for name, p in (("flow.velocity", flow), ("rotation.omega0", spin)):
+    for name, p in (("flow", flow), ("spin", spin)):
         if not isinstance(p, Harmonic | Constant):
-            raise InvalidInput("Floquet analysis needs constant or harmonic profiles", field=name)
+            raise InvalidInput(
+                "Floquet analysis needs constant or harmonic profiles", parameter=name
+            )
     if not freqs:
         raise InvalidInput(
             "Floquet analysis needs a harmonic flow or spin with frequency > 0 (for "
             "constant coefficients use the critical-velocity analysis)",
-            field="flow.velocity",
+            parameter="flow",
         )
     if len(freqs) == 2 and not math.isclose(freqs[0], freqs[1], rel_tol=1e-12):
         raise InvalidInput(
             "harmonic flow and spin must share one frequency for a common period",
-            field="rotation.omega0.frequency",
+            parameter="spin",
         )
     return 2.0 * math.pi / freqs[0]
 
@@ -364,6 +367,7 @@ class ResonanceChart:
             "dimensionless": {
                 "beta": p.beta,
                 "time_scale": p.time_scale,
+                **p.dimensionless_groups(),
                 "u_mean": None if p.M2 == 0 else float(p.flow_number(self.mean_velocity)),
                 "gamma": float(p.spin_number(self.omega0)),
                 "frequencies": (self.frequencies * p.time_scale).tolist(),
@@ -401,14 +405,14 @@ def resonance_chart(
     (the hardest case), then all amplitudes are propagated in one batch.
     """
     check_modes(modes)
-    check_range(*amplitude_range, field="amplitude_range")
-    check_range(*frequency_range, field="frequency_range")
+    check_range(*amplitude_range, parameter="amplitude_range")
+    check_range(*frequency_range, parameter="frequency_range")
     if amplitude_range[0] < 0 or frequency_range[0] <= 0:
         raise InvalidInput(
-            "amplitudes must be >= 0 m/s and frequencies > 0 rad/s", field="frequency_range"
+            "amplitudes must be >= 0 m/s and frequencies > 0 rad/s", parameter="frequency_range"
         )
     if amplitude_points < 1 or frequency_points < 1:
-        raise InvalidInput("need >= 1 point on each axis", field="amplitude_points")
+        raise InvalidInput("need >= 1 point on each axis", parameter="amplitude_points")
     check_chart_work(pipe, modes, amplitude_points, frequency_points, frequency_range[0])
     model = build_model(pipe, modes)
     amps = np.linspace(*amplitude_range, amplitude_points)

@@ -12,6 +12,7 @@ line use :func:`pipeflow.stability.critical.critical_velocities`.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,6 +20,7 @@ import numpy as np
 
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, build_model
+from pipeflow.spectra import rounding_level
 from pipeflow.stability.core import (
     FloatArray,
     Progress,
@@ -26,7 +28,6 @@ from pipeflow.stability.core import (
     check_range,
     eigenvalues,
     nondimensional_pipe,
-    rounding_level,
     sign_changes,
     stable_intervals,
 )
@@ -53,14 +54,14 @@ class BoundaryCrossing:
     frequency: float
 
 
-def check_map_work(points: int, modes: int, field: str) -> None:
+def check_map_work(points: int, modes: int, parameter: str) -> None:
     """Raise :class:`BudgetExceeded` when ``points`` eigenproblems of ``2 modes`` cost too much."""
     work = points * (2.0 * modes) ** 3
     if work > MAX_MAP_WORK:
         raise BudgetExceeded(
             f"the map needs {points} eigenvalue problems of size {2 * modes}: "
             f"{work:.3g} > {MAX_MAP_WORK:.3g} units; use fewer points or modes",
-            field=field,
+            parameter=parameter,
         )
 
 
@@ -170,6 +171,7 @@ class SpinMap:
                     for v in self.critical_velocity
                 ],
                 "time_scale": p.time_scale,
+                **p.dimensionless_groups(),
             },
             "warnings": list(self.warnings),
             "diagnostics": {"galerkin_modes": self.modes, "points": int(self.growth.size)},
@@ -193,10 +195,10 @@ def spin_map(
     relative tolerance ``rtol``.
     """
     check_modes(modes)
-    check_range(*velocity_range, field="velocity_range")
-    check_range(*spin_range, field="spin_range")
+    check_range(*velocity_range, parameter="velocity_range")
+    check_range(*spin_range, parameter="spin_range")
     if velocity_points < 3 or spin_points < 1:
-        raise InvalidInput("need >= 3 velocity points and >= 1 spin point", field="points")
+        raise InvalidInput("need >= 3 velocity points and >= 1 spin point", parameter="points")
     check_map_work(velocity_points * spin_points, modes, "spin_points")
     model = build_model(pipe, modes)
     v = np.linspace(*velocity_range, velocity_points)
@@ -243,6 +245,8 @@ class BetaMap:
     crossings: list[list[BoundaryCrossing]]
     stable_at_start: list[bool]
     warnings: list[str] = field(default_factory=list)
+    groups: dict[str, float] = field(default_factory=dict)
+    plane: str = "in-plane"
 
     @property
     def u_cr(self) -> list[float | None]:
@@ -252,6 +256,8 @@ class BetaMap:
         return {
             "kind": "beta_map",
             "gamma": self.gamma,
+            "groups": dict(self.groups),
+            "plane": self.plane,
             "betas": self.betas.tolist(),
             "u_range": list(self.u_range),
             "u_cr": self.u_cr,
@@ -292,28 +298,35 @@ def beta_map(
     u_points: int = 201,
     rtol: float = 1e-10,
     progress: Progress | None = None,
+    groups: Mapping[str, float] | None = None,
+    plane: str = "in-plane",
 ) -> BetaMap:
     """The u_cr(beta) curve: boundary crossings in u for each beta, gamma fixed.
 
     Non-dimensional throughout (E = I = L = 1, M1 + M2 = 1: physics notes section 1):
     beta = M2/(M1+M2) in (0, 1), u = v L sqrt(M2/EI) >= 0, gamma = w0 L^2 sqrt((M1+M2)/EI);
-    frequencies are omega sqrt((M1+M2) L^4/EI).
+    frequencies are omega sqrt((M1+M2) L^4/EI). ``groups`` (alpha, sigma, tip_mass_ratio,
+    tip_inertia_ratio, hub_ratio: :data:`~pipeflow.stability.core.GROUP_FIELDS`) and
+    ``plane`` extend the pipe beyond the paper's model, the same at every beta.
     """
+    nondimensional_pipe(0.5, groups, plane)  # refuse bad groups before any work
     check_modes(modes)
-    check_range(*beta_range, field="beta_range")
-    check_range(*u_range, field="u_range")
+    check_range(*beta_range, parameter="beta_range")
+    check_range(*u_range, parameter="u_range")
     if not (0 < beta_range[0] and beta_range[1] < 1):
-        raise InvalidInput("beta must lie in (0, 1)", field="beta_range")
+        raise InvalidInput("beta must lie in (0, 1)", parameter="beta_range")
     if u_range[0] < 0:
-        raise InvalidInput("u_range must be >= 0 (" + REVERSE_FLOW_CAVEAT + ")", field="u_range")
+        raise InvalidInput(
+            "u_range must be >= 0 (" + REVERSE_FLOW_CAVEAT + ")", parameter="u_range"
+        )
     if beta_points < 1 or u_points < 3:
-        raise InvalidInput("need >= 1 beta point and >= 3 u points", field="points")
+        raise InvalidInput("need >= 1 beta point and >= 3 u points", parameter="points")
     check_map_work(beta_points * u_points, modes, "u_points")
     betas = np.linspace(*beta_range, beta_points)
     u = np.linspace(*u_range, u_points)
     crossings, stable = [], []
     for i, beta in enumerate(betas):
-        model = build_model(nondimensional_pipe(float(beta)), modes)
+        model = build_model(nondimensional_pipe(float(beta), groups, plane), modes)
         scale = 1.0 / math.sqrt(beta)  # v = u / sqrt(beta)
         xi = eigenvalues(model, u * scale, gamma)
         line = _line(model, u * scale, gamma, xi, rtol)
@@ -330,4 +343,6 @@ def beta_map(
         u_range=(float(u_range[0]), float(u_range[1])),
         crossings=crossings,
         stable_at_start=stable,
+        groups=nondimensional_pipe(0.5, groups, plane).dimensionless_groups(),
+        plane=plane,
     )

@@ -1,7 +1,7 @@
 """Eigenvalue sweeps: Argand diagrams (against flow velocity) and Campbell diagrams (spin).
 
 Modes are followed from point to point by the optimal assignment of left/right eigenvector
-overlaps (:func:`pipeflow.eigen.assign`), never by sorting; each point carries the overlap
+overlaps (:func:`pipeflow.spectra.assign`), never by sorting; each point carries the overlap
 that linked it to the previous one as a tracking confidence, and where it drops below
 ``min_confidence`` midpoints are inserted (up to ``max_points``).  A conjugate pair is one
 mode: frequencies are reported as |omega| >= 0 (after a branch passes the real axis the
@@ -11,15 +11,18 @@ followed member of the pair may be the lower one; its partner is the conjugate).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from functools import partial
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import brentq
 
-from pipeflow.eigen import order_lowest
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
+from pipeflow.spectra import follow, order_lowest, rounding_level
 from pipeflow.stability.core import (
     ComplexArray,
     FloatArray,
@@ -27,7 +30,7 @@ from pipeflow.stability.core import (
     check_modes,
     check_range,
     damping_ratio,
-    follow,
+    sign_changes,
     state_matrices,
 )
 
@@ -36,6 +39,121 @@ RPM = 60.0 / (2.0 * math.pi)  # rpm per rad/s
 
 #: refinement can at most multiply the number of points by this factor
 MAX_REFINEMENT_FACTOR = 4
+#: relative tolerance of located crossings (excitation lines, sigma = 0) [-]
+CROSSING_RTOL = 1e-12
+
+
+class Branches(Protocol):
+    """What the crossing searches read of followed branches (``follow``'s result)."""
+
+    p: FloatArray
+    xi: ComplexArray
+    mode: NDArray[np.intp]
+
+    def branch_at(self, j: int, k: int, p: float) -> complex: ...
+
+
+@dataclass(frozen=True)
+class ExcitationCrossing:
+    """Campbell: a tracked branch meets the excitation line omega = order x w0.
+
+    order : n of the line n x w0 [-] (1: synchronous, 2: twice per revolution, ...).
+    mode : mode number of the branch.
+    spin : w0 at the crossing [rad/s]; frequency = order x spin [rad/s].
+    sigma : damping of the branch there [1/s] (> 0: unstable).
+    """
+
+    order: float
+    mode: int
+    spin: float
+    frequency: float
+    sigma: float
+
+    def to_dict(self) -> dict[str, Any]:
+        mag = math.hypot(self.sigma, self.frequency)
+        return {
+            "order": self.order,
+            "mode": self.mode,
+            "spin": self.spin,
+            "spin_rpm": self.spin * RPM,
+            "frequency": self.frequency,
+            "frequency_hz": self.frequency / (2 * math.pi),
+            "sigma": self.sigma,
+            "damping_ratio": -self.sigma / mag if mag > 0 else 0.0,
+        }
+
+
+@dataclass(frozen=True)
+class ZeroCrossing:
+    """A tracked branch crossing sigma = 0 along the sweep (the Argand plot's imaginary axis).
+
+    value : swept parameter there [m/s or rad/s]; frequency : |omega| there [rad/s];
+    direction : "loss" (becomes unstable with increasing parameter) or "gain".
+    """
+
+    mode: int
+    value: float
+    frequency: float
+    direction: Literal["loss", "gain"]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "mode": self.mode,
+            "value": self.value,
+            "frequency": self.frequency,
+            "direction": self.direction,
+        }
+
+
+def _abs_omega_minus(br: Branches, j: int, order: float, x: float, k: int) -> float:
+    return abs(br.branch_at(j, k, x).imag) - order * x
+
+
+def excitation_crossings(
+    br: Branches, chosen: Sequence[int], orders: Sequence[float]
+) -> list[ExcitationCrossing]:
+    """Every root of |omega_j(w0)| - n w0 of the tracked branches ``chosen`` of a spin sweep.
+
+    Bracketed on the sweep grid ``br.p`` [rad/s] and located by Brent's method on the frozen
+    spectrum (:meth:`Branches.branch_at`, the branch followed by eigenvector overlap) to
+    :data:`CROSSING_RTOL`.  A bracket whose ends disagree once re-evaluated (a tracking swap)
+    is skipped.  Sorted by order, then spin.
+    """
+    out: list[ExcitationCrossing] = []
+    p = br.p
+    for n in orders:
+        for j in chosen:
+            g = np.abs(br.xi[:, j].imag) - n * p
+            for k in np.flatnonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0):
+                f = partial(_abs_omega_minus, br, int(j), float(n))
+                a, b = float(p[k]), float(p[k + 1])
+                if f(a, int(k)) * f(b, int(k)) > 0:
+                    continue
+                scale = max(abs(a), abs(b))
+                w = float(
+                    brentq(f, a, b, args=(int(k),), xtol=1e-14 * scale + 1e-300, rtol=CROSSING_RTOL)
+                )
+                xi = br.branch_at(int(j), int(k), w)
+                out.append(ExcitationCrossing(float(n), int(br.mode[j]), w, n * w, xi.real))
+    return sorted(out, key=lambda c: (c.order, c.spin))
+
+
+def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
+    return br.branch_at(j, k, x).real
+
+
+def zero_crossings(br: Branches, chosen: Sequence[int]) -> list[ZeroCrossing]:
+    """Where the tracked branches ``chosen`` cross sigma = 0 (the rounding band of
+    :func:`~pipeflow.stability.core.rounding_level` counts as zero), by parameter value."""
+    tol = rounding_level(br.xi)
+    out: list[ZeroCrossing] = []
+    for j in chosen:
+        sigma = partial(_branch_sigma, br, int(j))
+        for x, k, loss in sign_changes(br.p, br.xi[:, j].real, tol, sigma, 0, CROSSING_RTOL):
+            xi = br.branch_at(int(j), k, x)
+            direction: Literal["loss", "gain"] = "loss" if loss else "gain"
+            out.append(ZeroCrossing(int(br.mode[j]), x, abs(xi.imag), direction))
+    return sorted(out, key=lambda c: c.value)
 
 
 @dataclass
@@ -61,6 +179,9 @@ class Sweep:
     mode: NDArray[np.intp]
     inserted: NDArray[np.bool_]
     warnings: list[str] = field(default_factory=list)
+    orders: tuple[float, ...] = ()
+    excitation: list[ExcitationCrossing] = field(default_factory=list)
+    zero_crossings: list[ZeroCrossing] = field(default_factory=list)
 
     @property
     def sigma(self) -> FloatArray:
@@ -110,9 +231,19 @@ class Sweep:
             "dimensionless": {
                 "beta": p.beta,
                 "time_scale": p.time_scale,
+                **p.dimensionless_groups(),
                 **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
                 **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
             },
+            "excitation": (
+                {
+                    "orders": list(self.orders),
+                    "crossings": [c.to_dict() for c in self.excitation],
+                }
+                if spin
+                else None
+            ),
+            "zero_crossings": [c.to_dict() for c in self.zero_crossings],
             "warnings": list(self.warnings),
             "diagnostics": {
                 "points": int(self.values.size),
@@ -134,6 +265,7 @@ def sweep(
     min_confidence: float = 0.9,
     max_points: int | None = None,
     progress: Progress | None = None,
+    orders: Sequence[float] = (1.0, 2.0),
 ) -> Sweep:
     """Eigenvalues against flow velocity (Argand) or spin (Campbell), modes tracked.
 
@@ -147,21 +279,27 @@ def sweep(
     min_confidence : refine (insert midpoints) where tracking confidence falls below this.
     max_points : cap on the points after refinement (default 4 x points).
     progress : called with a fraction in [0, 1]; may raise ``Cancelled``.
+    orders : Campbell only: excitation orders n [-] whose lines omega = n w0 are crossed with
+        the tracked branches (:func:`excitation_crossings`); ignored for velocity sweeps.
     """
     check_modes(modes)
+    if any(not (math.isfinite(n) and n > 0) for n in orders):
+        raise InvalidInput(f"excitation orders must be positive, got {list(orders)}", "orders")
     if not 1 <= tracked <= modes:
-        raise InvalidInput(f"tracked modes must be between 1 and {modes}", field="tracked_modes")
+        raise InvalidInput(
+            f"tracked modes must be between 1 and {modes}", parameter="tracked_modes"
+        )
     if parameter not in ("velocity", "spin"):
-        raise InvalidInput(f"unknown sweep parameter {parameter!r}", field="parameter")
+        raise InvalidInput(f"unknown sweep parameter {parameter!r}", parameter="parameter")
     lo, hi = float(value_range[0]), float(value_range[1])
     check_range(lo, hi, "velocity_range" if parameter == "velocity" else "spin_range")
     if points < 2:
-        raise InvalidInput("points must be >= 2", field="points")
+        raise InvalidInput("points must be >= 2", parameter="points")
     if not 0 <= min_confidence <= 1:
-        raise InvalidInput("min_confidence must be in [0, 1]", field="min_confidence")
+        raise InvalidInput("min_confidence must be in [0, 1]", parameter="min_confidence")
     cap = max_points if max_points is not None else MAX_REFINEMENT_FACTOR * points
     if cap < points:
-        raise BudgetExceeded("max_points must be >= points", field="max_points")
+        raise BudgetExceeded("max_points must be >= points", parameter="max_points")
     model = build_model(pipe, modes)
     warnings: list[str] = []
     if parameter == "velocity":
@@ -183,12 +321,13 @@ def sweep(
     br = follow(
         matrices,
         np.linspace(lo, hi, points),
-        watch=lambda w0: order_lowest(w0, tracked),
+        watch=lambda w0: order_lowest(w0, tracked, pipe.damped),
         min_confidence=min_confidence,
         max_points=cap,
         progress=progress,
+        damped=pipe.damped,
     )
-    chosen = order_lowest(br.xi[0], tracked)
+    chosen = order_lowest(br.xi[0], tracked, pipe.damped)
     xi = br.xi[:, chosen]
     xi = xi.real + 1j * np.abs(xi.imag)
     conf = br.confidence[:, chosen]
@@ -199,6 +338,9 @@ def sweep(
             "(eigenvalues coalescing, e.g. a mode passing through the real axis, or the "
             "point cap was reached): branch identities there are uncertain"
         )
+    orders = tuple(float(n) for n in orders) if parameter == "spin" else ()
+    excitation = excitation_crossings(br, chosen.tolist(), orders)
+    zeros = zero_crossings(br, chosen.tolist())
     if progress is not None:
         progress(1.0)
     return Sweep(
@@ -212,4 +354,7 @@ def sweep(
         mode=br.mode[chosen],
         inserted=br.inserted,
         warnings=warnings,
+        orders=orders,
+        excitation=excitation,
+        zero_crossings=zeros,
     )

@@ -1,7 +1,11 @@
-"""The browser viewer at ``/`` and its static assets under ``/static/``.
+"""The browser viewer at ``/`` and ``/stability``, and their static assets under ``/static/``.
 
-A single page (``service/static/index.html``) with a form pre-filled with the paper's
-example, a run button calling ``POST /v1/simulations``, and uPlot charts.  The chart
+``/`` (``service/static/index.html``): a simulation form generated at run time from this
+service's ``/openapi.json`` (``schemaform.js``: every method, profile kind and default the
+request schema has), a run button calling ``POST /v1/simulations``, uPlot charts and a
+banner for unstable runs.  ``/stability`` (``stability.html``): the same kind of form for
+``POST /v1/stability`` and every ``POST /v1/sweeps`` kind, job progress, crossing tables and
+the server's figures.  The chart
 library is vendored (``service/static/uPlot.iife.min.js``, MIT, from the npm package
 ``uplot``), so the viewer works without internet access.  The assets are a fixed
 allow-list read from the package directory: no path from the request reaches the file
@@ -22,6 +26,8 @@ STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 #: file name -> media type of every asset served
 ASSETS: dict[str, str] = {
     "viewer.js": "text/javascript; charset=utf-8",
+    "schemaform.js": "text/javascript; charset=utf-8",
+    "stability.js": "text/javascript; charset=utf-8",
     "viewer.css": "text/css; charset=utf-8",
     "uPlot.iife.min.js": "text/javascript; charset=utf-8",
     "uPlot.min.css": "text/css; charset=utf-8",
@@ -31,7 +37,7 @@ ASSETS: dict[str, str] = {
 router = APIRouter(include_in_schema=False)
 
 
-@lru_cache(maxsize=len(ASSETS) + 1)
+@lru_cache(maxsize=len(ASSETS) + 2)
 def _read(name: str) -> bytes:
     return (STATIC_DIR / name).read_bytes()
 
@@ -41,6 +47,16 @@ async def viewer_page() -> Response:
     """The viewer page."""
     return Response(
         _read("index.html"),
+        media_type="text/html; charset=utf-8",
+        headers={"Cache-Control": "no-cache"},
+    )
+
+
+@router.get("/stability")
+async def stability_page() -> Response:
+    """The stability page (critical velocities, sweeps, maps)."""
+    return Response(
+        _read("stability.html"),
         media_type="text/html; charset=utf-8",
         headers={"Cache-Control": "no-cache"},
     )

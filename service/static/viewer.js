@@ -1,6 +1,8 @@
-// pipeflow viewer: builds a simulation spec from the form, runs it on this service,
-// draws the tip displacement, damping and frequency with uPlot (vendored, works offline),
-// and shows the API's problem details next to the offending field.
+// pipeflow viewer: a simulation form generated from the request schema in /openapi.json
+// (SchemaForm), a run on this service, and uPlot charts (vendored, works offline) of the
+// tip displacement, damping and frequency.  An unstable run says so in a banner (first
+// time of instability, growth rate of the least-stable branch) and draws a diverging tip
+// on a symmetric-log (asinh) scale with readable axis labels.
 "use strict";
 
 (function () {
@@ -8,207 +10,194 @@
     simulate: "v1/simulations",
     result: (key) => "v1/results/" + encodeURIComponent(key),
   };
+  const SF = window.SchemaForm;
   const form = document.getElementById("spec-form");
+  const host = document.getElementById("fields");
   const statusEl = document.getElementById("status");
   const runButton = document.getElementById("run");
+  const formError = document.getElementById("form-error");
   const charts = {};
-  const state = { result: null, key: null };
+  const state = { result: null, key: null, doc: null, schema: null };
   window.pipeflowViewer = { charts, state };
 
-  // ---- form <-> spec -------------------------------------------------------------------
+  // ---- the form, from the schema --------------------------------------------------------
 
-  function numberOrRaw(text) {
-    // send what the user typed when it is not a number: the API names the field
-    const s = String(text).trim();
-    if (s === "") return null;
-    const x = Number(s);
-    return Number.isFinite(x) ? x : s;
-  }
-
-  function value(name) {
-    return numberOrRaw(form.elements.namedItem(name).value);
-  }
-
-  function profile(prefix) {
-    const kind = form.elements.namedItem(prefix + ".kind").value;
-    if (kind === "constant") return { kind, value: value(prefix + ".value") };
-    if (kind === "polynomial") {
-      const text = form.elements.namedItem(prefix + ".coefficients").value;
-      const coefficients = text.split(/[,\s]+/).filter((s) => s !== "").map(numberOrRaw);
-      return { kind, coefficients };
-    }
-    return {
-      kind,
-      mean: value(prefix + ".mean"),
-      amplitude: value(prefix + ".amplitude"),
-      frequency: value(prefix + ".frequency"),
-      phase: value(prefix + ".phase"),
-    };
+  function initialValues(schema) {
+    // the schema's example (the paper's case), with the method left to the API's default
+    const example = JSON.parse(JSON.stringify((schema.examples || [])[0] || {}));
+    delete example.method;
+    return example;
   }
 
   function specFromForm() {
-    return {
-      pipe: {
-        E: value("pipe.E"), I: value("pipe.I"), L: value("pipe.L"),
-        M1: value("pipe.M1"), M2: value("pipe.M2"),
-      },
-      rotation: { omega0: profile("rotation.omega0") },
-      flow: { velocity: profile("flow.velocity") },
-      initial: { u0: value("initial.u0"), du0: value("initial.du0") },
-      modes: value("modes"),
-      time: { t_end: value("time.t_end"), samples: value("time.samples") },
-      method: form.elements.namedItem("method").value,
-    };
-  }
-
-  function show(x) {
-    // 7800000000 -> "7.8e9", as a person would type it
-    if (typeof x !== "number" || x === 0) return String(x);
-    const a = Math.abs(x);
-    return a >= 1e6 || a < 1e-3 ? x.toExponential().replace("e+", "e") : String(x);
-  }
-
-  function setField(name, v) {
-    const el = form.elements.namedItem(name);
-    if (el && v !== undefined && v !== null) el.value = Array.isArray(v) ? v.map(show).join(", ") : show(v);
-  }
-
-  function fillForm(spec) {
-    for (const k of ["E", "I", "L", "M1", "M2"]) setField("pipe." + k, spec.pipe && spec.pipe[k]);
-    const profiles = [
-      ["rotation.omega0", spec.rotation && spec.rotation.omega0],
-      ["flow.velocity", spec.flow && spec.flow.velocity],
-    ];
-    for (const [prefix, p] of profiles) {
-      if (!p) continue;
-      setField(prefix + ".kind", p.kind);
-      for (const k of ["value", "coefficients", "mean", "amplitude", "frequency", "phase"]) {
-        setField(prefix + "." + k, p[k]);
-      }
-    }
-    if (spec.initial) { setField("initial.u0", spec.initial.u0); setField("initial.du0", spec.initial.du0); }
-    setField("modes", spec.modes);
-    if (spec.time) { setField("time.t_end", spec.time.t_end); setField("time.samples", spec.time.samples); }
-    setField("method", spec.method);
-    showKinds();
-  }
-
-  function showKinds() {
-    for (const fs of form.querySelectorAll("fieldset.profile")) {
-      const kind = form.elements.namedItem(fs.dataset.profile + ".kind").value;
-      for (const div of fs.querySelectorAll(".kind")) div.hidden = div.dataset.kind !== kind;
-    }
-  }
-
-  // ---- errors next to fields -----------------------------------------------------------
-
-  function clearErrors() {
-    for (const el of document.querySelectorAll("[data-error-for]")) el.textContent = "";
-    for (const el of form.querySelectorAll(".invalid")) el.classList.remove("invalid");
-  }
-
-  function errorSlot(field) {
-    // the longest form field that is a prefix of the API's dotted path
-    // (e.g. "flow.velocity.coefficients.1" -> "flow.velocity.coefficients")
-    const parts = (field || "").split(".");
-    for (let n = parts.length; n > 0; n--) {
-      const name = parts.slice(0, n).join(".");
-      const slot = form.querySelector('[data-error-for="' + CSS.escape(name) + '"]');
-      if (slot) return { slot, input: form.querySelector('[data-field="' + CSS.escape(name) + '"]') };
-    }
-    return { slot: document.getElementById("form-error"), input: null };
-  }
-
-  function showProblem(problem) {
-    const errors = problem.errors && problem.errors.length ? problem.errors
-      : [{ field: problem.field || null, message: problem.detail || problem.title }];
-    for (const e of errors) {
-      const { slot, input } = errorSlot(e.field);
-      const text = slot.id === "form-error" && e.field ? e.field + ": " + e.message : e.message;
-      slot.textContent = slot.textContent ? slot.textContent + "; " + text : text;
-      if (input) input.classList.add("invalid");
-    }
-    statusEl.textContent = problem.title || "error";
+    return SF.collect(host, state.doc, state.schema);
   }
 
   // ---- charts ----------------------------------------------------------------------------
 
   const COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"];
 
-  function drawChart(id, xLabel, yLabel, x, series) {
-    const host = document.getElementById(id);
+  function finite(values) {
+    // uPlot needs null where a value is missing or not a finite number (overflow)
+    return values.map((v) => (typeof v === "number" && Number.isFinite(v) ? v : null));
+  }
+
+  function tick(v) {
+    // labels that stay short and readable from 1e-9 to 1e300 (the exponent form beyond
+    // 1e4 and below 1e-2), never "Infinity" or a 300-digit number
+    if (v === null || !Number.isFinite(v)) return "";
+    if (v === 0) return "0";
+    const a = Math.abs(v);
+    if (a >= 1e4 || a < 1e-2) return v.toExponential(1).replace("e+", "e");
+    return String(+v.toPrecision(6));
+  }
+
+  // The symmetric-log (asinh) tip scale: the data are drawn as asinh(u / u_lin) on a
+  // linear axis (u_lin: the initial tip amplitude, below which the axis is linear), with
+  // ticks placed at 0 and +-10^k and labelled with u itself.  uPlot's own asinh scale finds
+  // no ticks for ranges beyond about 1e3, which a diverging tip (1e304 m) far exceeds.
+  function symlog(linear, peak) {
+    const fwd = (v) => (v === null ? null : Math.asinh(v / linear));
+    const back = (y) => Math.sinh(y) * linear;
+    const top = Math.max(peak, linear);
+    const range = () => [-1.05 * fwd(top), 1.05 * fwd(top)];
+    const splits = (u, axis, min, max) => {
+      const kmax = Math.floor(Math.log10(top));
+      const kmin = Math.min(kmax, Math.ceil(Math.log10(linear)));
+      const stride = Math.max(1, Math.ceil((kmax - kmin + 1) / 4));
+      const out = [0];
+      for (let k = kmax; k >= kmin; k -= stride) {
+        const y = fwd(Math.pow(10, k));
+        if (y <= max) out.push(y);
+        if (-y >= min) out.push(-y);
+      }
+      return out.sort((a, b) => a - b);
+    };
+    return { fwd, back, splits, range, linear };
+  }
+
+  function drawChart(id, xLabel, yLabel, x, series, log) {
+    const chartHost = document.getElementById(id);
     if (charts[id]) { charts[id].destroy(); delete charts[id]; }
-    const width = Math.max(320, Math.min(host.clientWidth || 800, 1000));
-    const opts = {
+    const width = Math.max(320, Math.min(chartHost.clientWidth || 800, 1000));
+    const label = (y) => tick(log ? log.back(y) : y);
+    const yAxis = { label: log ? yLabel + " (sym. log)" : yLabel, size: 80, values: (u, splits) => splits.map(label) };
+    if (log) yAxis.splits = log.splits;
+    const chart = new uPlot({
       width, height: 260,
-      scales: { x: { time: false } },
-      axes: [{ label: xLabel }, { label: yLabel, size: 80 }],
+      scales: { x: { time: false }, y: log ? { auto: false, range: log.range } : { auto: true } },
+      axes: [{ label: xLabel, values: (u, splits) => splits.map(tick) }, yAxis],
       series: [{ label: xLabel }].concat(series.map((s, i) => ({
-        label: s.label, stroke: COLORS[i % COLORS.length], width: 1.2,
+        label: s.label, stroke: s.stroke || COLORS[i % COLORS.length], width: s.width || 1.2,
+        value: (u, v) => (v === null ? "--" : label(v)),
       }))),
       cursor: { drag: { x: true, y: false } },
-    };
-    charts[id] = new uPlot(opts, [x].concat(series.map((s) => s.y)), host);
-    host.dataset.points = String(x.length);
+    }, [x].concat(series.map((s) => (log ? finite(s.y).map(log.fwd) : finite(s.y)))), chartHost);
+    charts[id] = chart;
+    chartHost.dataset.points = String(x.length);
+    chartHost.dataset.scale = log ? "symlog" : "linear";
+  }
+
+  function axisLabels(id) {
+    // the y tick labels as drawn (for the page's tests and for a reader of the DOM)
+    const c = charts[id];
+    return c && c.axes[1]._values ? c.axes[1]._values.slice() : [];
+  }
+  window.pipeflowViewer.axisLabels = axisLabels;
+
+  function instability(result) {
+    // what the result says about growth; keys absent from older results are skipped
+    const ev = result.eigenvalues || { modes: [] };
+    const diag = result.diagnostics || {};
+    const least = (ev.modes || []).find((m) => m.least_stable) || null;
+    const rate = typeof diag.max_growth_rate === "number" ? diag.max_growth_rate : null;
+    const first = result.first_unstable_time;
+    const unstable = (first !== undefined && first !== null) || (rate !== null && rate > 0)
+      || result.status === "overflow" || result.status === "diverged"
+      || (result.divergence_time !== undefined && result.divergence_time !== null);
+    return { unstable, first, rate, least };
+  }
+
+  function banner(result) {
+    const el = document.getElementById("unstable");
+    const info = instability(result);
+    el.hidden = !info.unstable;
+    el.textContent = "";
+    if (!info.unstable) return;
+    const parts = ["Unstable run."];
+    if (info.first !== undefined && info.first !== null) {
+      parts.push("First unstable at t = " + tick(info.first) + " s (a frozen branch has σ > 0).");
+    }
+    if (info.rate !== null && info.rate > 0) {
+      const mode = info.least ? " (least-stable branch: mode " + info.least.mode + ")" : "";
+      parts.push("Growth rate max σ = " + tick(info.rate) + " 1/s" + mode
+        + ", e-folding time " + tick(1 / info.rate) + " s.");
+    }
+    if (result.divergence_time !== undefined && result.divergence_time !== null) {
+      parts.push("The tip passed the divergence bound at t = " + tick(result.divergence_time) + " s.");
+    }
+    if (result.status === "overflow") parts.push("The response overflowed double precision.");
+    el.textContent = parts.join(" ");
+    el.dataset.firstUnstableTime = info.first === undefined || info.first === null ? "" : String(info.first);
+    el.dataset.growthRate = info.rate === null ? "" : String(info.rate);
+  }
+
+  function tipScale(result) {
+    const choice = document.getElementById("tip-scale").value;
+    const y = finite(result.tip_displacement).filter((v) => v !== null);
+    const start = Math.abs(result.initial_tip_displacement || y[0] || 0) || 1e-9;
+    const peak = y.reduce((m, v) => Math.max(m, Math.abs(v)), 0);
+    const diverging = instability(result).unstable || peak > 100 * start;
+    const log = choice === "symlog" || (choice === "auto" && diverging);
+    return log ? symlog(start, peak) : null;
   }
 
   function render(result) {
     state.result = result;
     document.getElementById("results").hidden = false;
+    banner(result);
     drawChart("chart-tip", "t [s]", "u(L, t) [m]", result.t,
-      [{ label: "tip displacement [m]", y: result.tip_displacement }]);
+      [{ label: "tip displacement [m]", y: result.tip_displacement }], tipScale(result));
     const ev = result.eigenvalues;
-    drawChart("chart-damping", "t [s]", "σ [1/s]", ev.t,
-      ev.modes.map((m) => ({ label: "σ mode " + m.mode + " [1/s]", y: m.sigma })));
+    drawChart("chart-damping", "t [s]", "σ [1/s]", ev.t, ev.modes.map((m) => ({
+      label: "σ mode " + m.mode + (m.least_stable ? " (least stable)" : "") + " [1/s]",
+      y: m.sigma,
+      stroke: m.least_stable ? "#c0392b" : undefined,
+      width: m.least_stable ? 2.5 : undefined,
+    })));
     drawChart("chart-frequency", "t [s]", "ω [rad/s]", ev.t,
-      [{ label: "ω mode 1 [rad/s]", y: ev.modes[0].omega }]);
-    const list = document.getElementById("warnings");
-    list.textContent = "";
-    for (const w of result.warnings || []) {
-      const li = document.createElement("li");
-      li.textContent = w;
-      list.appendChild(li);
-    }
+      [{ label: "ω mode " + ev.modes[0].mode + " [rad/s]", y: ev.modes[0].omega }]);
+    const used = document.getElementById("method-used");
+    used.textContent = result.method_used
+      ? "Method: " + result.method + " → " + result.method_used
+        + (result.method_reason ? " (" + result.method_reason + ")" : "")
+      : result.method ? "Method: " + result.method : "";
+    // a run that grows while every traced branch decays: the growing branch is not traced
+    const note = document.getElementById("damping-note");
+    const traced = ev.modes.some((m) => m.least_stable || m.sigma.some((v) => v > 0));
+    note.hidden = !(instability(result).unstable && !traced);
+    SF.showWarnings(document.getElementById("warnings"), result.warnings);
   }
 
   function share(key, spec) {
-    const url = new URL(window.location.href);
-    url.search = "";
-    url.searchParams.set("key", key);
-    if (spec) url.searchParams.set("spec", JSON.stringify(spec));
-    const link = document.getElementById("share-link");
-    link.href = url.toString();
-    link.textContent = key.slice(0, 12) + "…";
+    SF.shareLink(document.getElementById("share-link"), { key, spec });
     document.getElementById("csv-history").href = API.result(key) + "?format=csv";
     document.getElementById("csv-eigen").href = API.result(key) + "?format=csv&table=eigenvalues";
-    window.history.replaceState(null, "", url.toString());
   }
 
   // ---- API calls -------------------------------------------------------------------------
 
-  async function problemOf(response) {
-    try {
-      return await response.json();
-    } catch (e) {
-      return { title: response.status + " " + response.statusText };
-    }
-  }
-
   async function run(event) {
     if (event) event.preventDefault();
-    clearErrors();
+    SF.clearErrors(form);
     const spec = specFromForm();
     runButton.disabled = true;
     statusEl.textContent = "running…";
     const started = performance.now();
     try {
-      const response = await fetch(API.simulate, {
-        method: "POST",
-        headers: { "Content-Type": "application/json", Accept: "application/json" },
-        body: JSON.stringify(spec),
-      });
-      if (!response.ok) { showProblem(await problemOf(response)); return; }
-      const result = await response.json();
+      const answer = await SF.post(API.simulate, spec, form, formError);
+      if (!answer.ok) { statusEl.textContent = answer.title; return; }
+      const result = answer.body;
       state.key = result.key;
       render(result);
       share(result.key, spec);
@@ -222,20 +211,28 @@
     }
   }
 
-  async function loadShared() {
+  async function start() {
+    const doc = await (await fetch("openapi.json")).json();
+    state.doc = doc;
+    state.schema = SF.requestSchema(doc, "/v1/simulations").schema;
     const params = new URLSearchParams(window.location.search);
     let spec = null;
     if (params.get("spec")) {
-      try { spec = JSON.parse(params.get("spec")); fillForm(spec); } catch (e) {
+      try { spec = JSON.parse(params.get("spec")); } catch (e) {
         spec = null;
         statusEl.textContent = "bad spec in link";
       }
     }
+    SF.render(host, doc, state.schema, spec || initialValues(state.schema));
+    runButton.disabled = false;
     const key = params.get("key");
     if (!key) return;
     statusEl.textContent = "loading " + key.slice(0, 12) + "…";
     const response = await fetch(API.result(key), { headers: { Accept: "application/json" } });
-    if (!response.ok) { showProblem(await problemOf(response)); return; }
+    if (!response.ok) {
+      statusEl.textContent = SF.showProblem(form, await SF.problemOf(response), formError);
+      return;
+    }
     const result = await response.json();
     state.key = key;
     render(result);
@@ -243,22 +240,9 @@
     statusEl.textContent = "loaded result " + key.slice(0, 12) + "…";
   }
 
-  async function loadMethods() {
-    // the solvers this server offers (the spec's method enum), e.g. magnus where installed
-    try {
-      const doc = await (await fetch("openapi.json")).json();
-      const names = doc.components.schemas.SimulationSpec.properties.method.enum;
-      const select = form.elements.namedItem("method");
-      const current = select.value;
-      if (!Array.isArray(names) || !names.includes(current)) return;
-      select.textContent = "";
-      for (const n of names) select.add(new Option(n, n, n === current, n === current));
-    } catch (e) { /* keep the built-in list */ }
-  }
-
   form.addEventListener("submit", run);
-  form.addEventListener("change", (e) => { if (e.target.name && e.target.name.endsWith(".kind")) showKinds(); });
-  showKinds();
-  loadMethods();
-  window.pipeflowViewer.ready = loadShared().catch((e) => { statusEl.textContent = String(e); });
+  document.getElementById("tip-scale").addEventListener("change", () => {
+    if (state.result) render(state.result);
+  });
+  window.pipeflowViewer.ready = start().catch((e) => { statusEl.textContent = String(e); });
 })();

@@ -114,4 +114,4 @@ def test_harmonic_spin_and_input_errors():
     assert f.verdict == "stable"
     with pytest.raises(InvalidInput) as e:
         floquet(PIPE, polynomial(0.0, 1.0), None, modes=3)
-    assert e.value.field == "flow.velocity"
+    assert e.value.parameter == "flow"

@@ -128,16 +128,51 @@ def test_json_csv_and_plot_of_mode_shapes() -> None:
 
 
 @pytest.mark.parametrize(
-    ("kwargs", "field"),
+    ("kwargs", "parameter", "field"),
     [
-        ({"mode_shape_times": (0.05, 0.2)}, "output.mode_shapes.times.1"),
-        ({"mode_shape_times": (-0.01,)}, "output.mode_shapes.times.0"),
-        ({"mode_shape_times": (0.0,), "mode_shape_points": 1}, "output.mode_shapes.points"),
-        ({"mode_shape_times": tuple([0.0] * 33)}, "output.mode_shapes.times"),
+        ({"mode_shape_times": (0.05, 0.2)}, "mode_shape_times", "output.mode_shapes.times"),
+        ({"mode_shape_times": (-0.01,)}, "mode_shape_times", "output.mode_shapes.times"),
+        (
+            {"mode_shape_times": (0.0,), "mode_shape_points": 1},
+            "mode_shape_points",
+            "output.mode_shapes.points",
+        ),
+        ({"mode_shape_times": tuple([0.0] * 33)}, "mode_shape_times", "output.mode_shapes.times"),
     ],
 )
-def test_bad_mode_shape_requests_name_the_field(kwargs: dict[str, object], field: str) -> None:
+def test_bad_mode_shape_requests_name_the_field(
+    kwargs: dict[str, object], parameter: str, field: str
+) -> None:
+    """The library names its parameter; the schema layer's mapping gives the request field."""
+    from pipeflow.spec import SIMULATION_FIELDS, request_fields
+
     sim = Simulation(PAPER_PIPE, modes=2, t_end=0.1, samples=11, **kwargs)  # type: ignore[arg-type]
-    with pytest.raises(InvalidInput) as err:
+    with pytest.raises(InvalidInput) as err, request_fields(SIMULATION_FIELDS):
         simulate(sim)
+    assert err.value.parameter == parameter
     assert err.value.field == field
+
+
+def test_shapes_follow_the_traced_branches_including_the_least_stable() -> None:
+    """Above v_cr (v = 40 m/s, w0 = 100 rad/s, 10 modes) the flutter branch (mode 5) is
+    traced besides the three lowest; the shapes are of the same four branches, in the same
+    order: their eigenvalues equal the result's traced ones (same decomposition of S(0))."""
+    from pipeflow.profiles import Constant
+
+    r = simulate(
+        Simulation(
+            PAPER_PIPE,
+            flow=Constant(40.0),
+            spin=Constant(100.0),
+            t_end=0.01,
+            samples=11,
+            mode_shape_times=(0.0, 0.01),
+        )
+    )
+    assert r.frozen.xi.shape[1] == 4 and r.frozen.least_stable == 3
+    assert r.mode_shapes is not None
+    np.testing.assert_allclose(r.mode_shapes.xi[0], r.frozen.xi[0], rtol=1e-14)
+    np.testing.assert_allclose(r.mode_shapes.xi[1], r.frozen.xi[-1], rtol=1e-9)
+    modes = r.to_dict()["mode_shapes"]["modes"]
+    assert [m["mode"] for m in modes] == [m["mode"] for m in r.to_dict()["eigenvalues"]["modes"]]
+    assert modes[-1]["mode"] == 5

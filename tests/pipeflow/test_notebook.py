@@ -76,7 +76,7 @@ def test_dataset_holds_the_result_arrays_with_units(result: Result) -> None:
         "shape_x": "m",
     }
     assert all(ds[name].attrs["long_name"] for name in units)
-    assert ds.attrs["status"] == "ok" and ds.attrs["method"] == "cma"
+    assert ds.attrs["status"] == "ok" and ds.attrs["method"] == "auto"  # the default
     # selection by label works as a notebook user expects
     assert float(ds["omega"].sel(mode=1).isel(eigen_t=0)) == result.frozen.omega[0, 0]
 
@@ -114,3 +114,15 @@ def test_missing_extra_names_the_install_command(
     monkeypatch.setitem(sys.modules, module, None)  # importing it now raises ImportError
     with pytest.raises(ImportError, match=rf"needs {module}: pip install 'pipeflow\[notebook\]'"):
         call(result)  # type: ignore[operator]
+
+
+def test_dataset_of_an_unstable_run_carries_the_least_stable_branch() -> None:
+    """v = 40 m/s > v_cr: four traced branches (the three lowest and the flutter branch,
+    mode 5) in both the frozen eigenvalues and the CMA exponents, one mode coordinate."""
+    r = simulate(
+        Simulation(PAPER_PIPE, flow=Constant(40.0), spin=Constant(100.0), t_end=0.01, samples=11)
+    )
+    ds = r.to_xarray()
+    np.testing.assert_array_equal(ds["mode"].values, [1, 2, 3, 5])
+    np.testing.assert_array_equal(ds["sigma"].values, r.frozen.sigma)
+    np.testing.assert_array_equal(ds["cma_sigma"].values, r.exponents.sigma)

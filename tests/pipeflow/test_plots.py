@@ -133,7 +133,7 @@ def test_stability_plots() -> None:
         ),
         "campbell": (
             {"kind": "campbell", "pipe": PAPER_PIPE_JSON, "modes": 4, "spin_range": [0, 300]},
-            ["argand", "sweep_frequency", "sweep_damping"],
+            ["argand", "campbell", "sweep_frequency", "sweep_damping"],
             "spin ω0 [rad/s]",
         ),
         "spin_map": (
@@ -208,3 +208,38 @@ def test_growth_maps_with_no_growth_keep_a_symmetric_scale() -> None:
         }
         mesh = figure("spin_map", [(None, r)]).axes[0].collections[0]
         assert (mesh.norm.vmin, mesh.norm.vmax) == (-1.0, 1.0)
+
+
+def test_campbell_and_argand_mark_the_crossings() -> None:
+    """The Campbell figure draws one dashed line per excitation order (legend "1x", "2x"),
+    the crossings and a damping-ratio colour bar; the Argand figure marks the critical point
+    (the paper pipe at 100 rad/s: 27.69 m/s, mode 3, as in the README)."""
+    from pipeflow.stability_spec import PAPER_PIPE_JSON, parse_sweep, run_sweep
+
+    c = run_sweep(
+        parse_sweep(
+            {
+                "kind": "campbell",
+                "pipe": PAPER_PIPE_JSON,
+                "modes": 4,
+                "spin_range": [0, 600],
+                "flow": {"velocity": {"kind": "constant", "value": 10}},
+                "orders": [1, 2],
+            }
+        )
+    )
+    assert c["excitation"]["crossings"]
+    text = _svg_text(render(c, "campbell", "svg"))
+    for want in ("1x", "2x", "crossings", "damping ratio ζ [-]", "spin ω0 [rad/s]"):
+        assert want in text, want
+    a = run_sweep(
+        parse_sweep(
+            {
+                "kind": "argand",
+                "pipe": PAPER_PIPE_JSON,
+                "velocity_range": [0, 40],
+                "rotation": {"omega0": {"kind": "constant", "value": 100}},
+            }
+        )
+    )
+    assert "critical point: 27.69 m/s, mode 3" in _svg_text(render(a, "argand", "svg"))

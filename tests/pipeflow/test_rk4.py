@@ -39,7 +39,7 @@ def test_user_step_outside_region_is_refused_with_largest_stable_step() -> None:
                 options=Options(step=1.5 * h_max),
             )
         )
-    assert err.value.field == "options.step"
+    assert err.value.parameter == "step"
     assert abs(err.value.largest_stable_step - h_max) < 1e-15
     assert f"{h_max:.6g}" in str(err.value)
     # and a step just inside is accepted; the solution stays bounded
@@ -61,7 +61,7 @@ def test_step_budget_is_enforced() -> None:
         simulate(
             paper_sim(Constant(0.4), "rk4", modes=10, t_end=1.0, options=Options(max_steps=1000))
         )
-    assert err.value.field == "options.max_steps"
+    assert err.value.parameter == "max_steps"
     assert "step budget" in str(err.value)
 
 
@@ -101,4 +101,25 @@ def test_non_positive_step_is_refused(method: str, step: float) -> None:
     sim = paper_sim(Constant(0.4), method, modes=2, t_end=0.01, samples=11)
     with pytest.raises(InvalidInput) as err:
         simulate(replace(sim, options=Options(step=step)))
-    assert err.value.field == "options.step"
+    assert err.value.parameter == "step"
+
+
+@pytest.mark.parametrize("method", ["rk4", "magnus"])
+@pytest.mark.parametrize("step", [1e-22, 1e-300, 5e-324])
+def test_step_too_small_for_the_budget_is_refused(method: str, step: float) -> None:
+    """Defect: a step of 1e-22 s (or 1e-300, or the smallest subnormal) made
+    ceil(dt / h) wrap to a negative int64 that passed the budget check: rk4 answered 'ok'
+    with 0 steps and a constant tip, magnus 'negative dimensions'.  Counts are now bounded
+    in floating point first: BudgetExceeded naming 'step', with the smallest step the
+    budget allows (11 samples over 0.01 s, budget 1000 steps: 100 per interval of 1 ms,
+    so 1e-5 s for rk4; magnus keeps a third for its error check: 66 per interval)."""
+    sim = paper_sim(polynomial(0, 0.4), method, modes=4, t_end=0.01, samples=11)
+    with pytest.raises(BudgetExceeded) as err:
+        simulate(replace(sim, options=Options(step=step, max_steps=1000)))
+    assert err.value.parameter == "step"
+    smallest = {"rk4": 1e-3 / 100, "magnus": 1e-3 / 66}[method]
+    assert err.value.smallest_step == pytest.approx(smallest, rel=1e-12)
+    assert f"smallest step this budget allows is {smallest:.3g} s" in err.value.message
+    # the smallest step it names is accepted
+    ok = simulate(replace(sim, options=Options(step=smallest, max_steps=1000)))
+    assert ok.status == "ok" and 0 < ok.diagnostics["steps"] <= 1000

@@ -6,10 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from pipeflow.errors import InvalidInput
+from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
-from pipeflow.profiles import Constant, table
+from pipeflow.profiles import Constant, polynomial, table
 from pipeflow.simulation import Simulation, simulate
+from pipeflow.solvers import Options
+from pipeflow.spec import SIMULATION_FIELDS, request_fields
 from tests.pipeflow.cases import paper_sim
 
 
@@ -33,20 +35,29 @@ def test_divergence_time_is_when_bound_is_passed() -> None:
 
 
 @pytest.mark.parametrize(
-    ("kw", "field"),
+    ("kw", "parameter", "field"),
     [
-        ({"method": "nope"}, "method"),
-        ({"t_end": -1.0}, "time.t_end"),
-        ({"t_end": math.inf}, "time.t_end"),
-        ({"samples": 1}, "time.samples"),
-        ({"modes": 41}, "modes"),
-        ({"positions": (0.5,)}, "positions.0"),
-        ({"initial_shape": "mode2"}, "initial.shape"),
-        ({"flow": table([0, 0.5], [0.1, 0.2])}, "flow.velocity"),
+        ({"method": "nope"}, "method", "method"),
+        ({"t_end": -1.0}, "t_end", "time.t_end"),
+        ({"t_end": math.inf}, "t_end", "time.t_end"),
+        ({"samples": 1}, "samples", "time.samples"),
+        ({"modes": 41}, "modes", "modes"),
+        ({"positions": (0.5,)}, "positions", "output.positions"),
+        ({"initial_shape": "mode2"}, "initial_shape", "initial.shape"),
+        ({"flow": table([0, 0.5], [0.1, 0.2])}, "flow", "flow.velocity"),
+        ({"method": "rk4", "options": Options(step=1e-300)}, "step", "options.step"),
     ],
 )
-def test_invalid_input_names_the_field(kw: dict[str, object], field: str) -> None:
-    with pytest.raises(InvalidInput) as err:
+def test_invalid_input_names_the_parameter(
+    kw: dict[str, object], parameter: str, field: str
+) -> None:
+    """The library names its own parameter (no JSON path); the schema layer's one mapping
+    (pipeflow.spec.SIMULATION_FIELDS) turns it into the request field."""
+    with pytest.raises(PipeflowError) as err:
+        simulate(Simulation(PAPER_PIPE, **kw))  # type: ignore[arg-type]
+    assert err.value.parameter == parameter
+    assert err.value.field is None
+    with pytest.raises(PipeflowError) as err, request_fields(SIMULATION_FIELDS):
         simulate(Simulation(PAPER_PIPE, **kw))  # type: ignore[arg-type]
     assert err.value.field == field
 
@@ -58,3 +69,121 @@ def test_table_profile_matches_polynomial() -> None:
     a = simulate(paper_sim(polynomial(0, 0.4), modes=3, t_end=0.1, samples=101))
     b = simulate(paper_sim(table([0.0, 0.1], [0.0, 0.04]), modes=3, t_end=0.1, samples=101))
     assert np.allclose(a.tip_displacement, b.tip_displacement, rtol=0, atol=1e-14)
+
+
+#: the paper pipe's critical flow velocity at w0 = 100 rad/s, 10 modes [m/s] (the
+#: stability test suite checks it against the published 27.69 m/s / u_cr = 9.15)
+V_CR = 27.69
+
+
+@pytest.mark.parametrize(("v", "unstable"), [(20.0, False), (40.0, True)])
+def test_growth_rate_comes_from_the_whole_spectrum(v: float, unstable: bool) -> None:
+    """Paper pipe, w0 = 100 rad/s, 10 modes, below and above v_cr = 27.69 m/s.  Above it
+    the flutter branch (mode 5 at v = 40: two over-damped real modes come first) grows;
+    before the fix the three lowest branches were traced and max_growth_rate was -925 1/s.
+    Now max_growth_rate is the largest sigma of the whole frozen spectrum (the same
+    eigenvalues as pipeflow.stability.growth_rate, to rounding: 1e-9 relative), its sign
+    says stable/unstable, the branch that carries it is traced and flagged least_stable,
+    and first_unstable_time is 0 (constant v) or null."""
+    from pipeflow.model import build_model
+    from pipeflow.stability import growth_rate
+
+    r = simulate(Simulation(PAPER_PIPE, flow=Constant(v), spin=Constant(100.0), t_end=0.05))
+    rate = r.diagnostics["max_growth_rate"]
+    expected = float(growth_rate(build_model(PAPER_PIPE, 10), v, 100.0)[0])
+    assert rate == pytest.approx(expected, rel=1e-9)
+    assert (rate > 0) is unstable
+    modes = r.to_dict()["eigenvalues"]["modes"]
+    flagged = [m for m in modes if m["least_stable"]]
+    assert len(flagged) == 1
+    assert max(flagged[0]["sigma"]) == pytest.approx(rate, rel=1e-12)
+    assert r.first_unstable_time == (0.0 if unstable else None)
+    assert (r.status != "ok") is unstable
+    if unstable:
+        assert len(modes) == 4 and modes[-1]["least_stable"] and modes[-1]["mode"] == 5
+
+
+def test_first_unstable_time_of_a_ramp_through_the_critical_velocity() -> None:
+    """v = 20 + 100 t m/s passes the critical velocity (27.69 m/s; located to 1e-10 by
+    pipeflow.stability.critical_velocities, Brent on the tracked branch) at t_cr = 0.0769 s:
+    first_unstable_time is the first output time after t_cr (output step 0.1 ms), found
+    between the eigenvalue times (step 10 ms) that bracket it; the growing branch is traced
+    and flagged, and max_growth_rate is its largest sigma."""
+    from pipeflow.stability import critical_velocities
+
+    v_cr = critical_velocities(PAPER_PIPE, 100.0, (0.0, 60.0), 10).critical_velocity
+    assert v_cr == pytest.approx(V_CR, abs=0.005)
+    r = simulate(
+        Simulation(
+            PAPER_PIPE,
+            flow=polynomial(20.0, 100.0),
+            spin=Constant(100.0),
+            t_end=0.1,
+            samples=1001,
+            eigen_samples=11,
+        )
+    )
+    t_cr = (v_cr - 20.0) / 100.0
+    assert r.first_unstable_time is not None
+    assert 0.0 < r.first_unstable_time - t_cr <= 1e-4 + 1e-12
+    assert r.first_unstable_time in set(r.t.tolist())
+    j = r.frozen.least_stable
+    assert j is not None and r.to_dict()["eigenvalues"]["modes"][j]["least_stable"]
+    k = int(np.searchsorted(r.eigen_t, r.first_unstable_time))
+    assert r.frozen.sigma[k, j] > 0 > r.frozen.sigma[k - 1, j]
+    assert r.diagnostics["max_growth_rate"] == pytest.approx(float(r.frozen.sigma[:, j].max()))
+    # the CMA exponents follow the same branches: P(t)/t = S(0) at t = 0
+    assert r.exponents.xi.shape == r.frozen.xi.shape
+    np.testing.assert_allclose(r.exponents.xi[0], r.frozen.xi[0], rtol=1e-13)
+    d = r.to_dict()
+    assert [m["mode"] for m in d["cma_exponents"]["modes"]] == [
+        m["mode"] for m in d["eigenvalues"]["modes"]
+    ]
+    assert "least_stable" not in d["cma_exponents"]["modes"][0]
+
+
+def test_auto_runs_cma_where_exact_and_magnus_otherwise() -> None:
+    """method 'auto' (the default): cma for constant v and w0, magnus for v = 0.4 t; the
+    result says which ran and why; cma chosen by auto equals cma asked for, bit for bit."""
+    const = simulate(paper_sim(Constant(0.4), method="auto", modes=3, t_end=0.05, samples=51))
+    assert (const.simulation.method, const.method_used) == ("auto", "cma")
+    assert "exact" in const.method_reason
+    direct = simulate(paper_sim(Constant(0.4), method="cma", modes=3, t_end=0.05, samples=51))
+    np.testing.assert_array_equal(const.tip_displacement, direct.tip_displacement)
+    ramp = simulate(paper_sim(polynomial(0, 0.4), method="auto", modes=3, t_end=0.05, samples=51))
+    assert ramp.method_used == "magnus" and "time-variant" in ramp.method_reason
+    d = ramp.to_dict()
+    assert (d["method"], d["method_used"]) == ("auto", "magnus")
+    assert d["diagnostics"]["method_used"] == "magnus"
+    assert Simulation(PAPER_PIPE).method == "auto"
+
+
+def test_paper_example_by_default_is_right_to_1e_8() -> None:
+    """The README / `pipeflow example` case (v = 0.4 t, w0 = 100 rad/s, 10 modes, 2001
+    samples per second) with the default method runs without a warning, estimates its own
+    error below 1e-8, and is within 1e-8 of the tight reference (DOP853, rtol 1e-12,
+    whose own error is ~3e-10) on the balanced state and the tip.  The reference costs
+    ~80 s over the full second (stiff: the 10th mode is at 8e4 rad/s), so it is compared
+    on the first 0.1 s at the example's sample spacing; measured over the full second:
+    6.8e-9 (state) and 6.0e-9 (tip)."""
+    from pipeflow.model import build_model
+    from pipeflow.solvers.base import relative_difference
+    from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+
+    spec = SimulationSpec.model_validate(PAPER_EXAMPLE)
+    assert spec.method == "auto"
+    full = simulate(spec.to_simulation())
+    assert full.warnings == [] and full.status == "ok" and full.method_used == "magnus"
+    assert full.diagnostics["estimated_relative_error"] <= 1e-8
+    sim = spec.to_simulation()
+    short = Simulation(**{**sim.__dict__, "t_end": 0.1, "samples": 201})  # the same grid
+    ref = simulate(
+        Simulation(
+            **{**short.__dict__, "method": "reference", "options": Options(rtol=1e-12, atol=1e-16)}
+        )
+    )
+    np.testing.assert_allclose(ref.t, full.t[:201], rtol=0, atol=1e-15)
+    model = build_model(PAPER_PIPE, 10)
+    z = model.to_balanced(full.d[:201], full.ddot[:201])
+    assert relative_difference(z, model.to_balanced(ref.d, ref.ddot)) < 1e-8
+    assert relative_difference(full.tip_displacement[:201], ref.tip_displacement) < 1e-8

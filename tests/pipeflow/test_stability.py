@@ -161,7 +161,7 @@ def test_rotating_beam_at_v0():
 def test_bad_input_names_the_field():
     with pytest.raises(InvalidInput) as e:
         critical_velocities(PAPER_PIPE, 0.0, (5.0, 1.0), 6)
-    assert e.value.field == "velocity_range"
+    assert e.value.parameter == "velocity_range"
     with pytest.raises(InvalidInput) as e:
         critical_velocities(PAPER_PIPE, 0.0, (0.0, 1.0), 0)
-    assert e.value.field == "modes"
+    assert e.value.parameter == "modes"

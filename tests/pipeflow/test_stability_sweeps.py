@@ -6,18 +6,19 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
-from pipeflow.eigen import track
 from pipeflow.errors import InvalidInput
 from pipeflow.model import PAPER_PIPE, build_model
-from pipeflow.stability.core import nondimensional_pipe, state_matrices
+from pipeflow.spectra import track
+from pipeflow.stability.core import eigenvalues, growth_rate, nondimensional_pipe, state_matrices
 from pipeflow.stability.sweeps import sweep
 
 
 def test_argand_matches_core_tracker_and_locates_flutter():
     """beta = 0.2: the tracked second branch of the Argand sweep crosses sigma = 0 near
     u = 5.59 (the critical velocity), and on a grid without refinement the sweep equals
-    pipeflow.eigen.track on the same matrices (one tracking algorithm, not two)."""
+    pipeflow.spectra.track on the same matrices (one tracking algorithm, not two)."""
     beta = 0.2
     pipe = nondimensional_pipe(beta)
     vmax = 8.0 / math.sqrt(beta)
@@ -69,7 +70,73 @@ def test_bad_sweep_input_names_the_field():
     for parameter, field in (("velocity", "velocity_range"), ("spin", "spin_range")):
         with pytest.raises(InvalidInput) as exc:
             sweep(PAPER_PIPE, parameter, (1.0, 0.0), modes=3, tracked=2, points=5)
-        assert exc.value.field == field
+        assert exc.value.parameter == field
     with pytest.raises(InvalidInput) as exc:
         sweep(PAPER_PIPE, "pressure", (0.0, 1.0), modes=3, tracked=2, points=5)  # type: ignore[arg-type]
-    assert exc.value.field == "parameter"
+    assert exc.value.parameter == "parameter"
+
+
+def _sorted_frequency(model, v: float, w0: float, k: int) -> float:
+    """Frequency [rad/s] of mode k of the frozen spectrum at (v, w0) by sorting (no
+    tracking): the k-th lowest positive frequency, where the lowest modes that are
+    overdamped (a real pair, frequency 0) still count; valid while frequencies stay apart."""
+    xi = eigenvalues(model, v, w0)[0]
+    real = np.abs(xi.imag) <= 1e-9 * np.max(np.abs(xi))
+    idx = k - 1 - int(real.sum()) // 2
+    return 0.0 if idx < 0 else float(np.sort(xi.imag[(xi.imag > 0) & ~real])[idx])
+
+
+def test_campbell_excitation_crossings_match_an_independent_root_search():
+    """Paper pipe, v = 10 m/s, w0 in [0, 800] rad/s: mode 1 becomes overdamped (a real pair)
+    on the way, the other frequencies stay apart, so sorting identifies the modes.
+    Independent computation: scan omega_k(w0) - n w0 of the sorted frozen spectrum on a grid
+    of its own (1201 points), then Brent's method.  Same set of crossings (order, mode), each
+    spin to 1e-9 relative: both are roots of the same smooth function located to ~1e-12; the
+    margin covers eigenvalue rounding (~1e-13 of a spectral radius ~1e5 rad/s)."""
+    v, orders, k_max = 10.0, (0.5, 1.0, 2.0, 3.0), 3
+    s = sweep(PAPER_PIPE, "spin", (0.0, 800.0), v, modes=10, tracked=k_max, orders=orders)
+    model = build_model(PAPER_PIPE, 10)
+    grid = np.linspace(0.0, 800.0, 1201)
+    expected = []
+    for n in orders:
+        for k in range(1, k_max + 1):
+
+            def g(w, n=n, k=k):
+                return _sorted_frequency(model, v, w, k) - n * w
+
+            vals = np.array([g(w) for w in grid])
+            for i in np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0):
+                expected.append((n, k, brentq(g, grid[i], grid[i + 1], xtol=1e-13, rtol=1e-14)))
+    got = [(c.order, c.mode, c.spin) for c in s.excitation]
+    assert sorted((n, k) for n, k, _ in got) == sorted((n, k) for n, k, _ in expected)
+    assert len(expected) >= 4  # mode 1 meets every line, mode 2 meets 3x
+    for n, k, w in expected:
+        (mine,) = [c for c in s.excitation if c.order == n and c.mode == k]
+        assert mine.spin == pytest.approx(w, rel=1e-9), (n, k)
+        assert mine.frequency == pytest.approx(n * w, rel=1e-9)
+        xi = eigenvalues(model, v, mine.spin)[0]
+        j = np.argmin(np.abs(xi.imag - mine.frequency))
+        assert mine.sigma == pytest.approx(xi.real[j], rel=1e-6)
+    d = s.to_dict()["excitation"]
+    assert d["orders"] == list(orders)
+    first = d["crossings"][0]
+    assert first["spin_rpm"] == pytest.approx(first["spin"] * 60 / (2 * math.pi))
+
+
+def test_argand_critical_point_is_the_root_of_the_growth_rate():
+    """Paper pipe at w0 = 100 rad/s: the first sigma = 0 loss of the tracked branches is the
+    root of the largest real part of the whole frozen spectrum (brentq on growth_rate, an
+    independent search) to 1e-9 relative, 27.69 m/s (README / critical_velocities)."""
+    s = sweep(PAPER_PIPE, "velocity", (0.0, 60.0), 100.0, modes=10, tracked=4)
+    first = next(c for c in s.zero_crossings if c.direction == "loss")
+    model = build_model(PAPER_PIPE, 10)
+    v_cr = brentq(lambda v: float(growth_rate(model, v, 100.0)[0]), 20.0, 35.0, xtol=1e-12)
+    assert first.value == pytest.approx(v_cr, rel=1e-9)
+    assert first.value == pytest.approx(27.69, abs=0.005)
+    assert first.mode == 3 and first.frequency > 0
+
+
+def test_bad_excitation_orders_name_the_field():
+    with pytest.raises(InvalidInput) as e:
+        sweep(PAPER_PIPE, "spin", (0.0, 100.0), 1.0, modes=4, tracked=2, orders=(1.0, -2.0))
+    assert e.value.parameter == "orders"

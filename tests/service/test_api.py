@@ -30,7 +30,7 @@ def test_simulation_miss_then_hit(client: TestClient) -> None:
     assert len(doc["t"]) == len(doc["tip_displacement"]) == 101
     assert [m["mode"] for m in doc["eigenvalues"]["modes"]] == [1, 2, 3]
     assert set(doc["fundamental"]) == {"sigma", "omega"}
-    assert doc["method"] == "cma"
+    assert (doc["method"], doc["method_used"]) == ("auto", "magnus")  # the default
     for field in ("dimensionless", "diagnostics"):
         assert isinstance(doc[field], dict)
 
@@ -238,3 +238,18 @@ def test_out_of_range_magnitudes_name_the_field(client: TestClient) -> None:
     for field, body in cases.items():
         doc = _problem(client.post("/v1/simulations", json=body), 422)
         assert field in _fields(doc), (field, doc)
+
+
+def test_step_too_small_for_the_budget_is_422_not_cached(client: TestClient) -> None:
+    """Defect: rk4 with options.step = 1e-22 s answered 200 'ok' (a wrapped negative step
+    count passed the budget) and cached it; magnus answered 500.  Both are now 422 naming
+    options.step with the smallest step the budget allows, and a retry is refused again
+    (nothing was cached)."""
+    for method in ("rk4", "magnus"):
+        body = _small(method=method, options={"step": 1e-22})
+        for _ in range(2):
+            doc = _problem(client.post("/v1/simulations", json=body), 422)
+            assert _fields(doc) == ["options.step"], doc
+            assert doc["type"].endswith("budget-exceeded")
+            assert doc["smallest_step"] > 0
+            assert f"{doc['smallest_step']:.3g} s" in doc["detail"]

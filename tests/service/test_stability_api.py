@@ -44,7 +44,7 @@ SWEEPS: dict[str, tuple[dict[str, Any], list[str]]] = {
     "campbell": (
         {"pipe": PAPER_PIPE_JSON, "modes": 4, "tracked_modes": 2, "points": 21}
         | {"spin_range": [0.0, 1000.0], "flow": {"velocity": {"value": 10.0}}},
-        ["argand", "sweep_frequency", "sweep_damping"],
+        ["argand", "campbell", "sweep_frequency", "sweep_damping"],
     ),
     "spin_map": (
         {"pipe": PAPER_PIPE_JSON, "modes": 4, "velocity_points": 12, "spin_points": 4}

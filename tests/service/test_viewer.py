@@ -14,21 +14,16 @@ from service.routes.viewer import ASSETS
 from tests.service.conftest import make_client
 
 
-class _Inputs(HTMLParser):
+class _Page(HTMLParser):
     def __init__(self) -> None:
         super().__init__()
-        self.values: dict[str, str] = {}
-        self.select: str | None = None
+        self.options: list[str] = []
         self.scripts: list[str] = []
 
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         a = dict(attrs)
-        if tag == "input" and a.get("name"):
-            self.values[str(a["name"])] = str(a.get("value", ""))
-        elif tag == "select":
-            self.select = a.get("name")
-        elif tag == "option" and self.select and "selected" in a:
-            self.values[self.select] = str(a.get("value"))
+        if tag == "option":
+            self.options.append(str(a.get("value")))
         elif tag == "script" and a.get("src"):
             self.scripts.append(str(a["src"]))
 
@@ -39,29 +34,46 @@ def tc(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
         yield c
 
 
-def test_page_is_prefilled_with_the_papers_example(tc: Any) -> None:
-    r = tc.get("/")
+@pytest.mark.parametrize(
+    ("path", "scripts"),
+    [
+        ("/", ["static/uPlot.iife.min.js", "static/schemaform.js", "static/viewer.js"]),
+        ("/stability", ["static/schemaform.js", "static/stability.js"]),
+    ],
+)
+def test_pages_build_their_forms_from_the_schema(tc: Any, path: str, scripts: list[str]) -> None:
+    """Both pages are shells whose forms schemaform.js generates from /openapi.json: no
+    method, profile kind or analysis is written into the HTML (the only options are the
+    tip chart's scale choice), and every script is vendored (nothing from another origin)."""
+    r = tc.get(path)
     assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
-    form = _Inputs()
-    form.feed(r.text)
-    v = form.values
-    ex = PAPER_EXAMPLE
-    for k, value in ex["pipe"].items():
-        assert float(v[f"pipe.{k}"]) == value, k
-    assert v["rotation.omega0.kind"] == ex["rotation"]["omega0"]["kind"]
-    assert float(v["rotation.omega0.value"]) == ex["rotation"]["omega0"]["value"]
-    assert v["flow.velocity.kind"] == ex["flow"]["velocity"]["kind"]
-    coefficients = [float(c) for c in v["flow.velocity.coefficients"].split(",")]
-    assert coefficients == ex["flow"]["velocity"]["coefficients"]
-    assert float(v["initial.u0"]) == ex["initial"]["u0"]
-    assert float(v["initial.du0"]) == ex["initial"]["du0"]
-    assert int(v["modes"]) == ex["modes"]
-    assert float(v["time.t_end"]) == ex["time"]["t_end"]
-    assert int(v["time.samples"]) == ex["time"]["samples"]
-    assert v["method"] == ex["method"]
-    # every script is vendored: nothing is fetched from another origin
-    assert form.scripts == ["static/uPlot.iife.min.js", "static/viewer.js"]
+    page = _Page()
+    page.feed(r.text)
+    assert page.scripts == scripts
+    assert set(page.options) <= {"auto", "linear", "symlog"}
     assert not re.search(r"(src|href)=\"(https?:)?//", r.text)
+
+
+def test_the_schema_carries_what_the_forms_read(tc: Any) -> None:
+    """The forms read the request schemas from the operations' request bodies, prefill the
+    simulation form with the schema's example (the paper's case, PAPER_EXAMPLE) and the
+    stability analyses with theirs; the method comes from the schema's default."""
+    doc = tc.get("/openapi.json").json()
+
+    def body(path: str) -> dict[str, Any]:
+        content: dict[str, Any] = doc["paths"][path]["post"]["requestBody"]["content"]
+        return content["application/json"]
+
+    ref = body("/v1/simulations")["schema"]["$ref"].split("/")[-1]
+    sim = doc["components"]["schemas"][ref]
+    assert sim["examples"][0] == PAPER_EXAMPLE
+    assert sim["properties"]["method"]["default"] in sim["properties"]["method"]["enum"]
+    assert doc["components"]["schemas"][body("/v1/stability")["schema"]["$ref"].split("/")[-1]][
+        "examples"
+    ]
+    sweeps = body("/v1/sweeps")
+    kinds = set(sweeps["schema"]["discriminator"]["mapping"])
+    assert kinds == set(sweeps["examples"])
 
 
 @pytest.mark.parametrize("name", sorted(ASSETS))

@@ -1,130 +1,42 @@
-"""The viewer in a real headless browser (Debian's chromium driven by playwright).
+"""The simulation viewer in a real headless browser (Debian's chromium driven by playwright).
 
-The service runs as a uvicorn subprocess on a free port, exactly as deployed.  Checks: the
-page loads with the paper's example, a run completes, the three charts show data, the
-share link reloads the result by its key, and a bad input shows the API's message next to
-the field.  Locally the test is skipped when chromium or playwright is absent; in CI
-(``CI`` set) it fails instead, so CI never silently skips it.
+Checks: the form generated from /openapi.json offers every method and profile kind of the
+schema with the schema's default method and the paper's example; a run completes and the
+three charts show data; the share link reloads the result by its key; a bad input shows the
+API's message next to the field; an unstable run (v = 40 m/s on the paper pipe at w0 = 100
+rad/s) shows the banner and a symmetric-log tip axis with readable labels.  Set-up and
+screenshots: ``tests/conftest.py`` and ``tests/service/browser.py``.
 """
 
 from __future__ import annotations
 
-import os
-import socket
-import subprocess
-import sys
-import time
-from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import httpx
-import pytest
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--no-first-run",
-    "--disable-sync",
-]
-ROOT = Path(__file__).resolve().parents[2]
+from tests.service.browser import Page, open_page, page
 
-
-def _need(condition: bool, reason: str) -> None:
-    if condition:
-        return
-    if os.environ.get("CI"):
-        pytest.fail(f"{reason} (CI must run the browser test: see .ci/run)")
-    pytest.skip(reason)
-
-
-try:
-    from playwright.sync_api import Page, sync_playwright
-except ImportError:  # pragma: no cover - depends on the machine
-    sync_playwright = None  # type: ignore[assignment]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    port = _free_port()
-    env = dict(
-        os.environ,
-        PIPEFLOW_DATA_DIR=str(tmp_path_factory.mktemp("browser")),
-        PIPEFLOW_WORKERS="1",
-    )
-    log = tmp_path_factory.mktemp("log") / "uvicorn.log"
-    with log.open("w") as out:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(port)],
-            cwd=ROOT,
-            env=env,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if httpx.get(url + "/readyz", timeout=2).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if proc.poll() is not None or time.monotonic() > deadline:
-                pytest.fail(f"uvicorn did not become ready:\n{log.read_text()}")
-            time.sleep(0.1)
-        yield url
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    _need(sync_playwright is not None, "playwright is not installed (pip install playwright)")
-    _need(os.path.exists(CHROMIUM), f"{CHROMIUM} is absent (apt-get install -y chromium)")
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
-
-
-@pytest.fixture
-def page(browser: Any) -> Iterator[Page]:
-    context = browser.new_context(viewport={"width": 1100, "height": 900})
-    pg = context.new_page()
-    errors: list[str] = []
-    pg.on("pageerror", lambda exc: errors.append(str(exc)))
-    pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-    pg.set_default_timeout(60_000)
-    yield pg
-    context.close()
-    # failed HTTP requests (the 422 of the bad-input test) log a console error; scripts must not
-    assert not [e for e in errors if "Failed to load resource" not in e], errors
+__all__ = ["page"]
 
 
 def _points(page: Page, chart: str) -> int:
     return int(page.get_attribute(f"#{chart}", "data-points") or 0)
 
 
-def test_run_the_papers_example_and_share_it(server: str, page: Page) -> None:
-    page.goto(server + "/")
+def _schema(server: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    doc: dict[str, Any] = httpx.get(server + "/openapi.json", timeout=10).json()
+    content = doc["paths"]["/v1/simulations"]["post"]["requestBody"]["content"]
+    ref = content["application/json"]["schema"]["$ref"].split("/")[-1]
+    return doc, doc["components"]["schemas"][ref]
+
+
+def _ref(doc: dict[str, Any], ref: str) -> dict[str, Any]:
+    schema: dict[str, Any] = doc["components"]["schemas"][ref.split("/")[-1]]
+    return schema
+
+
+def test_run_the_papers_example_and_share_it(server: str, page: Page, screenshot: Any) -> None:
+    open_page(page, server + "/")
     assert page.input_value("input[name='pipe.E']") == "7.8e9"
     assert page.input_value("input[name='flow.velocity.coefficients']") == "0, 0.4"
     page.click("#run")
@@ -141,7 +53,7 @@ def test_run_the_papers_example_and_share_it(server: str, page: Page) -> None:
     assert link and "key=" in link
     key = page.evaluate("window.pipeflowViewer.state.key")
     page.goto("about:blank")
-    page.goto(link)
+    open_page(page, link)
     page.wait_for_selector("#chart-tip[data-points='2001']")
     assert key[:12] in page.inner_text("#status")
     assert page.input_value("input[name='pipe.E']") == "7.8e9"
@@ -152,13 +64,15 @@ def test_run_the_papers_example_and_share_it(server: str, page: Page) -> None:
 
     # a link whose spec is mangled still loads the result by its key
     page.goto("about:blank")
-    page.goto(f"{server}/?key={key}&spec=%7Bbroken")
+    open_page(page, f"{server}/?key={key}&spec=%7Bbroken")
     page.wait_for_selector("#chart-tip[data-points='2001']")
     assert page.inner_text("#status").startswith("loaded result " + key[:12])
+    page.locator("#results").scroll_into_view_if_needed()
+    screenshot(page, "viewer-paper-example")
 
 
 def test_bad_input_shows_the_api_message_next_to_the_field(server: str, page: Page) -> None:
-    page.goto(server + "/")
+    open_page(page, server + "/")
     page.fill("input[name='pipe.L']", "-0.025")
     page.fill("input[name='flow.velocity.coefficients']", "0, fast")
     page.click("#run")
@@ -178,3 +92,102 @@ def test_bad_input_shows_the_api_message_next_to_the_field(server: str, page: Pa
     page.click("#run")
     page.wait_for_selector("#chart-tip[data-points='2001']")
     assert page.locator("[data-error-for='pipe.L']").inner_text() == ""
+
+
+def test_form_offers_every_method_and_profile_kind_of_the_schema(
+    server: str, page: Page, screenshot: Any
+) -> None:
+    """The method list, its default and every profile kind (with each kind's fields and
+    their descriptions) are the schema's; a table profile and the magnus method run."""
+    doc, spec = _schema(server)
+    open_page(page, server + "/")
+    method = spec["properties"]["method"]
+    options = page.eval_on_selector_all(
+        "select[name='method'] option", "os => os.map(o => o.value)"
+    )
+    assert options == method["enum"]
+    assert page.input_value("select[name='method']") == method["default"]
+    for group, field in (("rotation", "omega0"), ("flow", "velocity")):
+        prop = _ref(doc, spec["properties"][group]["$ref"])["properties"][field]
+        mapping = prop["discriminator"]["mapping"]
+        sel = f"select[name='{group}.{field}.kind']"
+        assert page.eval_on_selector_all(f"{sel} option", "os => os.map(o => o.value)") == list(
+            mapping
+        )
+        for kind, ref in mapping.items():
+            page.select_option(sel, kind)
+            for name, sub in _ref(doc, ref)["properties"].items():
+                if "const" in sub:
+                    continue
+                field_el = page.locator(f"[name='{group}.{field}.{name}']:visible")
+                assert field_el.count() == 1, (kind, name)
+                help_text = field_el.locator("xpath=..").locator("small.help").inner_text()
+                assert help_text == sub.get("description", help_text), (kind, name)
+    # every top-level field of the schema has an input or a group in the form
+    for name in spec["properties"]:
+        assert page.locator(f"[name='{name}'], [data-group='{name}']").count() >= 1, name
+    page.locator("[data-union='flow.velocity']").scroll_into_view_if_needed()
+    screenshot(page, "viewer-form-table-profile")
+    page.select_option("select[name='rotation.omega0.kind']", "constant")
+    page.select_option("select[name='flow.velocity.kind']", "table")
+    page.fill("input[name='flow.velocity.t']", "0, 1")
+    page.fill("input[name='flow.velocity.values']", "0, 0.4")
+    page.select_option("select[name='method']", "magnus")
+    page.fill("input[name='time.samples']", "201")
+    # an optional block (object or null) is sent only when switched on: mode shapes
+    page.click("details[data-group='output'] > summary")
+    page.click("details[data-group='output.mode_shapes'] > summary")
+    page.check("input[name='output.mode_shapes.enabled']")
+    page.fill("input[name='output.mode_shapes.times']", "0, 0.5")
+    page.click("#run")
+    page.wait_for_selector("#chart-tip[data-points='201']")
+    assert "magnus" in page.inner_text("#method-used")
+    sent = page.evaluate("JSON.parse(new URL(location.href).searchParams.get('spec'))")
+    assert sent["flow"]["velocity"] == {
+        "kind": "table", "t": [0, 1], "values": [0, 0.4], "interpolation": "linear"
+    }  # fmt: skip
+    assert sent["method"] == "magnus"
+    assert sent["output"]["mode_shapes"] == {"times": [0, 0.5], "points": 101}
+    assert page.evaluate("window.pipeflowViewer.state.result.mode_shapes.t") == [0, 0.5]
+
+
+def test_unstable_run_shows_the_banner_and_a_readable_log_axis(
+    server: str, page: Page, screenshot: Any
+) -> None:
+    """v = 40 m/s on the paper pipe at w0 = 100 rad/s is past the critical velocity (27.69
+    m/s): the tip overflows double precision.  The banner says unstable (with the first
+    unstable time and growth rate when the result carries them), the tip axis switches to
+    symmetric log with decade labels up to the largest value, and the damping chart is
+    drawn."""
+    open_page(page, server + "/")
+    page.select_option("select[name='flow.velocity.kind']", "constant")
+    page.fill("input[name='flow.velocity.value']", "40")
+    page.click("#run")
+    banner = page.locator("#unstable")
+    banner.wait_for(state="visible")
+    text = banner.inner_text()
+    assert text.startswith("Unstable run.")
+    result = page.evaluate("window.pipeflowViewer.state.result")
+    first = result.get("first_unstable_time")
+    if first is not None:  # h9a's key; the banner must quote it
+        assert "First unstable at t = " in text
+    rate = result["diagnostics"].get("max_growth_rate")
+    if rate is not None and rate > 0:
+        assert "Growth rate max σ = " in text
+    assert result["status"] in ("overflow", "diverged") or first is not None
+    tip = page.locator("#chart-tip")
+    assert tip.get_attribute("data-scale") == "symlog"
+    page.wait_for_function("window.pipeflowViewer.axisLabels('chart-tip').length > 2")
+    labels = page.evaluate("window.pipeflowViewer.axisLabels('chart-tip')")
+    assert "0" in labels
+    assert all(len(x) <= 8 and "Infinity" not in x and "NaN" not in x for x in labels), labels
+    finite = [abs(float(x)) for x in labels if x]
+    peak = max(abs(v) for v in result["tip_displacement"] if v is not None)
+    assert max(finite) <= peak < 10 * max(finite)  # the top label is the data's decade
+    assert int(page.get_attribute("#chart-damping", "data-points") or 0) > 0
+    page.locator("#results").scroll_into_view_if_needed()
+    path = screenshot(page, "viewer-unstable-v40")
+    assert path.stat().st_size > 10_000
+    # the linear choice is still offered and redraws
+    page.select_option("#tip-scale", "linear")
+    assert tip.get_attribute("data-scale") == "linear"

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from pipeflow.eigen import track
+from pipeflow.spectra import track
 
 
 def oscillators(w1: np.ndarray, w2: np.ndarray, coupling: float = 0.0) -> np.ndarray:
@@ -38,3 +38,22 @@ def test_lowest_modes_one_per_conjugate_pair() -> None:
     tr = track(oscillators(3 + p, 1 + p), modes=2)
     assert np.allclose(tr.omega[0], [1.0, 3.0])
     assert np.all(tr.sigma == 0)
+
+
+def test_least_stable_branch_is_traced_even_when_it_is_no_representative() -> None:
+    """A pair that meets the real axis and splits: S(p) = [[0, 2], [-k/2, 0]] has roots
+    lambda^2 = -k, with k from +1 (oscillation, +-i) to -1 (divergence, +-1), 200 points.
+    The representative chosen at p = 0 (the omega > 0 member) follows the decaying root
+    -1 after the split here; the traced least-stable branch must be the growing one, whose
+    peak sigma is the largest real part of the whole spectrum (1, to 1e-9).  (With only the
+    representatives as candidates the flagged branch peaked at sigma = 0.)"""
+    from pipeflow.spectra import track
+
+    k = 1.0 - 2.0 * np.linspace(0.0, 1.0, 200)
+    S = np.array([[[0.0, 2.0], [-kk / 2.0, 0.0]] for kk in k])
+    tr = track(S, modes=1, least_stable=True)
+    assert tr.xi[-1, 0].real < 0  # the representative went the stable way
+    j = tr.least_stable
+    assert j == 1  # so the other member is traced too, as an extra column
+    assert abs(tr.sigma[:, j].max() - 1.0) < 1e-9
+    assert abs(np.linalg.eigvals(S).real.max() - 1.0) < 1e-9

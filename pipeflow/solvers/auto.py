@@ -1,0 +1,47 @@
+"""The default method: ``cma`` where it is exact, ``magnus`` otherwise.
+
+The paper's CMA is exact for constant flow velocity and spin (the state matrices commute:
+one eigen-decomposition serves every output time) and is the first Magnus term, an
+approximation, when either varies (physics notes, section 2).  ``auto`` runs ``cma`` in the
+first case and the tolerance-controlled ``magnus`` in the second, and says which and why
+(``method_used``, ``method_reason`` of the result).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from pipeflow.solvers.base import SOLVERS, Problem, Solver, SolverOutput, SolverStats, register
+from pipeflow.solvers.cma import CMA
+from pipeflow.solvers.magnus import Magnus
+
+
+class Auto(Solver):
+    name: ClassVar[str] = "auto"
+    description: ClassVar[str] = (
+        "Default: 'cma' for constant flow and spin (exact there), 'magnus' at "
+        "options.tolerance when either varies in time."
+    )
+    option_names: ClassVar[tuple[str, ...]] = tuple(
+        sorted(set(CMA.option_names) | set(Magnus.option_names))
+    )
+    compared_by_default: ClassVar[bool] = False  # it is one of the others
+
+    def choose(self, problem: Problem) -> tuple[Solver, str]:
+        if problem.loading.is_time_invariant:
+            return SOLVERS["cma"], (
+                "constant flow and spin: cma is exact (one eigen-decomposition)"
+            )
+        return SOLVERS["magnus"], (
+            "time-variant flow or spin: cma would be only the first Magnus term; magnus "
+            f"meets the tolerance {problem.options.tolerance:g}"
+        )
+
+    def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
+        solver, _ = self.choose(problem)
+        out = solver._solve_impl(problem, stats)
+        out.method = solver.name
+        return out
+
+
+register(Auto())

@@ -1,0 +1,349 @@
+// Forms generated from the service's own OpenAPI document (GET openapi.json), so every
+// field, method, profile kind and default the API has appears here and stays in step with
+// it.  Used by the simulation viewer (index.html) and the stability page (stability.html).
+//
+// A request schema is walked after resolving $refs:
+// - an object becomes a fieldset (optional groups whose fields all have defaults are
+//   collapsed in a <details>), a discriminated union (oneOf + discriminator, e.g. the
+//   profiles constant / polynomial / harmonic / table) a kind <select> with one block
+//   of fields per kind;
+// - an enum becomes a <select>, a boolean a checkbox, a number, string or array of numbers
+//   a text input (arrays as "a, b, c"); "X or null" is X, left empty for null, and an
+//   optional block ("object or null") is sent only when its "include" box is ticked;
+// - every field shows its description, with the unit the description states in brackets
+//   ("[m/s]") next to its name; initial values are the given values (an example), else the
+//   schema's defaults.
+// Inputs are named by the dotted JSON path ("flow.velocity.coefficients"), which is also
+// how the API names a bad field in problem+json errors[].field.
+"use strict";
+
+window.SchemaForm = (function () {
+  function deref(doc, schema) {
+    // follow $ref (keeping the referring node's own description/default/title)
+    let s = schema || {};
+    const seen = new Set();
+    while (s.$ref && !seen.has(s.$ref)) {
+      seen.add(s.$ref);
+      const target = s.$ref.replace(/^#\//, "").split("/").reduce((o, k) => o[k], doc);
+      const own = Object.assign({}, s);
+      delete own.$ref;
+      s = Object.assign({}, target, own);
+    }
+    if (Array.isArray(s.anyOf)) {
+      const others = s.anyOf.filter((o) => o.type !== "null");
+      if (others.length === 1 && others.length < s.anyOf.length) {
+        const own = Object.assign({}, s);
+        delete own.anyOf;
+        s = Object.assign({}, deref(doc, others[0]), own, { nullable: true });
+      }
+    }
+    return s;
+  }
+
+  function requestSchema(doc, path) {
+    const op = doc.paths[path].post;
+    const content = op.requestBody.content["application/json"];
+    return { schema: deref(doc, content.schema), examples: content.examples || {} };
+  }
+
+  function unitOf(s) {
+    const d = s.description || "";
+    const m = d.match(/\[([^\]]*)\]/);
+    return m ? m[1] : null;
+  }
+
+  function isUnion(s) {
+    return Array.isArray(s.oneOf) && s.discriminator && s.discriminator.mapping;
+  }
+
+  function isObject(s) {
+    return !!s.properties;
+  }
+
+  function show(x) {
+    // 7800000000 -> "7.8e9", as a person would type it
+    if (typeof x !== "number" || x === 0) return String(x);
+    const a = Math.abs(x);
+    return a >= 1e6 || a < 1e-3 ? x.toExponential().replace("e+", "e") : String(x);
+  }
+
+  function el(tag, attrs, text) {
+    const e = document.createElement(tag);
+    for (const [k, v] of Object.entries(attrs || {})) {
+      if (v !== undefined && v !== null && v !== false) e.setAttribute(k, v === true ? "" : v);
+    }
+    if (text !== undefined) e.textContent = text;
+    return e;
+  }
+
+  function allDefaults(doc, s) {
+    // every leaf of this object has a default (so the whole group may stay collapsed)
+    if (s.nullable) return true;
+    if (isUnion(s)) return s.default !== undefined;
+    if (!isObject(s)) return s.default !== undefined || s.nullable || s.type === "array";
+    return (s.required || []).length === 0
+      && Object.values(s.properties).every((p) => allDefaults(doc, deref(doc, p)));
+  }
+
+  function leaf(doc, s, path, name, value, required) {
+    const v = value !== undefined ? value : s.default;
+    const unit = unitOf(s);
+    const label = el("label", { class: "field", title: s.description || "" });
+    label.append(el("span", { class: "name" }, name + (unit && unit !== "-" ? " [" + unit + "]" : "")));
+    let input;
+    if (Array.isArray(s.enum)) {
+      input = el("select", { name: path, "data-field": path, "data-type": "enum" });
+      for (const option of s.enum) {
+        input.add(new Option(String(option), String(option), false, option === v));
+      }
+    } else if (s.type === "boolean") {
+      input = el("input", { type: "checkbox", name: path, "data-field": path, "data-type": "boolean" });
+      input.checked = v === true;
+    } else {
+      const kind = s.type === "array" || s.prefixItems ? "array" : s.type || "string";
+      const text = v === undefined || v === null ? "" : Array.isArray(v) ? v.map(show).join(", ") : show(v);
+      input = el("input", {
+        name: path, "data-field": path, "data-type": kind, value: text,
+        placeholder: s.nullable ? "auto (null)" : required ? "required" : "",
+      });
+      if (kind === "array") input.classList.add("wide");
+    }
+    label.append(input);
+    if (s.description) label.append(el("small", { class: "help" }, s.description));
+    const wrap = el("div", { class: "leaf" });
+    wrap.append(label, el("span", { class: "error", "data-error-for": path }));
+    return wrap;
+  }
+
+  function union(doc, s, path, name, value) {
+    const disc = s.discriminator.propertyName;
+    const kinds = Object.keys(s.discriminator.mapping);
+    const chosen = (value && value[disc]) || (s.default && s.default[disc]) || kinds[0];
+    const fs = el("fieldset", { class: "union", "data-union": path });
+    const unit = unitOf(s);
+    fs.append(el("legend", {}, name + (unit ? " [" + unit + "]" : "")));
+    if (s.description) fs.append(el("small", { class: "help block" }, s.description));
+    const label = el("label", { class: "field" });
+    label.append(el("span", { class: "name" }, disc));
+    const select = el("select", { name: path + "." + disc, "data-field": path, "data-type": "kind" });
+    for (const k of kinds) select.add(new Option(k, k, false, k === chosen));
+    label.append(select);
+    const head = el("div", { class: "leaf" });
+    head.append(label, el("span", { class: "error", "data-error-for": path }));
+    fs.append(head);
+    for (const k of kinds) {
+      const variant = deref(doc, { $ref: s.discriminator.mapping[k] });
+      const block = el("div", { class: "kind", "data-kind": k });
+      if (variant.description) block.append(el("small", { class: "help block" }, k + ": " + variant.description));
+      const given = value && value[disc] === k ? value : undefined;
+      fields(doc, variant, path, given, block, disc);
+      block.hidden = k !== chosen;
+      fs.append(block);
+    }
+    select.addEventListener("change", () => {
+      for (const b of fs.querySelectorAll(":scope > .kind")) b.hidden = b.dataset.kind !== select.value;
+    });
+    return fs;
+  }
+
+  function node(doc, schema, path, name, value, required) {
+    const s = deref(doc, schema);
+    if (isUnion(s)) return union(doc, s, path, name, value);
+    if (isObject(s)) {
+      const fs = el("fieldset", { class: "group", "data-group": path });
+      let body = fs;
+      if (s.nullable) {
+        // an optional block that is null unless switched on (e.g. output.mode_shapes)
+        body = el("details", { "data-group": path });
+        body.open = value !== undefined && value !== null;
+        body.append(el("summary", {}, name + " (optional)"));
+        const on = el("label", { class: "field switch" });
+        const box = el("input", { type: "checkbox", name: path + ".enabled", "data-type": "switch" });
+        box.checked = body.open;
+        on.append(box, el("span", { class: "name" }, "include " + name));
+        body.append(on);
+        fs.append(body);
+        fs.classList.add("collapsed");
+      } else if (!required && allDefaults(doc, s) && value === undefined) {
+        // an optional group the defaults cover: collapsed until wanted
+        body = el("details", { "data-group": path });
+        body.append(el("summary", {}, name + " (defaults)"));
+        fs.append(body);
+        fs.classList.add("collapsed");
+      } else {
+        fs.append(el("legend", {}, name));
+      }
+      if (s.description) body.append(el("small", { class: "help block" }, s.description));
+      fields(doc, s, path, value, body);
+      return fs;
+    }
+    return leaf(doc, s, path, name, value, required);
+  }
+
+  function fields(doc, s, prefix, value, host, skip) {
+    const required = new Set(s.required || []);
+    for (const [name, sub] of Object.entries(s.properties || {})) {
+      if (name === skip || sub.const !== undefined) continue;
+      const path = prefix ? prefix + "." + name : name;
+      const v = value ? value[name] : undefined;
+      host.append(node(doc, sub, path, name, v, required.has(name)));
+    }
+  }
+
+  function render(host, doc, schema, values) {
+    host.textContent = "";
+    fields(doc, deref(doc, schema), "", values, host);
+  }
+
+  // ---- form -> JSON ----------------------------------------------------------------------
+
+  function numberOrRaw(text) {
+    // send what the user typed when it is not a number: the API names the field
+    const s = String(text).trim();
+    if (s === "") return undefined;
+    const x = Number(s);
+    return Number.isFinite(x) ? x : s;
+  }
+
+  function find(scope, path) {
+    const sel = '[name="' + CSS.escape(path) + '"]';
+    for (const e of scope.querySelectorAll(sel)) {
+      // the input of this scope, not one of a nested hidden kind block
+      if (!e.closest(".kind[hidden]") || scope.closest(".kind[hidden]")) return e;
+    }
+    return null;
+  }
+
+  function readLeaf(s, input) {
+    if (!input) return undefined;
+    const type = input.dataset.type;
+    if (type === "boolean") return input.checked;
+    if (type === "enum") {
+      const raw = input.value;
+      const match = (s.enum || []).find((o) => String(o) === raw);
+      return match !== undefined ? match : raw;
+    }
+    const text = input.value.trim();
+    if (text === "") return s.nullable ? null : undefined;
+    if (type === "array") return text.split(/[,\s]+/).filter((t) => t !== "").map(numberOrRaw);
+    if (type === "number" || type === "integer") return numberOrRaw(text);
+    return text;
+  }
+
+  function collectNode(doc, schema, path, scope) {
+    const s = deref(doc, schema);
+    if (isUnion(s)) {
+      const disc = s.discriminator.propertyName;
+      const select = find(scope, path + "." + disc);
+      const kind = select.value;
+      const block = select.closest("fieldset").querySelector(':scope > .kind[data-kind="' + CSS.escape(kind) + '"]');
+      const variant = deref(doc, { $ref: s.discriminator.mapping[kind] });
+      return Object.assign({ [disc]: kind }, collectObject(doc, variant, path, block, disc));
+    }
+    if (isObject(s)) {
+      const on = s.nullable ? find(scope, path + ".enabled") : null;
+      if (on && !on.checked) return undefined;  // switched off: the default (null) applies
+      const out = collectObject(doc, s, path, scope);
+      return Object.keys(out).length ? out : undefined;
+    }
+    const v = readLeaf(s, find(scope, path));
+    // a nullable field left empty whose default is null: leave it out (the default applies)
+    if (v === null && (s.default === null || s.default === undefined)) return undefined;
+    return v;
+  }
+
+  function collectObject(doc, s, prefix, scope, skip) {
+    const out = {};
+    for (const [name, sub] of Object.entries(s.properties || {})) {
+      if (name === skip || sub.const !== undefined) continue;
+      const v = collectNode(doc, sub, prefix ? prefix + "." + name : name, scope);
+      if (v !== undefined) out[name] = v;
+    }
+    return out;
+  }
+
+  function collect(host, doc, schema) {
+    return collectObject(doc, deref(doc, schema), "", host);
+  }
+
+  // ---- the API's errors next to the fields ----------------------------------------------
+
+  function clearErrors(root) {
+    for (const e of root.querySelectorAll("[data-error-for]")) e.textContent = "";
+    for (const e of root.querySelectorAll(".invalid")) e.classList.remove("invalid");
+  }
+
+  function errorSlot(root, field, fallback) {
+    // the longest form field that is a prefix of the API's dotted path
+    // (e.g. "flow.velocity.coefficients.1" -> "flow.velocity.coefficients"), visible first
+    const parts = (field || "").split(".");
+    for (let n = parts.length; n > 0; n--) {
+      const name = parts.slice(0, n).join(".");
+      const slots = [...root.querySelectorAll('[data-error-for="' + CSS.escape(name) + '"]')];
+      const slot = slots.find((x) => !x.closest("[hidden]")) || slots[0];
+      if (slot) {
+        const inputs = [...root.querySelectorAll('[data-field="' + CSS.escape(name) + '"]')];
+        return { slot, input: inputs.find((x) => !x.closest("[hidden]")) || inputs[0] || null };
+      }
+    }
+    return { slot: fallback, input: null };
+  }
+
+  function showProblem(root, problem, fallback) {
+    const errors = problem.errors && problem.errors.length ? problem.errors
+      : [{ field: problem.field || null, message: problem.detail || problem.title }];
+    for (const e of errors) {
+      const { slot, input } = errorSlot(root, e.field, fallback);
+      const text = slot === fallback && e.field ? e.field + ": " + e.message : e.message;
+      slot.textContent = slot.textContent ? slot.textContent + "; " + text : text;
+      if (input) input.classList.add("invalid");
+      const details = slot.closest("details");
+      if (details) details.open = true;
+    }
+    return problem.title || "error";
+  }
+
+  async function problemOf(response) {
+    try {
+      return await response.json();
+    } catch (e) {
+      return { title: response.status + " " + response.statusText };
+    }
+  }
+
+  // ---- page helpers shared by both pages ------------------------------------------------
+
+  async function post(url, body, form, fallback) {
+    // POST JSON; on an error answer, its problem details go next to the fields and null
+    // is returned with the problem's title as ``post.title``
+    const response = await fetch(url, {
+      method: "POST",
+      headers: { "Content-Type": "application/json", Accept: "application/json" },
+      body: JSON.stringify(body),
+    });
+    if (response.ok) return { ok: true, body: await response.json() };
+    return { ok: false, title: showProblem(form, await problemOf(response), fallback) };
+  }
+
+  function showWarnings(list, warnings) {
+    list.textContent = "";
+    for (const w of warnings || []) list.appendChild(el("li", {}, w));
+  }
+
+  function shareLink(link, params) {
+    // the page's own URL with ``params`` (key, spec, ...) as its query: a link to this result
+    const url = new URL(window.location.href);
+    url.search = "";
+    for (const [k, v] of Object.entries(params)) {
+      if (v !== undefined && v !== null) url.searchParams.set(k, typeof v === "string" ? v : JSON.stringify(v));
+    }
+    link.href = url.toString();
+    link.textContent = params.key.slice(0, 12) + "…";
+    window.history.replaceState(null, "", url.toString());
+  }
+
+  return {
+    deref, requestSchema, render, collect, clearErrors, showProblem, problemOf, show, unitOf,
+    showWarnings, shareLink, post,
+  };
+})();

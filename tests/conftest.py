@@ -1,0 +1,58 @@
+"""Fixtures shared by the test packages: a live server and a headless browser."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.live import chromium, uvicorn_server
+
+
+@pytest.fixture(scope="module")
+def server(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[str]:
+    """The base URL of ``uvicorn service.main:app`` in a subprocess, one per test module,
+    with a data directory of its own (:func:`tests.live.uvicorn_server`)."""
+    name = request.module.__name__.rpartition(".")[2]
+    log = tmp_path_factory.mktemp(f"{name}-log") / "uvicorn.log"
+    with uvicorn_server(tmp_path_factory.mktemp(f"{name}-data"), log) as url:
+        yield url
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Any]:
+    """Headless chromium (playwright ``Browser``); skipped locally, failed in CI, if absent."""
+    with chromium() as b:
+        yield b
+
+
+#: screenshots taken in this run, listed at the end of pytest's report
+_SCREENSHOTS: list[Path] = []
+
+
+@pytest.fixture
+def screenshot(tmp_path_factory: pytest.TempPathFactory) -> Callable[[Any, str], Path]:
+    """``screenshot(page, name)`` saves a PNG of the playwright ``page`` under the run's
+    temporary directory (``<basetemp>/screenshots/<name>.png``, not the repo) and returns
+    its path; pytest's summary lists every one."""
+    folder = tmp_path_factory.getbasetemp() / "screenshots"
+
+    def take(page: Any, name: str) -> Path:
+        folder.mkdir(exist_ok=True)
+        path = folder / f"{name}.png"
+        page.screenshot(path=str(path))
+        _SCREENSHOTS.append(path)
+        return path
+
+    return take
+
+
+def pytest_terminal_summary(terminalreporter: Any) -> None:
+    if _SCREENSHOTS:
+        terminalreporter.write_sep("-", "screenshots (browser tests)")
+        for path in _SCREENSHOTS:
+            terminalreporter.write_line(str(path))
