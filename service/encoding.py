@@ -18,6 +18,15 @@ import orjson
 _OPTIONS = orjson.OPT_SERIALIZE_NUMPY
 
 
+def _fallback(obj: Any) -> Any:
+    """What orjson hands back: numpy arrays it cannot write directly (not C-contiguous,
+    e.g. a transposed or strided view) become lists, other numpy values Python ones."""
+    tolist = getattr(obj, "tolist", None)
+    if callable(tolist):
+        return tolist()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+
 def dumps(obj: Any) -> bytes:
     """Compact JSON bytes of ``obj``; non-finite floats are written as null."""
-    return orjson.dumps(obj, option=_OPTIONS)
+    return orjson.dumps(obj, default=_fallback, option=_OPTIONS)
