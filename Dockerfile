@@ -1,14 +1,24 @@
 # syntax=docker/dockerfile:1
 # pipeflow REST service: docker build -t pipeflow . && docker run -p 8000:8000 -v pipeflow-data:/data pipeflow
+# A bind mount instead of the named volume must be writable by the container's user, uid
+# 10001 (chown 10001 DIR), or run as its owner: docker run --user "$(id -u):$(id -g)" ...
 
-# --- build: install the package and its dependencies into a virtualenv ------------------
+# --- build: install the dependencies, then the package, into a virtualenv -----------------
 FROM python:3.11-slim AS build
 ENV PIP_DISABLE_PIP_VERSION_CHECK=1 \
     PIP_NO_CACHE_DIR=1
 RUN python -m venv /opt/venv
 WORKDIR /src
-COPY . .
-RUN /opt/venv/bin/pip install --no-cache-dir .
+# dependencies (with the parquet extra) in their own layer, pinned by constraints.txt (from
+# pyproject.toml by the command in its header): a source change does not reinstall them
+COPY constraints.txt ./
+RUN /opt/venv/bin/pip install --no-cache-dir -r constraints.txt
+COPY pyproject.toml README.md ./
+COPY pipeflow ./pipeflow
+COPY service ./service
+COPY pipeflow_client ./pipeflow_client
+# the package alone; pip check fails the build if constraints.txt misses a dependency
+RUN /opt/venv/bin/pip install --no-cache-dir --no-deps . && /opt/venv/bin/pip check
 
 # --- runtime: the virtualenv only, as a non-root user ------------------------------------
 FROM python:3.11-slim AS runtime
@@ -18,6 +28,7 @@ ENV PATH=/opt/venv/bin:$PATH \
     OMP_NUM_THREADS=1 \
     OPENBLAS_NUM_THREADS=1 \
     MKL_NUM_THREADS=1 \
+    MPLCONFIGDIR=/tmp/matplotlib \
     PIPEFLOW_DATA_DIR=/data
 COPY --from=build /opt/venv /opt/venv
 RUN mkdir -p /data && chown 10001:10001 /data

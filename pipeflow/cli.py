@@ -271,9 +271,18 @@ def cmd_stability(args: argparse.Namespace) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    import uvicorn  # imported here: the library has no web imports
+    # imported here: the library has no web imports
+    import uvicorn
 
-    uvicorn.run("service.main:app", host=args.host, port=args.port, workers=args.workers)
+    from service.main import create_app
+    from service.settings import Settings
+
+    # one server process (the store allows one per data directory); --workers and
+    # --data-dir override PIPEFLOW_WORKERS and PIPEFLOW_DATA_DIR, the rest comes from there
+    overrides = {"workers": args.workers, "data_dir": args.data_dir}
+    settings = Settings(**{k: v for k, v in overrides.items() if v is not None})
+    print(f"pipeflow: data in {settings.data_dir}, {settings.workers} worker(s)", file=sys.stderr)
+    uvicorn.run(create_app(settings), host=args.host, port=args.port)
     return 0
 
 
@@ -388,7 +397,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1)")
     sp.add_argument("--port", type=int, default=8000, help="TCP port (default 8000)")
-    sp.add_argument("--workers", type=int, default=1, help="uvicorn worker processes")
+    sp.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="compute worker processes (as PIPEFLOW_WORKERS; default min(2, CPUs)); the "
+        "server itself is one process",
+    )
+    sp.add_argument(
+        "--data-dir",
+        type=Path,
+        metavar="DIR",
+        help="directory of the results and jobs store (as PIPEFLOW_DATA_DIR; default the "
+        "per-user data directory, ~/.local/share/pipeflow on Linux)",
+    )
     sp.set_defaults(func=cmd_serve)
     return p
 

@@ -398,6 +398,8 @@ def cma_exponents(
     how many of the lowest branches, or their eigenvalues at t = 0 (``Traces.xi[0]``).
     """
     t = np.asarray(times, dtype=float)
+    if loading.is_time_invariant:  # P(t)/t = S at every time: one decomposition
+        return select(*frozen_spectrum(model, loading, t), modes, damped=model.pipe.damped)
     mats = np.empty((t.size, model.size, model.size))
     pos = t > 0
     mats[~pos] = model.state_matrix(loading.coefficients(t[~pos]))

@@ -19,6 +19,7 @@ from service.compute import HitCache
 from service.middleware import BodyLimit, RequestContext
 from service.routes import (
     compare,
+    docs,
     exports,
     health,
     jobs,
@@ -48,6 +49,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        settings.ensure_data_dir()
         store = Store(settings.db_path, settings.cache_max_bytes, settings.memory_cache_bytes)
         runner = Runner(settings, store)
         app.state.store = store
@@ -65,24 +67,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # served offline by service.routes.docs
+        redoc_url=None,
     )
     app.state.settings = settings
     app.state.hits = HitCache(settings.hit_cache_bytes)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(RequestContext)  # outermost: 413s get a request id and a log line too
     problems.install(app)
-    for module in (
-        simulations,
-        jobs,
-        compare,
-        stability,
-        sweeps,
-        results,
-        exports,
-        health,
-        metrics,
-        viewer,
-    ):
+    routers = (simulations, jobs, compare, stability, sweeps, results, exports, health, metrics)
+    for module in (*routers, docs, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:

@@ -3,12 +3,21 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
+import platformdirs
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+def default_data_dir() -> Path:
+    """The per-user data directory: ``$XDG_DATA_HOME/pipeflow``, by default
+    ``~/.local/share/pipeflow`` on Linux (``platformdirs.user_data_dir``; the platform's
+    equivalent elsewhere), so the store does not depend on where the server was started."""
+    return Path(platformdirs.user_data_dir("pipeflow", appauthor=False))
 
 
 class Settings(BaseSettings):
@@ -17,7 +26,9 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="PIPEFLOW_", extra="ignore")
 
     data_dir: Path = Field(
-        Path("./var"), description="Directory of the SQLite store (results cache and jobs)."
+        default_factory=default_data_dir,
+        description="Directory of the SQLite store (results cache and jobs); one server "
+        "process per directory. Default: the per-user data directory (default_data_dir).",
     )
     workers: int = Field(
         default_factory=lambda: max(1, min(2, os.cpu_count() or 1)),
@@ -66,6 +77,28 @@ class Settings(BaseSettings):
     @property
     def db_path(self) -> Path:
         return self.data_dir / "pipeflow.sqlite3"
+
+    def ensure_data_dir(self) -> Path:
+        """Create :attr:`data_dir` if needed and check this process may write there; raises
+        :class:`DataDirError` saying how to fix it (a root-owned bind mount, typically)."""
+        path = self.data_dir
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryFile(dir=path):
+                pass
+        except OSError as exc:
+            uid = os.getuid() if hasattr(os, "getuid") else "this user"
+            raise DataDirError(
+                f"PIPEFLOW_DATA_DIR={path} is not a writable directory for uid {uid} "
+                f"({exc.strerror}): give that user the directory (chown {uid} {path}), run "
+                'as its owner (docker run --user "$(id -u):$(id -g)"), or set '
+                "PIPEFLOW_DATA_DIR to a writable directory"
+            ) from exc
+        return path
+
+
+class DataDirError(RuntimeError):
+    """The data directory cannot be written: the server refuses to start."""
 
 
 @lru_cache(maxsize=1)

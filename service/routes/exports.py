@@ -41,6 +41,10 @@ _draw_lock = threading.Lock()
 #: stored results never change under a key (the key hashes the inputs and the version)
 IMMUTABLE = "public, max-age=86400, immutable"
 
+#: a binary body in OpenAPI (3.1 reads format "binary" as raw bytes; generated clients return
+#: the bytes as a file rather than trying to parse them as JSON)
+BINARY = {"type": "string", "format": "binary"}
+
 Table = Literal["history", "eigenvalues", "cma_exponents", "mode_shapes"]
 TABLE_DESCRIPTION = "CSV/Parquet table: " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
 #: format name -> media type of the tables (JSON is the result document itself)
@@ -48,7 +52,7 @@ TABLE_MEDIA_TYPES = {"csv": CSV_MEDIA_TYPE, "parquet": PARQUET_MEDIA_TYPE}
 #: OpenAPI content of a 200 that may be a table (binary Parquet, CSV text)
 TABLE_CONTENT: dict[str, Any] = {
     CSV_MEDIA_TYPE: {"schema": {"type": "string"}},
-    PARQUET_MEDIA_TYPE: {"schema": {"type": "string", "format": "binary"}},
+    PARQUET_MEDIA_TYPE: {"schema": BINARY},
 }
 
 
@@ -140,7 +144,7 @@ def _render(body: bytes, name: str, fmt: str) -> bytes:
     response_class=Response,
     responses={
         200: {
-            "content": {"image/png": {}, "image/svg+xml": {}},
+            "content": {media: {"schema": BINARY} for media in plots.MEDIA_TYPES.values()},
             "description": "The figure; axis labels carry SI units.",
         },
         **responses(304, 404, 422),

@@ -139,10 +139,30 @@ def test_stability_refuses_a_simulation_spec(
     assert "not a stability spec" in capsys.readouterr().err
 
 
-def test_serve_runs_uvicorn_on_the_app(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_serve_runs_one_server_process_with_n_compute_workers(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--workers is the compute pool (PIPEFLOW_WORKERS), never uvicorn's server processes:
+    N servers on one data directory is what the store forbids."""
     import uvicorn
 
     calls: list[tuple[Any, dict[str, Any]]] = []
     monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append((app, kw)))
-    assert main(["serve", "--port", "8123"]) == 0
-    assert calls == [("service.main:app", {"host": "127.0.0.1", "port": 8123, "workers": 1})]
+    monkeypatch.setenv("PIPEFLOW_WORKERS", "2")
+    monkeypatch.setenv("PIPEFLOW_QUEUE_SIZE", "7")
+    monkeypatch.setenv("PIPEFLOW_DATA_DIR", str(tmp_path / "env"))
+    assert main(["serve", "--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]) == 0
+    ((app, kw),) = calls
+    assert kw == {"host": "127.0.0.1", "port": 8123}  # no "workers": one server process
+    settings = app.state.settings
+    assert (settings.workers, settings.data_dir, settings.queue_size) == (3, tmp_path, 7)
+    assert f"data in {tmp_path}, 3 worker(s)" in capsys.readouterr().err
+
+    # without the flags the environment decides, as for uvicorn service.main:app
+    calls.clear()
+    assert main(["serve"]) == 0
+    settings = calls[0][0].state.settings
+    assert (settings.workers, settings.data_dir) == (2, tmp_path / "env")
+
+    assert main(["serve", "--workers", "0"]) == 2
+    assert "workers: Input should be greater than or equal to 1" in capsys.readouterr().err

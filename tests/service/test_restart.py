@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -19,6 +18,7 @@ from pathlib import Path
 import httpx
 
 from pipeflow.spec import PAPER_EXAMPLE
+from tests.live import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -31,16 +31,9 @@ SLOW_JOB = {
 }
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
 @contextmanager
 def _server(data_dir: Path) -> Iterator[tuple[subprocess.Popen[bytes], str]]:
-    port = _free_port()
+    port = free_port()
     env = {**os.environ, "PIPEFLOW_DATA_DIR": str(data_dir), "PIPEFLOW_WORKERS": "1"}
     proc = subprocess.Popen(
         [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(port)],
