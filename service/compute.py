@@ -9,6 +9,11 @@ result) or :func:`accept_job` (answer 202 with a job); the OpenAPI pieces they s
 from __future__ import annotations
 
 import asyncio
+import gzip
+import re
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
@@ -47,16 +52,132 @@ def envelope(key: str, cached: bool, body: bytes) -> bytes:
     return head + (b"," + rest if rest.strip() != b"}" else b"}")
 
 
-def result_response(key: str, cached: bool, body: bytes) -> Response:
-    return Response(
-        envelope(key, cached, body),
-        media_type="application/json",
-        headers={
-            "X-Cache": "HIT" if cached else "MISS",
-            "ETag": f'"{key}"',
-            "Content-Location": f"/v1/results/{key}",
-        },
-    )
+#: answers shorter than this are sent uncompressed [bytes] (gzip's header costs ~20)
+GZIP_MIN_BYTES = 1024
+#: zlib level of the pre-compressed hit answers (compressed once per key, sent many times)
+GZIP_LEVEL = 6
+
+
+@dataclass(frozen=True)
+class Encoded:
+    """One answer body as sent: ``identity`` bytes and, when worth it, their ``gzip``."""
+
+    identity: bytes
+    gzip: bytes | None = None
+
+    @property
+    def size(self) -> int:
+        return len(self.identity) + len(self.gzip or b"")
+
+
+def encode(body: bytes) -> Encoded:
+    """``body`` with its gzip (deterministic: mtime 0) when at least GZIP_MIN_BYTES long."""
+    if len(body) < GZIP_MIN_BYTES:
+        return Encoded(body)
+    return Encoded(body, gzip.compress(body, GZIP_LEVEL, mtime=0))
+
+
+class HitCache:
+    """The cache-hit answers (envelope bytes and their gzip) by key, least recently used
+    evicted beyond ``max_bytes`` in total: a hit is answered on the event loop, with no
+    store read, no thread hop, no parse and no re-encode.  Results are immutable per key
+    (the key hashes the normalised request and the version); a recomputation
+    (``refresh``) drops the entry."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = max_bytes
+        self._items: OrderedDict[str, Encoded] = OrderedDict()
+        self._size = 0
+        self._lock = threading.Lock()  # put() runs in worker threads too
+
+    def get(self, key: str) -> Encoded | None:
+        with self._lock:
+            value = self._items.get(key)
+            if value is not None:
+                self._items.move_to_end(key)
+            return value
+
+    def put(self, key: str, value: Encoded) -> None:
+        with self._lock:
+            self._pop(key)
+            if value.size > self.max_bytes:
+                return
+            self._items[key] = value
+            self._size += value.size
+            while self._size > self.max_bytes:
+                _, old = self._items.popitem(last=False)
+                self._size -= old.size
+
+    def pop(self, key: str) -> None:
+        with self._lock:
+            self._pop(key)
+
+    def _pop(self, key: str) -> None:
+        old = self._items.pop(key, None)
+        if old is not None:
+            self._size -= old.size
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+
+_CODING = re.compile(r"\s*([A-Za-z0-9*_-]+)\s*(?:;\s*q\s*=\s*([0-9.]+))?\s*")
+
+
+def accepts_gzip(accept_encoding: str | None) -> bool:
+    """RFC 9110 section 12.5.3: gzip (or ``*``) listed with a q-value above 0."""
+    if not accept_encoding:
+        return False
+    q_of: dict[str, float] = {}
+    for part in accept_encoding.split(","):
+        m = _CODING.fullmatch(part)
+        if m is None:
+            continue
+        try:
+            q = float(m.group(2)) if m.group(2) is not None else 1.0
+        except ValueError:
+            continue
+        q_of[m.group(1).lower()] = q
+    q = q_of.get("gzip", q_of.get("x-gzip", q_of.get("*", 0.0)))
+    return q > 0
+
+
+@dataclass(frozen=True)
+class Hit:
+    """The per-request part of the hit path: the app's :class:`HitCache` and whether the
+    client accepts gzip (see :func:`service.deps.get_hit`)."""
+
+    cache: HitCache | None = None
+    gzip: bool = False
+
+
+def result_response(
+    key: str, cached: bool, body: bytes | Encoded, gzip_ok: bool = False
+) -> Response:
+    """A result answer: the envelope (or ``Encoded`` envelope), gzip when accepted and
+    available, with X-Cache, the key as strong ETag, Content-Location and Vary."""
+    encoded = body if isinstance(body, Encoded) else Encoded(envelope(key, cached, body))
+    headers = {
+        "X-Cache": "HIT" if cached else "MISS",
+        "ETag": f'"{key}"',
+        "Content-Location": f"/v1/results/{key}",
+        "Vary": "Accept-Encoding",
+    }
+    content = encoded.identity
+    if gzip_ok and encoded.gzip is not None:
+        content = encoded.gzip
+        headers["Content-Encoding"] = "gzip"
+    return Response(content, media_type="application/json", headers=headers)
+
+
+async def hit_response(key: str, body: bytes, hit: Hit | None) -> Response:
+    """The HIT answer for the stored ``body``: encoded (and compressed, off the event loop)
+    once, then kept in the hit cache."""
+    if hit is None or hit.cache is None:
+        return result_response(key, True, body)
+    encoded = await asyncio.to_thread(encode, envelope(key, True, body))
+    hit.cache.put(key, encoded)
+    return result_response(key, True, encoded, hit.gzip)
 
 
 def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
@@ -68,13 +189,24 @@ def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
     )
 
 
-async def run_sync(runner: Runner, store: Store, job: Keyed, refresh: bool) -> Response:
-    """Serve the result of ``job``: from the cache, or computed now (once per key)."""
+async def run_sync(
+    runner: Runner, store: Store, job: Keyed, refresh: bool, hit: Hit | None = None
+) -> Response:
+    """Serve the result of ``job``: from the cache, or computed now (once per key).
+
+    With ``hit`` (the app's hit cache, see :class:`Hit`), a hit is answered from memory as
+    its pre-encoded bytes, gzip when the client accepts it."""
     key = job.key
+    cache = hit.cache if hit is not None else None
     if not refresh:
+        encoded = cache.get(key) if cache is not None else None
+        if encoded is not None:
+            return result_response(key, True, encoded, hit is not None and hit.gzip)
         body = await asyncio.to_thread(store.get_result, key)
         if body is not None:
-            return result_response(key, True, body)
+            return await hit_response(key, body, hit)
+    if cache is not None:
+        cache.pop(key)  # a recomputation replaces the stored result
     try:
         task = await runner.submit(job, force=refresh)
         body = await asyncio.shield(task)

@@ -28,7 +28,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from pipeflow.schema.registry import COMPUTATIONS
-from service import worker
+from service import observability, worker
 from service.keys import Keyed
 from service.settings import Settings
 from service.store import Store
@@ -127,6 +127,7 @@ class Runner:
             max_workers=self.settings.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=worker.init,
+            initargs=(self.settings.log_level, self.settings.log_format),
         )
 
     @staticmethod
@@ -231,7 +232,14 @@ class Runner:
             if body is not None:  # computed between the caller's cache check and now
                 await asyncio.to_thread(self.store.finish_job, key, "succeeded")
                 return body
+        started = time.perf_counter()
         status, payload = await self._execute(job)
+        observability.record_computation(
+            name,
+            "error" if status == "error" else status,
+            time.perf_counter() - started,
+            payload if status == "ok" else None,
+        )
         if status == "ok":
             await asyncio.to_thread(self.store.put_result, key, name, payload)
             await asyncio.to_thread(self.store.finish_job, key, "succeeded")
@@ -261,6 +269,7 @@ class Runner:
                     str(self.store.path),
                     self.settings.job_timeout_s,
                     self.settings.progress_interval_s,
+                    observability.request_id(),
                 )
             except BrokenProcessPool:
                 flight = self._flights.get(key)

@@ -27,7 +27,7 @@ from pipeflow.schema.registry import (
     response_type,
 )
 from service.compute import CACHE_HEADERS, JOB_ACCEPTED, Refresh, accept_job, run_sync
-from service.deps import RunnerDep, StoreDep
+from service.deps import HitDep, RunnerDep, StoreDep
 from service.keys import keyed
 from service.negotiation import JSON, accepts, json_body
 from service.problems import responses
@@ -67,9 +67,10 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         request: body,
         runner: RunnerDep,
         store: StoreDep,
+        hit: HitDep,
         refresh: Refresh = False,
     ) -> Response:
-        return await run_sync(runner, store, keyed(which(request), request), refresh)
+        return await run_sync(runner, store, keyed(which(request), request), refresh, hit)
 
     async def submit(
         request: body,

@@ -8,8 +8,8 @@ from typing import Annotated, Any, Literal, Union
 from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
 from pipeflow.schema.registry import COMPUTATIONS
-from service.compute import CACHE_HEADERS, result_response
-from service.deps import RunnerDep, StoreDep
+from service.compute import CACHE_HEADERS, hit_response, result_response
+from service.deps import HitDep, RunnerDep, StoreDep
 from service.negotiation import JSON, accepts
 from service.problems import ProblemError, responses
 from service.routes.exports import (
@@ -54,6 +54,7 @@ async def get_result(
     key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
     store: StoreDep,
     runner: RunnerDep,
+    hit: HitDep,
     if_none_match: Annotated[str | None, Header()] = None,
     # content negotiation, not a parameter: the 200's media types document it
     accept: Annotated[str | None, Header(include_in_schema=False)] = None,
@@ -79,11 +80,16 @@ async def get_result(
             raise ProblemError(404, f"no result {key}", slug="unknown-key")
         # parse the stored JSON and write the table off the event loop: results can be MBs
         return await asyncio.to_thread(table_response, key, body, table, fmt)
+    encoded = hit.cache.get(key) if hit.cache is not None else None
     if if_none_match is not None and _matches(if_none_match, key):
-        if await asyncio.to_thread(store.has_result, key):
-            return Response(status_code=304, headers={"ETag": f'"{key}"'})
+        if encoded is not None or await asyncio.to_thread(store.has_result, key):
+            return Response(
+                status_code=304, headers={"ETag": f'"{key}"', "Vary": "Accept-Encoding"}
+            )
+    if encoded is not None:
+        return result_response(key, True, encoded, hit.gzip)
     body = await asyncio.to_thread(store.get_result, key)
     if body is None:
         pending = " yet; its job is still in progress" if runner.is_active(key) else ""
         raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
-    return result_response(key, True, body)
+    return await hit_response(key, body, hit)

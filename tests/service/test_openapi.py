@@ -37,6 +37,7 @@ def test_operations_errors_and_example() -> None:
         "getResultPlot",
         "getHealth",
         "getReadiness",
+        "getMetrics",
     }
     # every computing endpoint has the same pair: the result, and the job form
     for path in ("/v1/simulations", "/v1/compare", "/v1/stability"):
