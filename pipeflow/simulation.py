@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
 from pipeflow.model import (
@@ -50,7 +51,7 @@ class Simulation:
     spin : spin profile w0(t) [rad/s].
     u0, du0 : initial amplitude [m] and velocity amplitude [m/s] of the initial shape.
     initial_shape : "paper" (eq. 3's phi_1, tip value 2.7244 u0) or "tip" (u0 is the tip).
-    modes : number of Galerkin modes n (1..40).
+    modes : number of Galerkin modes n (1..MAX_MODES = 40).
     t_end : simulated duration [s]; samples : number of output times (incl. 0 and t_end).
     method : solver name (see ``pipeflow.solvers.SOLVERS``); "auto" (the default) runs
         "cma" for constant flow and spin, where it is exact, and "magnus" otherwise;
@@ -203,8 +204,8 @@ def validate(sim: Simulation) -> None:
         raise InvalidInput("t_end must be finite and > 0 s", parameter="t_end")
     if sim.samples < 2:
         raise InvalidInput("samples must be >= 2", parameter="samples")
-    if not 1 <= sim.modes <= 40:
-        raise InvalidInput("modes must be between 1 and 40", parameter="modes")
+    if not 1 <= sim.modes <= MAX_MODES:
+        raise InvalidInput(f"modes must be between 1 and {MAX_MODES}", parameter="modes")
     if sim.initial_shape not in ("paper", "tip"):
         raise InvalidInput(
             f"unknown initial shape {sim.initial_shape!r}; use 'paper' or 'tip'",
@@ -398,6 +399,8 @@ def cma_exponents(
     how many of the lowest branches, or their eigenvalues at t = 0 (``Traces.xi[0]``).
     """
     t = np.asarray(times, dtype=float)
+    if loading.is_time_invariant:  # P(t)/t = S at every time: one decomposition
+        return select(*frozen_spectrum(model, loading, t), modes, damped=model.pipe.damped)
     mats = np.empty((t.size, model.size, model.size))
     pos = t > 0
     mats[~pos] = model.state_matrix(loading.coefficients(t[~pos]))

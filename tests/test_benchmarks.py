@@ -28,8 +28,10 @@ def test_benchmark_runs_one_tiny_case() -> None:
     agree with it to 1e-8 relative state error (measured ~1e-11), and so must magnus
     (measured ~1e-13 to 1e-15): 2 modes, 0.02 s, 21 samples."""
     bench = _load()
-    s = bench.Setup(modes=2, t_end=0.02, samples=21, repeats=1, ivp_timeout=10.0, rtols=(1e-9,))
     model = build_model(PAPER_PIPE, 2)
+    s = bench.Setup(
+        modes=2, t_end=0.02, samples=21, repeats=1, ivp_timeout=10.0, rtols=(1e-9,), model=model
+    )
     t = np.linspace(0.0, s.t_end, s.samples)
     for flow in (Constant(0.4), polynomial(0, 0.4)):
         rows = bench.run_case(model, flow, t, s)
@@ -39,3 +41,54 @@ def test_benchmark_runs_one_tiny_case() -> None:
         assert magnus["err"] < 1e-8
         dop853 = next(r for r in rows if r["name"] == "solve_ivp DOP853")
         assert dop853["err"] < 1e-8
+
+
+def test_quick_run_prints_every_issue_9_target(capsys) -> None:  # type: ignore[no-untyped-def]
+    """``run.py --quick`` (2 modes, 0.05 s) prints the targets table of issue 9 with one
+    row per target and a verdict on each (numbers not asserted: timing is not a test)."""
+    bench = _load()
+    assert bench.main(["--quick", "--skip-service", "--skip-scaling"]) == 0
+    text = capsys.readouterr().out
+    table = text.split("## Issue 9, section 3")[1]
+    for target in (
+        "simulate() on v = 0.4 (LTI, cma) <= 3x the solver",
+        "cma error check <= 25% of the cma solve (v=2+sin50t)",
+        "rk4 error check",
+        "time-variant cma by the batched exponential",
+        "magnus >= 100x the fastest solve_ivp at 1e-8 tip error (v=2+sin50t)",
+        "simulate() on the paper example",
+        "peak memory at 10001 samples (LTI cma) <= 2x the output",
+    ):
+        row = next(line for line in table.splitlines() if target in line)
+        assert row.rstrip().endswith(("met |", "**missed** |", "n/a |")), row
+
+
+def test_service_benchmark_smoke(tmp_path: Path) -> None:
+    """benchmarks/service.py --smoke runs every row against a real server (wrk included)
+    and writes its section; the mixed load has no errors.  No timing is asserted: the
+    targets are the benchmark's business, not CI's."""
+    import re
+    import shutil
+    import subprocess
+
+    from tests.live import ROOT, need
+
+    need(shutil.which("wrk") is not None, "wrk is absent (apt-get install -y wrk)")
+    out = tmp_path / "RESULTS.md"
+    out.write_text("# results\n\n## other section\n\nkept\n")
+    proc = subprocess.run(
+        [sys.executable, "benchmarks/service.py", "--smoke", "--label", "smoke", "--out", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    text = out.read_text()
+    assert "## other section\n\nkept" in text
+    section = text.split("## Service benchmark: smoke", 1)[1]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line]
+    assert len(rows) == 1 + 7, rows  # header + the issue's six targets (wrk with and without gzip)
+    for what in ("cold LTI", "fresh worker", "paper example", "one client", "wrk", "mixed"):
+        assert any(what in r for r in rows), what
+    assert re.search(r"\| 0 errors / [1-9]\d*", section), section

@@ -30,12 +30,17 @@ import contextlib
 import functools
 import logging
 import time
+from collections.abc import Awaitable
 from dataclasses import dataclass, field
 from typing import Any
 
-from service.engine.task import TaskConfig, run_job
+from pydantic import BaseModel, ValidationError
+
+from pipeflow.schema.registry import COMPUTATIONS
+from service import observability
+from service.engine.task import Outcome, TaskConfig, run_job
 from service.engine.worker import WORKER_ENV
-from service.kinds import KINDS, JobKind
+from service.keys import Keyed
 from service.settings import Settings
 from service.store import Job, StorageError, Store
 
@@ -65,12 +70,19 @@ class ComputationCancelled(Exception):
 
 @dataclass
 class Flight:
-    kind: JobKind
-    key: str
+    job: Keyed
     task: asyncio.Task[bytes] | None = None
     accepted: asyncio.Event = field(default_factory=asyncio.Event)
     changed: asyncio.Event = field(default_factory=asyncio.Event)
     resubmits: int = 0
+    #: a DELETE asked this run to stop: a resubmission waits for it and starts a new run
+    cancelled: bool = False
+    #: how long the last finished attempt computed [s] (for the computation metrics)
+    seconds: float | None = None
+
+    @property
+    def key(self) -> str:
+        return self.job.key
 
 
 def _internal(detail: str) -> dict[str, Any]:
@@ -114,7 +126,11 @@ class Runner:
                 processes=True,
                 dashboard_address=None,
                 asynchronous=True,
-                env=WORKER_ENV,
+                env=dict(
+                    WORKER_ENV,
+                    PIPEFLOW_LOG_LEVEL=self.settings.log_level,
+                    PIPEFLOW_LOG_FORMAT=self.settings.log_format,
+                ),
                 preload=["service.engine.worker"],
                 silence_logs=logging.WARNING,
             )
@@ -185,33 +201,37 @@ class Runner:
     # -- submission ----------------------------------------------------------------------
 
     async def submit(
-        self,
-        kind: JobKind,
-        key: str,
-        spec: dict[str, Any],
-        *,
-        force: bool = False,
-        recover: bool = False,
+        self, job: Keyed, *, force: bool = False, recover: bool = False
     ) -> asyncio.Task[bytes]:
-        """The in-flight task for ``key``, started if needed, once its job record is written.
+        """The in-flight task for ``job.key``, started if needed, once its record is written.
 
-        ``spec`` is the canonical JSON form; ``force`` recomputes even if a result is
-        stored; ``recover`` drives a record that is already active and bypasses the bound.
+        ``force`` recomputes even if a result is stored; ``recover`` drives a record that
+        is already active and bypasses the bound.  A run that a DELETE asked to stop
+        (:meth:`cancel`) is never shared: the resubmission waits until it has stopped (its
+        task checks the flag at its next heartbeat), then starts a new run.
         Raises :class:`QueueFull`, or :class:`StorageError` when the store is failing.
         """
+        key = job.key
         if not recover and not self.store.healthy:
             raise self.store.unavailable()  # its result could not be stored either
+        while (old := self._flights.get(key)) is not None and old.cancelled:
+            assert old.task is not None
+            with contextlib.suppress(Exception, asyncio.CancelledError):
+                await asyncio.shield(old.task)
+            if self._flights.get(key) is old:  # its done-callback has not run yet
+                del self._flights[key]
         flight = self._flights.get(key)
         if flight is None:
             if not recover and self.saturated:
                 raise QueueFull(f"{self.in_flight} computations in flight")
-            flight = Flight(kind, key)
+            flight = Flight(job)
             self._flights[key] = flight
-            flight.task = asyncio.create_task(self._drive(flight, spec, force, recover))
+            flight.task = asyncio.create_task(self._drive(flight, force, recover))
             flight.task.add_done_callback(functools.partial(self._done, flight))
         elif not recover:
-            # joining: a cancelled or finished record is accepted again (a new generation)
-            await asyncio.to_thread(self.store.enqueue_job, key, kind.name, spec, refresh=force)
+            # joining: a finished record is accepted again (a new generation)
+            name = job.computation.name
+            await asyncio.to_thread(self.store.enqueue_job, key, name, job.canonical, refresh=force)
             flight.changed.set()
         await flight.accepted.wait()
         assert flight.task is not None
@@ -221,6 +241,14 @@ class Runner:
                 raise exc
         return flight.task
 
+    def cancel(self, key: str) -> None:
+        """Mark the run of ``key`` (if any) as asked to stop; see :meth:`submit`.  The job
+        record's cancel flag, which the task reads, is set by the caller."""
+        flight = self._flights.get(key)
+        if flight is not None:
+            flight.cancelled = True
+            flight.changed.set()
+
     def _done(self, flight: Flight, task: asyncio.Task[bytes]) -> None:
         if self._flights.get(flight.key) is flight:
             del self._flights[flight.key]
@@ -228,17 +256,17 @@ class Runner:
             task.exception()  # retrieved here so an unobserved job failure is not logged twice
 
     async def _recover(self, job: Job) -> None:
-        kind = KINDS.get(job.kind)
-        if kind is None:
-            await asyncio.to_thread(
-                self.store.finish_job,
-                job.key,
-                "failed",
-                _internal(f"unknown job kind {job.kind!r} after restart"),
-            )
+        computation = COMPUTATIONS.get(job.kind)
+        try:
+            if computation is None:
+                raise LookupError(f"unknown job kind {job.kind!r} after restart")
+            # a stored request is validated like a new one (once, for this run)
+            request: BaseModel = computation.request.model_validate(job.spec)
+        except (LookupError, ValidationError) as exc:
+            await asyncio.to_thread(self.store.finish_job, job.key, "failed", _internal(str(exc)))
             return
         log.info("recovering %s job %s (%s)", job.kind, job.key, job.status)
-        await self.submit(kind, job.key, job.spec, recover=True)
+        await self.submit(Keyed(computation, request, job.spec, job.key), recover=True)
 
     def _config(self) -> TaskConfig:
         s = self.settings
@@ -251,7 +279,13 @@ class Runner:
             grace_s=max(self.watchdog_grace_s, 0.1 * s.job_timeout_s),
         )
 
-    def _submit_task(self, flight: Flight, job: Job) -> Any:
+    def _submit_task(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
+        """Start the task of ``job`` (:func:`service.engine.task.run_job`) and count it;
+        the seam tests replace to run it elsewhere."""
+        self.computations += 1
+        return self._execute(flight, job)
+
+    def _execute(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
         from distributed import fire_and_forget
 
         dask_key = f"{job.kind}-{job.key}-g{job.generation}-a{job.attempts}"
@@ -259,18 +293,17 @@ class Runner:
             dask_key += f"-r{flight.resubmits}"
         fut = self.client.submit(
             run_job,
-            flight.kind.function,
-            flight.kind.spec,
-            flight.kind.name,
+            flight.job.computation,
+            flight.job.request,
             job.key,
-            job.spec,
             self._config(),
+            observability.request_id(),
             key=dask_key,
             pure=False,
         )
         fire_and_forget(fut)  # runs to the end even if this replica goes away
-        self.computations += 1
-        return fut
+        awaitable: Awaitable[Outcome] = fut
+        return awaitable
 
     async def _wait(self, flight: Flight, waiter: asyncio.Future[Any] | None) -> None:
         """Until ``waiter`` is done, the monitor flags a change, or one poll interval."""
@@ -283,19 +316,56 @@ class Runner:
             changed.cancel()
         flight.changed.clear()
 
-    async def _drive(
-        self, flight: Flight, spec: dict[str, Any], force: bool, recover: bool
-    ) -> bytes:
-        key, kind = flight.key, flight.kind
+    async def _drive(self, flight: Flight, force: bool, recover: bool) -> bytes:
+        started = time.perf_counter()
+        try:
+            body = await self._drive_once(flight, force, recover)
+        except ComputationCancelled:
+            self._record(flight, "cancelled", started, None)
+            raise
+        except ComputationFailed:
+            self._record(flight, "error", started, None)
+            raise
+        self._record(flight, "ok", started, body)
+        return body
+
+    def _record(self, flight: Flight, outcome: str, started: float, body: bytes | None) -> None:
+        """Count a computation this flight saw finish (not a result found stored)."""
+        if flight.seconds is None and outcome != "cancelled":
+            return
+        seconds = flight.seconds if flight.seconds is not None else time.perf_counter() - started
+        observability.record_computation(flight.job.computation.name, outcome, seconds, body)
+
+    async def _stopped(self, flight: Flight, waiter: asyncio.Future[Any] | None) -> None:
+        """A DELETE asked this run to stop: wait until its task has stopped (or never
+        took the lease), reading the record through the monitor's query only."""
+        while waiter is not None and not waiter.done():
+            records = await asyncio.to_thread(self.store.jobs_by_key, [flight.key])
+            record = records.get(flight.key)
+            if record is None or record.owner is None:
+                break  # not computing: the task finds the record cancelled when it starts
+            await self._wait(flight, waiter)
+        raise ComputationCancelled("cancelled by request")
+
+    async def _drive_once(self, flight: Flight, force: bool, recover: bool) -> bytes:
+        key, job_in = flight.key, flight.job
         try:
             if not recover:
-                await asyncio.to_thread(self.store.enqueue_job, key, kind.name, spec, refresh=force)
+                await asyncio.to_thread(
+                    self.store.enqueue_job,
+                    key,
+                    job_in.computation.name,
+                    job_in.canonical,
+                    refresh=force,
+                )
         finally:
             flight.accepted.set()
         await self._connected.wait()
         waiter: asyncio.Future[Any] | None = None
         tag: tuple[int, int] | None = None
         while True:
+            if flight.cancelled:
+                await self._stopped(flight, waiter)
             try:
                 job = await asyncio.to_thread(self.store.get_job, key)
             except StorageError:
@@ -304,6 +374,9 @@ class Runner:
             if job is None:
                 raise ComputationFailed(_internal(f"the record of job {key} disappeared"))
             if not job.active:
+                if waiter is not None and job.started is not None and job.finished is not None:
+                    # our task finished it (its own answer may still be on the way)
+                    flight.seconds = job.finished - job.started
                 return await self._outcome(job)
             if waiter is not None and not waiter.done():
                 await self._wait(flight, waiter)
@@ -311,6 +384,8 @@ class Runner:
             if waiter is not None:
                 outcome = waiter.result()
                 waiter = None
+                if outcome[2] is not None:
+                    flight.seconds = outcome[2]
                 if outcome[0] == "storage":
                     await self._storage_failure(key, *outcome[1])
                 if outcome[0] == "exception":
@@ -344,14 +419,13 @@ class Runner:
             waiter = asyncio.ensure_future(self._result_of(self._submit_task(flight, job)))
 
     @staticmethod
-    async def _result_of(fut: Any) -> tuple[str, Any]:
+    async def _result_of(fut: Awaitable[Outcome]) -> Outcome:
         try:
-            outcome: tuple[str, Any] = await fut
-            return outcome
+            return await fut
         except asyncio.CancelledError:
-            return ("exception", "cancelled by the scheduler (restarted or lost)")
+            return ("exception", "cancelled by the scheduler (restarted or lost)", None)
         except Exception as exc:
-            return ("exception", f"{type(exc).__name__}: {exc}")
+            return ("exception", f"{type(exc).__name__}: {exc}", None)
 
     async def _storage_failure(self, key: str, message: str, full: bool) -> None:
         """The task could not store its result: fail the job with the reason (if the store

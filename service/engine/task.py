@@ -9,16 +9,19 @@ that stops reporting is still held to the runtime limit: past it plus a grace pe
 heartbeat thread fails the job with the reason and kills its own worker process (the
 nanny starts a fresh one).
 
-The return value is small (the body goes to the store): ``(outcome, detail)`` with
+The return value is small (the body goes to the store): ``(outcome, detail, seconds)``
+(``seconds`` [s]: how long the computation ran, None when it did not) with
 outcome ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
 already) | ``elsewhere`` (a live attempt holds the lease) | ``lost`` (another attempt took
 the lease) | ``storage`` (the store refused a write; detail = (message, full)).
-Errors travel as problem dicts, never as pickled exceptions.
+Errors travel as problem dicts, never as pickled exceptions.  The request arrives
+validated by the route (pickled, not validated again) and the result is encoded by
+:func:`service.encoding.dumps` (non-finite numbers become null).  The log lines of a
+computation (logger ``service.worker``) carry the id of the request that started it.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import signal
@@ -26,19 +29,24 @@ import socket
 import threading
 import time
 import uuid
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from numpy.linalg import LinAlgError
 
 from pipeflow.errors import Cancelled, PipeflowError
+from service import encoding, observability
 from service.problems import pipeflow_problem, problem
 from service.store import StorageError, Store
 
 log = logging.getLogger("service.engine.task")
+#: the computation's own lines (started, finished), with the request id
+work_log = logging.getLogger("service.worker")
 
-Outcome = tuple[str, Any]
+if TYPE_CHECKING:
+    from pipeflow.schema.registry import Computation
+
+Outcome = tuple[str, Any, float | None]
 
 
 @dataclass(frozen=True)
@@ -116,54 +124,67 @@ class _Heartbeat(threading.Thread):
 
 
 def run_job(
-    function: Callable[[Any, Callable[[float], None]], dict[str, Any]],
-    spec_model: Any,
-    kind: str,
+    computation: Computation,
+    request: Any,
     key: str,
-    spec: dict[str, Any],
     cfg: TaskConfig,
+    request_id: str | None = None,
 ) -> Outcome:
-    """Compute the job ``key`` of ``kind`` (``function(spec_model(spec), progress)``) once."""
+    """Compute the job ``key`` (``computation.execute(request, progress)``) once.
+
+    ``request_id`` (of the request that started the computation) is set for the log
+    lines written meanwhile (:data:`service.observability.REQUEST_ID`)."""
+    token = observability.REQUEST_ID.set(request_id)
+    try:
+        return _run_job(computation, request, key, cfg)
+    finally:
+        observability.REQUEST_ID.reset(token)
+
+
+def _run_job(computation: Computation, request: Any, key: str, cfg: TaskConfig) -> Outcome:
     store = _store(cfg)
     owner = uuid.uuid4().hex
     try:
         claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
     except StorageError as exc:
-        return ("storage", (str(exc), exc.full))
+        return ("storage", (str(exc), exc.full), None)
     if claim.outcome != "claimed":
-        return (claim.outcome, claim.job.status if claim.job else None)
+        return (claim.outcome, claim.job.status if claim.job else None, None)
     assert claim.job is not None
     try:
         if not claim.job.refresh and store.has_result(key):
             store.finish_job(key, "succeeded", owner=owner)  # computed by an earlier attempt
-            return ("succeeded", None)
+            return ("succeeded", None, None)
         beat = _Heartbeat(store, key, owner, cfg)
         beat.start()
+        started = time.perf_counter()
+        work_log.info("computation started", extra={"key": key, "computation": computation.name})
         try:
-            status, payload = _compute(function, spec_model, spec, beat, cfg)
+            status, payload = _compute(computation, request, beat, cfg)
         finally:
             beat.finish()
+        seconds = time.perf_counter() - started
+        work_log.info(
+            "computation finished",
+            extra={"key": key, "outcome": status, "duration_ms": round(seconds * 1e3, 3)},
+        )
         if status == "lost":
-            return ("lost", payload)
+            return ("lost", payload, None)
         if status == "ok":
-            store.put_result(key, kind, payload)
+            store.put_result(key, computation.name, payload)
             store.finish_job(key, "succeeded", owner=owner)
-            return ("succeeded", None)
+            return ("succeeded", None, seconds)
         if status == "cancelled":
             store.release(key, owner)  # the record already says cancelled (by the request)
-            return ("cancelled", str(payload))
+            return ("cancelled", str(payload), seconds)
         store.finish_job(key, "failed", payload, owner=owner)
-        return ("failed", payload)
+        return ("failed", payload, seconds)
     except StorageError as exc:
-        return ("storage", (str(exc), exc.full))
+        return ("storage", (str(exc), exc.full), None)
 
 
 def _compute(
-    function: Callable[[Any, Callable[[float], None]], dict[str, Any]],
-    spec_model: Any,
-    spec: dict[str, Any],
-    beat: _Heartbeat,
-    cfg: TaskConfig,
+    computation: Computation, request: Any, beat: _Heartbeat, cfg: TaskConfig
 ) -> tuple[str, Any]:
     """``("ok", json bytes)`` | ``("error", problem)`` | ``("cancelled" | "lost", why)``."""
 
@@ -175,9 +196,8 @@ def _compute(
             raise Cancelled(beat.stop)
 
     try:
-        validated = spec_model.model_validate(spec)
         beat.deadline = time.monotonic() + cfg.timeout_s  # the limit is on the computation
-        result = function(validated, progress)
+        result = computation.execute(request, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:
             return ("error", runtime_problem(cfg.timeout_s))
@@ -194,9 +214,7 @@ def _compute(
             problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
         )
     try:
-        return ("ok", json.dumps(result, separators=(",", ":"), allow_nan=False).encode())
-    except ValueError:  # Inf or NaN: JSON has neither
-        return ("error", out_of_range_problem("the result holds Inf or NaN"))
+        return ("ok", encoding.dumps(result))  # non-finite numbers -> null (the one rule)
     except Exception as exc:
         return (
             "error",

@@ -4,14 +4,20 @@ The service's workers run with one thread and one BLAS thread each
 (:data:`THREAD_VARIABLES` set to 1 in the worker's environment before numpy loads): two
 computations on two cores must not fight over BLAS threads.  ``dask worker --preload
 service.engine.worker`` (and the embedded cluster) import the numerical stack at start,
-so the first request does not pay for it.
+and warm up (:func:`warm_up`: a tiny run of each solver through the task's compute path
+and the encoder), so the first request does not pay for them.  The worker's log lines go
+to stdout in the service's format (``PIPEFLOW_LOG_LEVEL``, ``PIPEFLOW_LOG_FORMAT``).
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
+import time
 from typing import Any
+
+log = logging.getLogger("service.worker")
 
 THREAD_VARIABLES = (
     "OMP_NUM_THREADS",
@@ -27,11 +33,54 @@ WORKER_ENV = dict.fromkeys(THREAD_VARIABLES, "1")
 
 
 def dask_setup(worker: Any) -> None:
-    """Dask preload hook: pin BLAS threads (if the launcher did not), warm the imports."""
+    """Dask preload hook: pin BLAS threads (if the launcher did not), the service's log
+    settings, then warm up."""
     for name in THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
+    from service import observability
+
+    observability.configure_logging(
+        os.environ.get("PIPEFLOW_LOG_LEVEL", "INFO"), os.environ.get("PIPEFLOW_LOG_FORMAT", "json")
+    )
     import pipeflow.simulation  # noqa: F401  (numpy/scipy with the pinned environment)
     import service.engine.task  # noqa: F401
+
+    warm_up()
+
+
+#: the warm-up case: the paper's pipe, 2 modes, 11 samples (milliseconds per method)
+_WARM_UP_METHODS = ("cma", "magnus", "rk4")
+_warmed_up = [False]
+
+
+def warm_up() -> None:
+    """Import everything a computation needs (every computation's module) and run a tiny
+    simulation per solver through the task's compute path and the encoder, so the
+    first-use costs (lazy imports inside scipy and pipeflow, pydantic's validators) are
+    paid before the worker takes its first job.  A failure here is logged, never fatal:
+    the job would then pay (and report) it."""
+    started = time.perf_counter()
+    try:
+        from pipeflow.schema.registry import COMPUTATIONS
+        from pipeflow.schema.simulation import PAPER_EXAMPLE
+        from service import encoding
+        from service.engine.task import out_of_range_problem, runtime_problem
+
+        runtime_problem(1.0)
+        out_of_range_problem("warm-up")
+        small = dict(PAPER_EXAMPLE, modes=2, time={"t_end": 0.01, "samples": 11})
+        simulation = COMPUTATIONS["simulation"]
+        for method in _WARM_UP_METHODS:
+            spec = simulation.request.model_validate(dict(small, method=method))
+            encoding.dumps(simulation.execute(spec, lambda fraction: None))
+    except Exception:
+        log.exception("worker warm-up failed")
+        return
+    _warmed_up[0] = True
+    log.info(
+        "worker warmed up",
+        extra={"duration_ms": round((time.perf_counter() - started) * 1e3, 3)},
+    )
 
 
 def ping() -> dict[str, Any]:
@@ -40,4 +89,7 @@ def ping() -> dict[str, Any]:
         "pid": os.getpid(),
         "threads": {name: os.environ.get(name) for name in THREAD_VARIABLES},
         "numpy_loaded": "numpy" in sys.modules,
+        "registry_loaded": "pipeflow.schema.registry" in sys.modules,
+        "warmed_up": _warmed_up[0],
+        "modules": sorted(sys.modules),
     }

@@ -443,6 +443,13 @@ class Store:
             ).all()
         return [Job.from_row(r) for r in rows]
 
+    def job_counts(self) -> dict[str, int]:
+        """Job records by status (every status present, zeros included)."""
+        with self._read() as conn:
+            rows = conn.execute(select(jobs.c.status, func.count()).group_by(jobs.c.status)).all()
+        counts = {str(status): int(n) for status, n in rows}
+        return {status: counts.get(status, 0) for status in STATUSES}
+
     def jobs_by_key(self, keys: Sequence[str]) -> dict[str, Job]:
         """The records of ``keys`` that exist (one query: the replica's monitor)."""
         if not keys:

@@ -25,8 +25,9 @@ from typing import Any
 import httpx
 import pytest
 
-from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
-from service.kinds import SIMULATION
+from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.schema.simulation import PAPER_EXAMPLE
+from service.keys import keyed
 from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
 from tests.service.processes import (
     free_port,
@@ -180,7 +181,8 @@ def test_full_disk_answers_507_then_recovers(tiny_disk: Path) -> None:
             time.sleep(0.1)
         # the job that could not store its result is failed with the reason (written as
         # soon as the store took writes again, if the disk was too full even for that)
-        big_key = SIMULATION.key(SimulationSpec.model_validate(big))
+        simulation = COMPUTATIONS["simulation"]
+        big_key = keyed(simulation, simulation.request.model_validate(big)).key
         job = wait_job(c, big_key, lambda j: j["status"] != "running", timeout=10)
         assert job["status"] == "failed", job
         assert job["error"]["status"] == 507 and "could not be stored" in job["error"]["detail"]

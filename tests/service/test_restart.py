@@ -14,7 +14,7 @@ from pathlib import Path
 
 import httpx
 
-from pipeflow.spec import PAPER_EXAMPLE
+from pipeflow.schema.simulation import PAPER_EXAMPLE
 from tests.service.processes import kill_group, server
 
 #: about 5 s of RK4 on this machine: still queued or running when the server is killed
