@@ -36,7 +36,7 @@ from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
-from pipeflow.spectra import Traces, rounding_level, select, spectrum
+from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
 
 FloatArray = NDArray[np.float64]
 
@@ -277,8 +277,8 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     else:
         exponents = cma_exponents(model, loading, eigen_t, branches)
     # the whole frozen spectrum decides growth, not only the traced branches
-    sigma_max = spec[0].real.max(axis=1)  # per eigen_t [1/s]
-    unstable = np.flatnonzero(sigma_max > rounding_level(spec[0]))
+    sigma_max = max_growth_rates(spec[0])  # per eigen_t [1/s]
+    unstable = np.flatnonzero(sigma_max > 0)
     first_unstable = (
         first_unstable_time(model, loading, eigen_t, int(unstable[0]), problem.t)
         if unstable.size
@@ -374,7 +374,7 @@ def first_unstable_time(
         xi = np.asarray(
             np.linalg.eigvals(model.state_matrix(loading.coefficients(inside))), complex
         )
-        over = np.flatnonzero(xi.real.max(axis=1) > rounding_level(xi))
+        over = np.flatnonzero(max_growth_rates(xi) > 0)
         if over.size:
             return float(inside[over[0]])
     return float(eigen_t[k])
