@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +91,21 @@ def test_damped_modes_solve_their_characteristic_equation(alpha: float, c: float
 
 
 # -- tip mass --------------------------------------------------------------------------------
+def bracketed_roots(
+    f: Callable[[float], float], lo: float, hi: float, points: int, count: int
+) -> np.ndarray:
+    """The first ``count`` roots of ``f`` on [lo, hi]: sign changes on a grid of ``points``,
+    each located by Brent's method to 1e-15."""
+    grid = np.linspace(lo, hi, points)
+    vals = [f(z) for z in grid]
+    roots = [
+        brentq(f, a, b, xtol=1e-15)
+        for a, b, fa, fb in zip(grid, grid[1:], vals, vals[1:], strict=False)
+        if fa * fb < 0
+    ]
+    return np.array(roots[:count])
+
+
 def tip_mass_roots(mu: float, count: int) -> np.ndarray:
     """Roots l of 1 + cos l cosh l + mu l (cos l sinh l - sin l cosh l) = 0 (divided by
     cosh l, which has the same roots and does not overflow)."""
@@ -99,14 +115,7 @@ def tip_mass_roots(mu: float, count: int) -> np.ndarray:
             1.0 / math.cosh(z) + math.cos(z) + mu * z * (math.cos(z) * math.tanh(z) - math.sin(z))
         )
 
-    grid = np.linspace(0.1, 4.0 * count + 4.0, 4000)
-    vals = [f(z) for z in grid]
-    roots = [
-        brentq(f, a, b, xtol=1e-15)
-        for a, b, fa, fb in zip(grid, grid[1:], vals, vals[1:], strict=False)
-        if fa * fb < 0
-    ]
-    return np.array(roots[:count])
+    return bracketed_roots(f, 0.1, 4.0 * count + 4.0, 4000, count)
 
 
 @pytest.mark.parametrize(("mu", "n"), [(0.2, 20), (1.0, 30)])
@@ -488,14 +497,7 @@ def tip_body_roots(mu: float, j: float, count: int) -> np.ndarray:
             + mu * j * z**4 * (1 - c * ch)
         ) / ch  # fmt: skip
 
-    grid = np.linspace(0.05, 4.0 * count + 4.0, 5000)
-    vals = [f(z) for z in grid]
-    roots = [
-        brentq(f, a, b, xtol=1e-15)
-        for a, b, fa, fb in zip(grid, grid[1:], vals, vals[1:], strict=False)
-        if fa * fb < 0
-    ]
-    return np.array(roots[:count])
+    return bracketed_roots(f, 0.05, 4.0 * count + 4.0, 5000, count)
 
 
 @pytest.mark.parametrize(("mu", "j"), [(0.0, 0.01), (0.5, 0.01), (1.0, 0.1)])
