@@ -63,6 +63,8 @@ Plane = Annotated[
 #: comes from; the one place where library error names become JSON paths
 SIMULATION_FIELDS: dict[str, str] = {
     "pipe": "pipe",
+    "tip_mass": "pipe.tip_mass",
+    "tip_inertia": "pipe.tip_inertia",
     "flow": "flow.velocity",
     "spin": "rotation.omega0",
     "omega0": "rotation.omega0",
