@@ -29,6 +29,7 @@ from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
     MAX_SHAPE_TIMES,
+    MAX_SHAPE_VALUES,
     ModeShapes,
     frozen_mode_shapes,
 )
@@ -231,6 +232,17 @@ def validate(sim: Simulation) -> None:
     if not 2 <= sim.mode_shape_points <= MAX_SHAPE_POINTS:
         raise InvalidInput(
             f"mode-shape points must be between 2 and {MAX_SHAPE_POINTS}", "mode_shape_points"
+        )
+    # the traced branches and the least-stable one (an upper bound: it may be among them)
+    values = (
+        len(sim.mode_shape_times) * sim.mode_shape_points * (min(sim.eigen_modes, sim.modes) + 1)
+    )
+    if values > MAX_SHAPE_VALUES:
+        raise InvalidInput(
+            f"mode shapes: {len(sim.mode_shape_times)} times x {sim.mode_shape_points} points x "
+            f"{min(sim.eigen_modes, sim.modes) + 1} branches (eigen_modes + 1) = {values} values, "
+            f"more than {MAX_SHAPE_VALUES}; ask fewer points, times or eigen_modes",
+            "mode_shape_points",
         )
 
 

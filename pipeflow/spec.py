@@ -21,7 +21,12 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from pipeflow import __version__, profiles
 from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
-from pipeflow.modeshapes import DEFAULT_SHAPE_POINTS, MAX_SHAPE_POINTS, MAX_SHAPE_TIMES
+from pipeflow.modeshapes import (
+    DEFAULT_SHAPE_POINTS,
+    MAX_SHAPE_POINTS,
+    MAX_SHAPE_TIMES,
+    MAX_SHAPE_VALUES,
+)
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
@@ -375,7 +380,7 @@ class ModeShapesSpec(StrictModel):
         ge=2,
         le=MAX_SHAPE_POINTS,
         description="Stations from x = 0 to x = L [m], evenly spaced, at which each shape is "
-        "evaluated.",
+        f"evaluated. times x points x (output.eigen_modes + 1) is at most {MAX_SHAPE_VALUES}.",
     )
 
 
