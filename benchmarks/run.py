@@ -465,7 +465,7 @@ def section_service(quick: bool) -> None:
     try:
         import httpx
 
-        from pipeflow.spec import PAPER_EXAMPLE
+        from pipeflow.schema.simulation import PAPER_EXAMPLE
         from service.main import create_app
     except ImportError as exc:
         out(f"skipped: {exc}")

@@ -5,7 +5,8 @@ Library entry points (SI units throughout):
 - :class:`pipeflow.model.Pipe`, :data:`pipeflow.model.PAPER_PIPE`
 - profiles: :mod:`pipeflow.profiles` (constant, polynomial, harmonic, table)
 - :class:`pipeflow.simulation.Simulation` and :func:`pipeflow.simulation.simulate`
-- :class:`pipeflow.spec.SimulationSpec`: the JSON schema shared with the service and CLI
+- :mod:`pipeflow.schema`: the request and result models shared with the service and CLI,
+  and the registry of computations
 """
 
 from importlib.metadata import PackageNotFoundError, version

@@ -1,9 +1,11 @@
 """The ``pipeflow`` command line: run a simulation, export CSV, draw the paper's figures.
 
 Installed as the ``pipeflow`` console script.  Every subcommand reads and writes the same
-JSON as the HTTP service (:class:`pipeflow.spec.SimulationSpec` in, the result dictionary
-out).  Web libraries are imported only inside the subcommands that talk HTTP
-(``serve``, ``--server``), so ``import pipeflow.cli`` keeps the library free of them.
+JSON as the HTTP service (a request of :mod:`pipeflow.schema` in, the result dictionary
+out), and local runs go through the same registry of computations.  Web libraries are
+imported only inside the subcommands that talk HTTP (``serve``, which is the service's own
+``python -m service``, and ``--server``), so ``import pipeflow.cli`` keeps the library free
+of them.
 
 Exit status: 0 success, 2 invalid input (the message names the field), 1 other failures.
 """
@@ -104,7 +106,10 @@ def _unwrap(data: Any) -> Any:
     return data
 
 
-SWEEP_KINDS = ("argand", "campbell", "spin_map", "beta_map", "resonance_chart", "floquet")
+def _sweep_kinds() -> tuple[str, ...]:
+    from pipeflow.schema.registry import SWEEP_KINDS
+
+    return SWEEP_KINDS
 
 
 def _is_result(data: Any) -> bool:
@@ -113,13 +118,13 @@ def _is_result(data: Any) -> bool:
     if "t" in data and "tip_displacement" in data:
         return True
     # stability results echo their kind and carry no request-only fields
-    return data.get("kind") in (*SWEEP_KINDS, "stability") and "diagnostics" in data
+    return data.get("kind") in (*_sweep_kinds(), "stability") and "diagnostics" in data
 
 
 def _is_stability_spec(data: Any) -> bool:
     """A /v1/sweeps body (has a sweep ``kind``) or a /v1/stability body (velocity_range)."""
     return isinstance(data, dict) and (
-        data.get("kind") in SWEEP_KINDS or ("velocity_range" in data and "time" not in data)
+        data.get("kind") in _sweep_kinds() or ("velocity_range" in data and "time" not in data)
     )
 
 
@@ -127,15 +132,16 @@ def _progress(args: argparse.Namespace, label: str) -> ProgressBar:
     return ProgressBar(label, enabled=True if args.progress else (False if args.quiet else None))
 
 
-def _run_local(spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
-    from pipeflow.spec import SimulationSpec, run_simulation
+def _run_local(endpoint: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
+    """Validate ``spec_data`` as a body of the registry's endpoint ``endpoint`` and run it."""
+    from pipeflow.schema import registry
 
-    spec = SimulationSpec.model_validate(spec_data)
+    endpoint_of = {e.path: e for e in registry.endpoints()}
+    request = registry.parse(endpoint_of[endpoint], spec_data)
     try:
-        result = run_simulation(spec, progress=bar)
+        return registry.computation_for(request).execute(request, bar)
     finally:
         bar.close()
-    return result.to_dict()
 
 
 def _run_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
@@ -146,17 +152,6 @@ def _run_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]
             return client.simulate_raw(spec_data, progress=bar)
         finally:
             bar.close()
-
-
-def _stability_local(spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
-    from pipeflow.stability_spec import StabilitySpec, parse_sweep, run_stability, run_sweep
-
-    try:
-        if "kind" in spec_data:
-            return run_sweep(parse_sweep(spec_data), progress=bar)
-        return run_stability(StabilitySpec.model_validate(spec_data), progress=bar)
-    finally:
-        bar.close()
 
 
 def _stability_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
@@ -179,11 +174,11 @@ def _result_for(args: argparse.Namespace, data: Any) -> dict[str, Any]:
         bar = _progress(args, "analysing")
         if getattr(args, "server", None):
             return _stability_remote(data, args.server, bar)
-        return _stability_local(data, bar)
+        return _run_local("sweeps" if "kind" in data else "stability", data, bar)
     bar = _progress(args, "simulating")
     if getattr(args, "server", None):
         return _run_remote(data, args.server, bar)
-    return _run_local(data, bar)
+    return _run_local("simulations", data, bar)
 
 
 def _write(out: str | None, payload: str | bytes) -> None:
@@ -211,7 +206,7 @@ def _print_warnings(result: dict[str, Any]) -> None:
 
 
 def cmd_example(args: argparse.Namespace) -> int:
-    from pipeflow.spec import PAPER_EXAMPLE
+    from pipeflow.schema.simulation import PAPER_EXAMPLE
 
     _write(args.output, json.dumps(PAPER_EXAMPLE, indent=2) + "\n")
     return 0
@@ -257,7 +252,7 @@ def cmd_stability(args: argparse.Namespace) -> int:
     if not _is_stability_spec(data):
         raise PipeflowError(
             "not a stability spec: give 'velocity_range' (critical velocity) or a sweep "
-            f"'kind' ({', '.join(SWEEP_KINDS)}); see 'pipeflow stability --help'",
+            f"'kind' ({', '.join(_sweep_kinds())}); see 'pipeflow stability --help'",
             parameter="kind",
         )
     result = _result_for(args, data)
@@ -271,18 +266,14 @@ def cmd_stability(args: argparse.Namespace) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    # imported here: the library has no web imports
-    import uvicorn
-
-    from service.main import create_app
-    from service.settings import Settings
-
-    # one server process (the store allows one per data directory); --workers and
-    # --data-dir override PIPEFLOW_WORKERS and PIPEFLOW_DATA_DIR, the rest comes from there
-    overrides = {"workers": args.workers, "data_dir": args.data_dir}
-    settings = Settings(**{k: v for k, v in overrides.items() if v is not None})
-    print(f"pipeflow: data in {settings.data_dir}, {settings.workers} worker(s)", file=sys.stderr)
-    uvicorn.run(create_app(settings), host=args.host, port=args.port)
+    try:  # the service is an extra: pip install 'pipeflow[service]'
+        from service.__main__ import serve
+    except ImportError as exc:
+        raise PipeflowError(
+            f"the service is not installed ({exc}); pip install -e '.[service]'",
+            parameter="serve",
+        ) from None
+    serve(args.host, args.port, workers=args.workers, data_dir=args.data_dir)
     return 0
 
 
@@ -379,7 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             "Run a stability analysis locally (or with --server) and write its JSON. SPEC is "
             "a /v1/stability body (pipe, rotation, modes, velocity_range [m/s]: critical "
-            "velocities) or a /v1/sweeps body with a 'kind': " + ", ".join(SWEEP_KINDS) + ". "
+            "velocities) or a /v1/sweeps body with a 'kind': " + ", ".join(_sweep_kinds()) + ". "
             "Draw it with 'pipeflow plot RESULT --name argand|sweep_frequency|sweep_damping|"
             "spin_map|beta_map'."
         ),
@@ -393,7 +384,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser(
         "serve",
         help="run the HTTP service (API and viewer)",
-        description="Run the pipeflow HTTP service with uvicorn; the viewer is at /.",
+        description="Run the pipeflow HTTP service (python -m service) with uvicorn; the "
+        "viewer is at /.  One server process per data directory: its worker pool "
+        "(PIPEFLOW_WORKERS) gives the parallelism.",
     )
     sp.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1)")
     sp.add_argument("--port", type=int, default=8000, help="TCP port (default 8000)")

@@ -3,8 +3,8 @@
 The user-side version of the paper's Tables 1 and 2 (CMA against RK4 CPU time), on any
 case: :func:`compare` runs the same :class:`~pipeflow.simulation.Simulation` with each
 method, times it, and reports each method's difference from the most accurate one.  It is
-a pure function returning a JSON-ready dictionary (no I/O), which the HTTP service exposes
-as ``POST /v1/compare``.
+a pure function returning a JSON-ready dictionary (no I/O); its request model is
+:class:`pipeflow.schema.simulation.CompareSpec` (``POST /v1/compare``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from pydantic import ConfigDict, Field, field_validator
 
 from pipeflow.diagnostics import summary
 from pipeflow.errors import InvalidInput
@@ -24,13 +23,6 @@ from pipeflow.model import build_model
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS
 from pipeflow.solvers.base import ProgressCallback, relative_difference
-from pipeflow.spec import (
-    PAPER_EXAMPLE,
-    SIMULATION_FIELDS,
-    SimulationSpec,
-    StrictModel,
-    request_fields,
-)
 
 MAX_METHODS = 8
 
@@ -128,52 +120,3 @@ def compare(
         "modes": sim.modes,
         "t_end": sim.t_end,
     }
-
-
-class CompareSpec(StrictModel):
-    """Body of ``POST /v1/compare``: one simulation, several methods."""
-
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [{"simulation": PAPER_EXAMPLE, "methods": ["cma", "magnus", "rk4"]}]
-        },
-    )
-
-    simulation: SimulationSpec = Field(
-        description="The case to run; its 'method' is ignored, its 'options' apply to every "
-        "method that reads them."
-    )
-    methods: list[str] = Field(
-        default_factory=default_methods,
-        min_length=1,
-        max_length=MAX_METHODS,
-        description="Distinct method names to run (default: every method but 'reference' "
-        "and 'auto').",
-        json_schema_extra={"items": {"enum": list(sorted(SOLVERS))}},
-    )
-
-    @field_validator("methods")
-    @classmethod
-    def _known(cls, v: list[str]) -> list[str]:
-        for i, name in enumerate(v):
-            if name not in SOLVERS:
-                raise ValueError(
-                    f"methods.{i}: unknown method {name!r}; choose from "
-                    f"{', '.join(sorted(SOLVERS))}"
-                )
-        if len(set(v)) != len(v):
-            raise ValueError("methods must be distinct")
-        return v
-
-    def canonical(self) -> dict[str, Any]:
-        """Normalised form for the cache key: every option kept (each method reads its own)."""
-        data = self.simulation.model_dump(mode="json")
-        data.pop("method")
-        return {"simulation": data, "methods": list(self.methods)}
-
-
-def run_compare(spec: CompareSpec, progress: ProgressCallback | None = None) -> dict[str, Any]:
-    """:func:`compare` on a validated :class:`CompareSpec` (the service's job function)."""
-    fields = {"methods": "methods", **{k: f"simulation.{v}" for k, v in SIMULATION_FIELDS.items()}}
-    with request_fields(fields):
-        return compare(spec.simulation.to_simulation(), spec.methods, progress)

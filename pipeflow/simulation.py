@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
 from pipeflow.model import (
@@ -51,7 +52,7 @@ class Simulation:
     spin : spin profile w0(t) [rad/s].
     u0, du0 : initial amplitude [m] and velocity amplitude [m/s] of the initial shape.
     initial_shape : "paper" (eq. 3's phi_1, tip value 2.7244 u0) or "tip" (u0 is the tip).
-    modes : number of Galerkin modes n (1..40).
+    modes : number of Galerkin modes n (1..MAX_MODES = 40).
     t_end : simulated duration [s]; samples : number of output times (incl. 0 and t_end).
     method : solver name (see ``pipeflow.solvers.SOLVERS``); "auto" (the default) runs
         "cma" for constant flow and spin, where it is exact, and "magnus" otherwise;
@@ -204,8 +205,8 @@ def validate(sim: Simulation) -> None:
         raise InvalidInput("t_end must be finite and > 0 s", parameter="t_end")
     if sim.samples < 2:
         raise InvalidInput("samples must be >= 2", parameter="samples")
-    if not 1 <= sim.modes <= 40:
-        raise InvalidInput("modes must be between 1 and 40", parameter="modes")
+    if not 1 <= sim.modes <= MAX_MODES:
+        raise InvalidInput(f"modes must be between 1 and {MAX_MODES}", parameter="modes")
     if sim.initial_shape not in ("paper", "tip"):
         raise InvalidInput(
             f"unknown initial shape {sim.initial_shape!r}; use 'paper' or 'tip'",

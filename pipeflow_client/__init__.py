@@ -7,7 +7,7 @@ empty.  The client depends on ``pipeflow`` only for its exception base class and
 
 Example::
 
-    from pipeflow.spec import PAPER_EXAMPLE
+    from pipeflow.schema.simulation import PAPER_EXAMPLE
     from pipeflow_client import Client
 
     with Client("http://localhost:8000") as c:

@@ -177,7 +177,7 @@ class _Operations:
     def simulate_raw(
         spec: Any, *, refresh: bool = False, progress: Progress | None = None
     ) -> Steps[dict[str, Any]]:
-        """Run ``spec`` (dict or :class:`~pipeflow.spec.SimulationSpec`) and return the JSON.
+        """Run ``spec`` (dict or :class:`~pipeflow.schema.simulation.SimulationSpec`); the JSON.
 
         With ``progress`` the run goes through a job, and ``progress(fraction)`` is called
         while waiting; otherwise it is one ``POST /v1/simulations``.
@@ -320,7 +320,7 @@ class _Operations:
     ) -> Steps[dict[str, Any]]:
         """Critical flow velocities [m/s] at constant spin: ``critical_velocity``,
         ``crossings``, ``dimensionless`` (spec: dict or
-        :class:`~pipeflow.stability_spec.StabilitySpec`).
+        :class:`~pipeflow.schema.stability.StabilitySpec`).
 
         One ``POST /v1/stability``; with ``progress`` it runs as a job instead
         (``POST /v1/stability/jobs``) and ``progress(fraction)`` is called while waiting.
@@ -361,7 +361,7 @@ class _Operations:
         timeout: float | None = None,
     ) -> Steps[dict[str, Any]]:
         """An Argand/Campbell sweep, stability map, resonance chart or Floquet analysis
-        (spec ``kind``; dict or a :mod:`pipeflow.stability_spec` model): submitted as a job,
+        (spec ``kind``; dict or a :mod:`pipeflow.schema.stability` model): submitted as a job,
         waited for (``progress(fraction)`` while running, see :meth:`wait_raw`), and returned
         as the result JSON (SI units, ``plots`` for :meth:`plot`)."""
         job = yield from _Operations.submit_sweep(spec, refresh=refresh)

@@ -1,30 +1,30 @@
-"""What every computing endpoint does, for any job kind: cache, single flight, jobs.
+"""What every computing endpoint does, for any computation: cache, single flight, jobs.
 
-Routes stay thin: they validate the body (FastAPI + the kind's spec model) and call
-:func:`run_sync` (answer with the result) or :func:`accept_job` (answer 202 with a job);
-the OpenAPI pieces they share (:data:`Refresh`, :data:`CACHE_HEADERS`,
-:data:`JOB_ACCEPTED`) are here too.
+Routes stay thin: they validate the body once (FastAPI + the computation's request model),
+key it once (:func:`service.keys.keyed`) and call :func:`run_sync` (answer with the
+result) or :func:`accept_job` (answer 202 with a job); the OpenAPI pieces they share
+(:data:`Refresh`, :data:`CACHE_HEADERS`, :data:`JOB_ACCEPTED`) are here too.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
+import gzip
+import re
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
 from fastapi import Query, Response
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel
 
-from service.kinds import JobKind
+from service.keys import Keyed
 from service.problems import ProblemError
 from service.runner import ComputationCancelled, ComputationFailed, QueueFull, Runner
 from service.schemas import JobStatus
 from service.store import Job, Store
-
-#: how long a resubmission waits for the cancelled run of the same job to stop [s]
-STOP_WAIT_S = 10.0
 
 Refresh = Annotated[
     bool, Query(description="Recompute even if the result is cached (and replace it).")
@@ -52,16 +52,132 @@ def envelope(key: str, cached: bool, body: bytes) -> bytes:
     return head + (b"," + rest if rest.strip() != b"}" else b"}")
 
 
-def result_response(key: str, cached: bool, body: bytes) -> Response:
-    return Response(
-        envelope(key, cached, body),
-        media_type="application/json",
-        headers={
-            "X-Cache": "HIT" if cached else "MISS",
-            "ETag": f'"{key}"',
-            "Content-Location": f"/v1/results/{key}",
-        },
-    )
+#: answers shorter than this are sent uncompressed [bytes] (gzip's header costs ~20)
+GZIP_MIN_BYTES = 1024
+#: zlib level of the pre-compressed hit answers (compressed once per key, sent many times)
+GZIP_LEVEL = 6
+
+
+@dataclass(frozen=True)
+class Encoded:
+    """One answer body as sent: ``identity`` bytes and, when worth it, their ``gzip``."""
+
+    identity: bytes
+    gzip: bytes | None = None
+
+    @property
+    def size(self) -> int:
+        return len(self.identity) + len(self.gzip or b"")
+
+
+def encode(body: bytes) -> Encoded:
+    """``body`` with its gzip (deterministic: mtime 0) when at least GZIP_MIN_BYTES long."""
+    if len(body) < GZIP_MIN_BYTES:
+        return Encoded(body)
+    return Encoded(body, gzip.compress(body, GZIP_LEVEL, mtime=0))
+
+
+class HitCache:
+    """The cache-hit answers (envelope bytes and their gzip) by key, least recently used
+    evicted beyond ``max_bytes`` in total: a hit is answered on the event loop, with no
+    store read, no thread hop, no parse and no re-encode.  Results are immutable per key
+    (the key hashes the normalised request and the version); a recomputation
+    (``refresh``) drops the entry."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = max_bytes
+        self._items: OrderedDict[str, Encoded] = OrderedDict()
+        self._size = 0
+        self._lock = threading.Lock()  # put() runs in worker threads too
+
+    def get(self, key: str) -> Encoded | None:
+        with self._lock:
+            value = self._items.get(key)
+            if value is not None:
+                self._items.move_to_end(key)
+            return value
+
+    def put(self, key: str, value: Encoded) -> None:
+        with self._lock:
+            self._pop(key)
+            if value.size > self.max_bytes:
+                return
+            self._items[key] = value
+            self._size += value.size
+            while self._size > self.max_bytes:
+                _, old = self._items.popitem(last=False)
+                self._size -= old.size
+
+    def pop(self, key: str) -> None:
+        with self._lock:
+            self._pop(key)
+
+    def _pop(self, key: str) -> None:
+        old = self._items.pop(key, None)
+        if old is not None:
+            self._size -= old.size
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+
+_CODING = re.compile(r"\s*([A-Za-z0-9*_-]+)\s*(?:;\s*q\s*=\s*([0-9.]+))?\s*")
+
+
+def accepts_gzip(accept_encoding: str | None) -> bool:
+    """RFC 9110 section 12.5.3: gzip (or ``*``) listed with a q-value above 0."""
+    if not accept_encoding:
+        return False
+    q_of: dict[str, float] = {}
+    for part in accept_encoding.split(","):
+        m = _CODING.fullmatch(part)
+        if m is None:
+            continue
+        try:
+            q = float(m.group(2)) if m.group(2) is not None else 1.0
+        except ValueError:
+            continue
+        q_of[m.group(1).lower()] = q
+    q = q_of.get("gzip", q_of.get("x-gzip", q_of.get("*", 0.0)))
+    return q > 0
+
+
+@dataclass(frozen=True)
+class Hit:
+    """The per-request part of the hit path: the app's :class:`HitCache` and whether the
+    client accepts gzip (see :func:`service.deps.get_hit`)."""
+
+    cache: HitCache | None = None
+    gzip: bool = False
+
+
+def result_response(
+    key: str, cached: bool, body: bytes | Encoded, gzip_ok: bool = False
+) -> Response:
+    """A result answer: the envelope (or ``Encoded`` envelope), gzip when accepted and
+    available, with X-Cache, the key as strong ETag, Content-Location and Vary."""
+    encoded = body if isinstance(body, Encoded) else Encoded(envelope(key, cached, body))
+    headers = {
+        "X-Cache": "HIT" if cached else "MISS",
+        "ETag": f'"{key}"',
+        "Content-Location": f"/v1/results/{key}",
+        "Vary": "Accept-Encoding",
+    }
+    content = encoded.identity
+    if gzip_ok and encoded.gzip is not None:
+        content = encoded.gzip
+        headers["Content-Encoding"] = "gzip"
+    return Response(content, media_type="application/json", headers=headers)
+
+
+async def hit_response(key: str, body: bytes, hit: Hit | None) -> Response:
+    """The HIT answer for the stored ``body``: encoded (and compressed, off the event loop)
+    once, then kept in the hit cache."""
+    if hit is None or hit.cache is None:
+        return result_response(key, True, body)
+    encoded = await asyncio.to_thread(encode, envelope(key, True, body))
+    hit.cache.put(key, encoded)
+    return result_response(key, True, encoded, hit.gzip)
 
 
 def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
@@ -74,16 +190,25 @@ def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
 
 
 async def run_sync(
-    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
+    runner: Runner, store: Store, job: Keyed, refresh: bool, hit: Hit | None = None
 ) -> Response:
-    """Serve the result for ``spec``: from the cache, or computed now (once per key)."""
-    key = kind.key(spec)
+    """Serve the result of ``job``: from the cache, or computed now (once per key).
+
+    With ``hit`` (the app's hit cache, see :class:`Hit`), a hit is answered from memory as
+    its pre-encoded bytes, gzip when the client accepts it."""
+    key = job.key
+    cache = hit.cache if hit is not None else None
     if not refresh:
+        encoded = cache.get(key) if cache is not None else None
+        if encoded is not None:
+            return result_response(key, True, encoded, hit is not None and hit.gzip)
         body = await asyncio.to_thread(store.get_result, key)
         if body is not None:
-            return result_response(key, True, body)
+            return await hit_response(key, body, hit)
+    if cache is not None:
+        cache.pop(key)  # a recomputation replaces the stored result
     try:
-        task = await runner.submit(kind, key, kind.canonical(spec), force=refresh)
+        task = await runner.submit(job, force=refresh)
         body = await asyncio.shield(task)
     except QueueFull as exc:
         raise _saturated(runner, exc) from None
@@ -94,37 +219,24 @@ async def run_sync(
     return result_response(key, False, body)
 
 
-async def submit_job(
-    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
-) -> tuple[str, Job]:
-    """Accept a job for ``spec`` (idempotent: the id is the parameter hash)."""
-    key = kind.key(spec)
-    canonical = kind.canonical(spec)
+async def submit_job(runner: Runner, store: Store, job: Keyed, refresh: bool) -> Job:
+    """Accept ``job`` (idempotent: the id is the parameter hash) and return its record."""
+    key = job.key
     if not refresh and not runner.is_active(key) and await asyncio.to_thread(store.has_result, key):
-        await asyncio.to_thread(store.mark_succeeded, key, kind.name, canonical)
+        await asyncio.to_thread(store.mark_succeeded, key, job.computation.name, job.canonical)
     else:
         try:
-            task = await runner.submit(kind, key, canonical, force=refresh)
-            job = await asyncio.to_thread(store.get_job, key)
-            if job is not None and job.status == "cancelled" and not task.done():
-                # resubmitted while its cancelled run is still stopping: let it stop, rerun
-                with contextlib.suppress(Exception, asyncio.CancelledError):
-                    await asyncio.wait_for(asyncio.shield(task), STOP_WAIT_S)
-                await asyncio.sleep(0)
-                await runner.submit(kind, key, canonical, force=refresh)
+            await runner.submit(job, force=refresh)
         except QueueFull as exc:
             raise _saturated(runner, exc) from None
-    job = await asyncio.to_thread(store.get_job, key)
-    assert job is not None
-    return key, job
+    record = await asyncio.to_thread(store.get_job, key)
+    assert record is not None
+    return record
 
 
-async def accept_job(
-    runner: Runner, store: Store, kind: JobKind, spec: BaseModel, refresh: bool
-) -> JSONResponse:
+async def accept_job(runner: Runner, store: Store, job: Keyed, refresh: bool) -> JSONResponse:
     """:func:`submit_job`, answered 202 with the job and ``Location: /v1/jobs/{key}``."""
-    _, job = await submit_job(runner, store, kind, spec, refresh)
-    return job_response(job, 202)
+    return job_response(await submit_job(runner, store, job, refresh), 202)
 
 
 def job_response(job: Job, status: int = 200) -> JSONResponse:

@@ -6,26 +6,33 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
+from service.compute import Hit, accepts_gzip
 from service.runner import Runner
 from service.settings import Settings
 from service.store import Store
 
 
-def get_settings(request: Request) -> Settings:
+async def get_settings(request: Request) -> Settings:
     settings: Settings = request.app.state.settings
     return settings
 
 
-def get_runner(request: Request) -> Runner:
+async def get_runner(request: Request) -> Runner:
     runner: Runner = request.app.state.runner
     return runner
 
 
-def get_store(request: Request) -> Store:
+async def get_store(request: Request) -> Store:
     store: Store = request.app.state.store
     return store
+
+
+async def get_hit(request: Request) -> Hit:
+    """The hit path of this request: the app's hit cache and the client's gzip acceptance."""
+    return Hit(request.app.state.hits, accepts_gzip(request.headers.get("accept-encoding")))
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 RunnerDep = Annotated[Runner, Depends(get_runner)]
 StoreDep = Annotated[Store, Depends(get_store)]
+HitDep = Annotated[Hit, Depends(get_hit)]

@@ -14,20 +14,11 @@ from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
-from service import problems
-from service.middleware import BodyLimit
-from service.routes import (
-    compare,
-    docs,
-    exports,
-    health,
-    jobs,
-    results,
-    simulations,
-    stability,
-    sweeps,
-    viewer,
-)
+from pipeflow.schema.registry import endpoints
+from service import observability, problems
+from service.compute import HitCache
+from service.middleware import BodyLimit, RequestContext
+from service.routes import computations, docs, exports, health, jobs, metrics, results, viewer
 from service.runner import Runner
 from service.settings import Settings, get_settings
 from service.store import Store
@@ -43,6 +34,7 @@ RFC 9457 `application/problem+json`.
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the service; ``settings`` defaults to the environment's."""
     settings = settings or get_settings()
+    observability.configure_logging(settings.log_level, settings.log_format)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -57,6 +49,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await runner.stop()
             store.close()
+            observability.process_exited()
 
     app = FastAPI(
         title="pipeflow",
@@ -67,10 +60,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
     )
     app.state.settings = settings
+    app.state.hits = HitCache(settings.hit_cache_bytes)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(RequestContext)  # outermost: 413s get a request id and a log line too
     problems.install(app)
-    routers = (simulations, jobs, compare, stability, sweeps, results, exports, health)
-    for module in (*routers, docs, viewer):
+    for endpoint in endpoints():
+        app.include_router(computations.router_for(endpoint))
+    for module in (jobs, results, exports, health, metrics, docs, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:

@@ -166,12 +166,19 @@ def response(doc: dict[str, Any], headers: dict[str, str] | None = None) -> JSON
 def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
     """OpenAPI ``responses`` entries declaring the problem documents a route can return."""
     descriptions = {
+        400: "Malformed request: the body is not valid JSON.",
+        415: "The body is not application/json.",
         304: "Not modified: the client's copy (If-None-Match) is current.",
         404: "Unknown key.",
-        406: "The requested format needs an optional extra the server lacks (e.g. pyarrow).",
+        406: "Not acceptable: the Accept header admits none of the operation's media types, "
+        "or the requested format needs an optional extra the server lacks (e.g. pyarrow).",
         409: "The job is in a state that does not allow this.",
         413: "Request body larger than the configured limit.",
-        422: "Invalid input; `errors` names each offending field.",
+        422: "Invalid input; `errors` names each offending field.  Besides the schema, the "
+        "rules across fields that JSON Schema cannot state: M1 + M2 >= 1e-15 kg/m, [lo, hi] "
+        "ranges increasing, table times strictly increasing, starting at t <= 0 and covering "
+        "time.t_end, stations within [0, L], tracked_modes <= modes, max_points >= points, "
+        "a common period of harmonic flow and spin, and the work budgets of maps and charts.",
         503: "Saturated or not ready; retry after the Retry-After header [s].",
     }
     out: dict[int | str, dict[str, Any]] = {}
@@ -271,6 +278,24 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
     return out
 
 
+def allowed_methods(request: Request) -> list[str]:
+    """Every method some route of the app serves at the request's path."""
+    path = request.url.path
+    methods: set[str] = set()
+
+    def walk(routes: list[Any]) -> None:
+        for route in routes:
+            inner = getattr(route, "original_router", None)  # an included router
+            if inner is not None:
+                walk(inner.routes)
+            regex = getattr(route, "path_regex", None)
+            if regex is not None and regex.match(path):
+                methods.update(getattr(route, "methods", None) or ())
+
+    walk(request.app.routes)
+    return sorted(methods)
+
+
 # -- handlers ------------------------------------------------------------------------------
 
 
@@ -281,6 +306,12 @@ def install(app: FastAPI) -> None:
     async def _validation(request: Request, exc: RequestValidationError) -> JSONResponse:
         errors = validation_errors(exc)
         detail = "; ".join(f"{e['field'] or 'body'}: {e['message']}" for e in errors[:5])
+        if any(e["type"] == "json_invalid" for e in errors):  # not JSON at all: 400
+            return response(
+                problem(
+                    400, detail, slug="malformed-json", errors=errors, instance=request.url.path
+                )
+            )
         return response(
             problem(422, detail, slug="validation", errors=errors, instance=request.url.path)
         )
@@ -298,9 +329,13 @@ def install(app: FastAPI) -> None:
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         detail = exc.detail if isinstance(exc.detail, str) else None
+        headers = dict(exc.headers) if exc.headers else {}
+        if exc.status_code == 405:
+            # Starlette names the methods of the first route matching the path only; a path
+            # served by several routes (GET and DELETE /v1/jobs/{key}) allows all of theirs
+            headers["Allow"] = ", ".join(allowed_methods(request))
         return response(
-            problem(exc.status_code, detail, instance=request.url.path),
-            dict(exc.headers) if exc.headers else None,
+            problem(exc.status_code, detail, instance=request.url.path), headers or None
         )
 
     @app.exception_handler(Exception)

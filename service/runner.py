@@ -25,8 +25,11 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
 
-from service import worker
-from service.kinds import KINDS, JobKind
+from pydantic import BaseModel, ValidationError
+
+from pipeflow.schema.registry import COMPUTATIONS
+from service import observability, worker
+from service.keys import Keyed
 from service.settings import Settings
 from service.store import Store
 
@@ -56,11 +59,16 @@ class ComputationCancelled(Exception):
 
 @dataclass
 class Flight:
-    kind: JobKind
-    key: str
+    job: Keyed
     task: asyncio.Task[bytes]
     accepted: asyncio.Event = field(default_factory=asyncio.Event)
     killed: bool = False
+    #: a DELETE asked this run to stop: a resubmission waits for it and starts a new run
+    cancelled: bool = False
+
+    @property
+    def key(self) -> str:
+        return self.job.key
 
 
 class Runner:
@@ -86,17 +94,19 @@ class Runner:
         if pruned:
             log.info("pruned %d old job records", pruned)
         for job in await asyncio.to_thread(self.store.active_jobs):
-            kind = KINDS.get(job.kind)
-            if kind is None:
+            computation = COMPUTATIONS.get(job.kind)
+            try:
+                if computation is None:
+                    raise LookupError(f"unknown job kind {job.kind!r} after restart")
+                # a stored request is validated like a new one (once, for this run)
+                request: BaseModel = computation.request.model_validate(job.spec)
+            except (LookupError, ValidationError) as exc:
                 await asyncio.to_thread(
-                    self.store.finish_job,
-                    job.key,
-                    "failed",
-                    {"detail": f"unknown job kind {job.kind!r} after restart"},
+                    self.store.finish_job, job.key, "failed", {"detail": str(exc)}
                 )
                 continue
             log.info("re-enqueuing %s job %s left %s", job.kind, job.key, job.status)
-            await self.submit(kind, job.key, job.spec, recover=True)
+            await self.submit(Keyed(computation, request, job.spec, job.key), recover=True)
         self._spawn(self._warm_up())
         self._spawn(self._watchdog())
 
@@ -117,6 +127,7 @@ class Runner:
             max_workers=self.settings.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=worker.init,
+            initargs=(self.settings.log_level, self.settings.log_format),
         )
 
     @staticmethod
@@ -170,30 +181,39 @@ class Runner:
     # -- submission ----------------------------------------------------------------------
 
     async def submit(
-        self,
-        kind: JobKind,
-        key: str,
-        spec: dict[str, Any],
-        *,
-        force: bool = False,
-        recover: bool = False,
+        self, job: Keyed, *, force: bool = False, recover: bool = False
     ) -> asyncio.Task[bytes]:
-        """The in-flight task for ``key``, started if needed, once its job record is written.
+        """The in-flight task for ``job.key``, started if needed, once its record is written.
 
-        ``spec`` is the canonical JSON form; ``force`` recomputes even if a result is
-        stored; ``recover`` bypasses the queue bound (for jobs accepted before a restart).
+        ``force`` recomputes even if a result is stored; ``recover`` bypasses the queue
+        bound (for jobs accepted before a restart).  A run that a DELETE asked to stop is
+        never shared: the resubmission waits until it has stopped (its worker checks the
+        flag at its next progress report), then starts a new run.
         """
+        key = job.key
+        while (old := self._flights.get(key)) is not None and old.cancelled:
+            with contextlib.suppress(Exception, asyncio.CancelledError):
+                await asyncio.shield(old.task)
+            if self._flights.get(key) is old:  # its done-callback has not run yet
+                del self._flights[key]
         flight = self._flights.get(key)
         if flight is None:
             if not recover and self.saturated:
                 raise QueueFull(f"{self.in_flight} computations in flight")
             accepted = asyncio.Event()
-            task = asyncio.create_task(self._run(kind, key, spec, force, accepted))
-            flight = Flight(kind, key, task, accepted)
+            task = asyncio.create_task(self._run(job, force, accepted))
+            flight = Flight(job, task, accepted)
             self._flights[key] = flight
             task.add_done_callback(functools.partial(self._done, flight))
         await flight.accepted.wait()
         return flight.task
+
+    def cancel(self, key: str) -> None:
+        """Mark the run of ``key`` (if any) as asked to stop; see :meth:`submit`.  The job
+        record's cancel flag, which the worker reads, is set by the caller."""
+        flight = self._flights.get(key)
+        if flight is not None:
+            flight.cancelled = True
 
     def _done(self, flight: Flight, task: asyncio.Task[bytes]) -> None:
         if self._flights.get(flight.key) is flight:
@@ -201,11 +221,10 @@ class Runner:
         if not task.cancelled():
             task.exception()  # retrieved here so an unobserved job failure is not logged twice
 
-    async def _run(
-        self, kind: JobKind, key: str, spec: dict[str, Any], force: bool, accepted: asyncio.Event
-    ) -> bytes:
+    async def _run(self, job: Keyed, force: bool, accepted: asyncio.Event) -> bytes:
+        key, name = job.key, job.computation.name
         try:
-            await asyncio.to_thread(self.store.enqueue_job, key, kind.name, spec)
+            await asyncio.to_thread(self.store.enqueue_job, key, name, job.canonical)
         finally:
             accepted.set()
         if not force:
@@ -213,10 +232,16 @@ class Runner:
             if body is not None:  # computed between the caller's cache check and now
                 await asyncio.to_thread(self.store.finish_job, key, "succeeded")
                 return body
-        outcome = await self._execute(kind, key, spec)
-        status, payload = outcome
+        started = time.perf_counter()
+        status, payload = await self._execute(job)
+        observability.record_computation(
+            name,
+            "error" if status == "error" else status,
+            time.perf_counter() - started,
+            payload if status == "ok" else None,
+        )
         if status == "ok":
-            await asyncio.to_thread(self.store.put_result, key, kind.name, payload)
+            await asyncio.to_thread(self.store.put_result, key, name, payload)
             await asyncio.to_thread(self.store.finish_job, key, "succeeded")
             return bytes(payload)
         if status == "cancelled":
@@ -227,7 +252,8 @@ class Runner:
         await asyncio.to_thread(self.store.finish_job, key, "failed", payload)
         raise ComputationFailed(payload)
 
-    async def _execute(self, kind: JobKind, key: str, spec: dict[str, Any]) -> worker.Outcome:
+    async def _execute(self, job: Keyed) -> worker.Outcome:
+        key = job.key
         loop = asyncio.get_running_loop()
         for attempt in range(1, MAX_ATTEMPTS + 1):
             pool = self._pool
@@ -237,13 +263,13 @@ class Runner:
                 return await loop.run_in_executor(
                     pool,
                     worker.run,
-                    kind.function,
-                    kind.spec,
-                    spec,
+                    job.computation,
+                    job.request,
                     key,
                     str(self.store.path),
                     self.settings.job_timeout_s,
                     self.settings.progress_interval_s,
+                    observability.request_id(),
                 )
             except BrokenProcessPool:
                 flight = self._flights.get(key)

@@ -6,6 +6,7 @@ import os
 import tempfile
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
 import platformdirs
 from pydantic import Field
@@ -53,12 +54,24 @@ class Settings(BaseSettings):
     memory_cache_bytes: int = Field(
         64 << 20, ge=0, description="Bound on the in-memory front of the result cache [bytes]."
     )
+    hit_cache_bytes: int = Field(
+        64 << 20,
+        ge=0,
+        description="Bound on the pre-encoded (and gzipped) cache-hit answers in memory [bytes].",
+    )
     retry_after_s: int = Field(5, ge=1, description="Retry-After sent with 503 responses [s].")
     job_retention_s: float = Field(
         7 * 86400.0, gt=0, description="Finished job records older than this are pruned [s]."
     )
     progress_interval_s: float = Field(
         0.25, gt=0, description="How often a worker records progress and checks for cancel [s]."
+    )
+
+    log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"] = Field(
+        "INFO", description="Lowest level of log records written to stdout."
+    )
+    log_format: Literal["json", "text"] = Field(
+        "json", description="One JSON object per log line, or plain text for a terminal."
     )
 
     @property

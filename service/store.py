@@ -276,6 +276,13 @@ class Store:
             ).fetchall()
         return [Job.from_row(r) for r in rows]
 
+    def job_counts(self) -> dict[str, int]:
+        """Job records by status (every status present, zeros included)."""
+        with self._lock:
+            rows = self._conn.execute("SELECT status, COUNT(*) FROM jobs GROUP BY status")
+            counts = {str(status): int(n) for status, n in rows.fetchall()}
+        return {status: counts.get(status, 0) for status in STATUSES}
+
     def prune_jobs(self, older_than: float) -> int:
         """Delete finished job records whose last update is before ``older_than`` [Unix s]."""
         with self._lock:

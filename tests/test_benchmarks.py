@@ -61,3 +61,34 @@ def test_quick_run_prints_every_issue_9_target(capsys) -> None:  # type: ignore[
     ):
         row = next(line for line in table.splitlines() if target in line)
         assert row.rstrip().endswith(("met |", "**missed** |", "n/a |")), row
+
+
+def test_service_benchmark_smoke(tmp_path: Path) -> None:
+    """benchmarks/service.py --smoke runs every row against a real server (wrk included)
+    and writes its section; the mixed load has no errors.  No timing is asserted: the
+    targets are the benchmark's business, not CI's."""
+    import re
+    import shutil
+    import subprocess
+
+    from tests.live import ROOT, need
+
+    need(shutil.which("wrk") is not None, "wrk is absent (apt-get install -y wrk)")
+    out = tmp_path / "RESULTS.md"
+    out.write_text("# results\n\n## other section\n\nkept\n")
+    proc = subprocess.run(
+        [sys.executable, "benchmarks/service.py", "--smoke", "--label", "smoke", "--out", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    text = out.read_text()
+    assert "## other section\n\nkept" in text
+    section = text.split("## Service benchmark: smoke", 1)[1]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line]
+    assert len(rows) == 1 + 7, rows  # header + the issue's six targets (wrk with and without gzip)
+    for what in ("cold LTI", "fresh worker", "paper example", "one client", "wrk", "mixed"):
+        assert any(what in r for r in rows), what
+    assert re.search(r"\| 0 errors / [1-9]\d*", section), section

@@ -28,14 +28,27 @@ def _pins() -> dict[str, str]:
     return pins
 
 
-#: optional extras the image carries (the service's Parquet export)
-IMAGE_EXTRAS = ("parquet",)
+#: optional extras the image carries: the service (and the plots it draws) and its Parquet export
+IMAGE_EXTRAS = ("service", "parquet")
+
+
+def _extra_requirements(project: dict, extras: tuple[str, ...]) -> list[str]:
+    """The requirements of ``extras``, self-references (``pipeflow[plots]``) expanded."""
+    out: list[str] = []
+    for extra in extras:
+        for spec in project["optional-dependencies"][extra]:
+            req = Requirement(spec)
+            if canonicalize_name(req.name) == canonicalize_name(project["name"]):
+                out += _extra_requirements(project, tuple(sorted(req.extras)))
+            else:
+                out.append(spec)
+    return out
 
 
 def test_every_runtime_dependency_is_pinned_within_its_range() -> None:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     pins = _pins()
-    extras = [d for e in IMAGE_EXTRAS for d in project["optional-dependencies"][e]]
+    extras = _extra_requirements(project, IMAGE_EXTRAS)
     for spec in project["dependencies"] + extras:
         req = Requirement(spec)
         name = canonicalize_name(req.name)

@@ -136,8 +136,8 @@ def test_the_figures_the_readme_quotes_are_current() -> None:
     analytic references in tests/pipeflow/."""
     from pipeflow.basis import paper_scale, tip_values
     from pipeflow.model import PAPER_PIPE
+    from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
     from pipeflow.simulation import simulate
-    from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
     from pipeflow.stability import critical_velocities
 
     def same(quoted: str, value: float) -> None:

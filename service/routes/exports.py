@@ -18,7 +18,7 @@ import json
 import threading
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Header, Path, Response
+from fastapi import APIRouter, Depends, Header, Path, Response
 
 from pipeflow import plots
 from pipeflow.export import (
@@ -31,6 +31,7 @@ from pipeflow.export import (
     to_parquet,
 )
 from service.deps import StoreDep
+from service.negotiation import accepts
 from service.problems import ProblemError, responses
 from service.schemas import KEY_PATTERN
 
@@ -142,12 +143,13 @@ def _render(body: bytes, name: str, fmt: str) -> bytes:
     operation_id="getResultPlot",
     summary="A figure of a stored result (PNG or SVG)",
     response_class=Response,
+    dependencies=[Depends(accepts(*plots.MEDIA_TYPES.values()))],
     responses={
         200: {
             "content": {media: {"schema": BINARY} for media in plots.MEDIA_TYPES.values()},
             "description": "The figure; axis labels carry SI units.",
         },
-        **responses(304, 404, 422),
+        **responses(304, 404, 406, 422),
     },
 )
 async def get_result_plot(

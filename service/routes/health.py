@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Depends
 
 from pipeflow import __version__
 from service.deps import RunnerDep
+from service.negotiation import JSON, accepts
 from service.problems import ProblemError, responses
 from service.schemas import Health, Readiness
 
-router = APIRouter(tags=["health"])
+router = APIRouter(tags=["health"], dependencies=[Depends(accepts(JSON))])
 
 
-@router.get("/healthz", operation_id="getHealth", summary="Liveness", response_model=Health)
+@router.get(
+    "/healthz",
+    operation_id="getHealth",
+    summary="Liveness",
+    response_model=Health,
+    responses=responses(406),
+)
 async def healthz() -> Health:
     """The process is up and serving HTTP."""
     return Health(version=__version__)
@@ -23,7 +30,7 @@ async def healthz() -> Health:
     operation_id="getReadiness",
     summary="Readiness: workers started and a free slot",
     response_model=Readiness,
-    responses=responses(503),
+    responses=responses(406, 503),
 )
 async def readyz(runner: RunnerDep) -> Readiness:
     """200 when the worker processes are up and the queue has room, else 503."""

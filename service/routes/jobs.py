@@ -1,40 +1,25 @@
-"""/v1/jobs: asynchronous simulations with status, progress and cancellation."""
+"""/v1/jobs/{key}: status, progress and cancellation of any job.
+
+Jobs are submitted at ``POST /v1/<computation>/jobs`` (:mod:`service.routes.computations`;
+``POST /v1/jobs`` is the simulations' alias)."""
 
 from __future__ import annotations
 
 import asyncio
 from typing import Annotated
 
-from fastapi import APIRouter, Path
+from fastapi import APIRouter, Depends, Path
 from fastapi.responses import JSONResponse
 
-from service.compute import JOB_ACCEPTED, Refresh, accept_job, job_response
+from service.compute import job_response
 from service.deps import RunnerDep, StoreDep
-from service.kinds import SIMULATION
+from service.negotiation import JSON, accepts
 from service.problems import ProblemError, responses
-from service.routes.simulations import SpecBody
 from service.schemas import KEY_PATTERN, JobStatus
 
-router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[Depends(accepts(JSON))])
 
 Key = Annotated[str, Path(pattern=KEY_PATTERN, description="Job id = parameter hash.")]
-
-
-@router.post(
-    "",
-    operation_id="submitJob",
-    summary="Submit a simulation as a job",
-    status_code=202,
-    response_model=JobStatus,
-    responses={**JOB_ACCEPTED, **responses(413, 422, 503)},
-)
-async def submit_simulation_job(
-    spec: SpecBody, runner: RunnerDep, store: StoreDep, refresh: Refresh = False
-) -> JSONResponse:
-    """Accept the simulation (persisted before the answer) and return its job at once.
-    The job id is the parameter hash: resubmitting is idempotent, a finished result is
-    reused, and a failed or cancelled job is run again."""
-    return await accept_job(runner, store, SIMULATION, spec, refresh)
 
 
 @router.get(
@@ -42,7 +27,7 @@ async def submit_simulation_job(
     operation_id="getJob",
     summary="Job status, progress and timestamps",
     response_model=JobStatus,
-    responses=responses(404, 422),
+    responses=responses(404, 406, 422),
 )
 async def get_job(key: Key, store: StoreDep) -> JSONResponse:
     job = await asyncio.to_thread(store.get_job, key)
@@ -56,11 +41,13 @@ async def get_job(key: Key, store: StoreDep) -> JSONResponse:
     operation_id="cancelJob",
     summary="Cancel a queued or running job",
     response_model=JobStatus,
-    responses=responses(404, 409, 422),
+    responses=responses(404, 406, 409, 422),
 )
-async def cancel_job(key: Key, store: StoreDep) -> JSONResponse:
+async def cancel_job(key: Key, store: StoreDep, runner: RunnerDep) -> JSONResponse:
     """Cancel the job: it reports ``cancelled`` at once and its worker stops at its next
-    progress check.  Cancelling a cancelled job is a no-op; a finished one is a 409."""
+    progress check; a resubmission waits for that and runs it again.  Cancelling a
+    cancelled job is a no-op; a finished one is a 409."""
+    runner.cancel(key)  # before the record: a POST from now on starts a new run
     job = await asyncio.to_thread(store.request_cancel, key)
     if job is None:
         raise ProblemError(404, f"no job {key}", slug="unknown-key")

@@ -3,43 +3,35 @@
 from __future__ import annotations
 
 import asyncio
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, Union
 
-from fastapi import APIRouter, Header, Path, Query, Response
+from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
-from service.compute import CACHE_HEADERS, result_response
-from service.deps import RunnerDep, StoreDep
+from pipeflow.schema.registry import COMPUTATIONS
+from service.compute import CACHE_HEADERS, hit_response, result_response
+from service.deps import HitDep, RunnerDep, StoreDep
+from service.negotiation import JSON, accepts
 from service.problems import ProblemError, responses
 from service.routes.exports import (
     TABLE_CONTENT,
     TABLE_DESCRIPTION,
+    TABLE_MEDIA_TYPES,
     Table,
     table_response,
     wanted_format,
 )
-from service.schemas import KEY_PATTERN, CompareResponse, SimulationResponse
-from service.stability_schemas import (
-    BetaMapResponse,
-    FloquetResponse,
-    ResonanceChartResponse,
-    SpinMapResponse,
-    StabilityResponse,
-    SweepResponse,
+from service.schemas import KEY_PATTERN
+
+router = APIRouter(
+    prefix="/v1/results",
+    tags=["results"],
+    dependencies=[Depends(accepts(JSON, *TABLE_MEDIA_TYPES.values()))],
 )
 
-router = APIRouter(prefix="/v1/results", tags=["results"])
-
-#: what a stored result can be: one model per job kind (stability kinds carry ``kind``)
-ResultDocument = (
-    SimulationResponse
-    | CompareResponse
-    | StabilityResponse
-    | SweepResponse
-    | SpinMapResponse
-    | BetaMapResponse
-    | ResonanceChartResponse
-    | FloquetResponse
-)
+#: what a stored result can be: one model per result shape of the registry
+ResultDocument: Any = Union[  # noqa: UP007
+    tuple(dict.fromkeys(c.response for c in COMPUTATIONS.values() if c.endpoint is not None))
+]
 
 
 def _matches(if_none_match: str, key: str) -> bool:
@@ -62,8 +54,10 @@ async def get_result(
     key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
     store: StoreDep,
     runner: RunnerDep,
+    hit: HitDep,
     if_none_match: Annotated[str | None, Header()] = None,
-    accept: Annotated[str | None, Header()] = None,
+    # content negotiation, not a parameter: the 200's media types document it
+    accept: Annotated[str | None, Header(include_in_schema=False)] = None,
     format: Annotated[
         Literal["json", "csv", "parquet"] | None,
         Query(
@@ -86,11 +80,16 @@ async def get_result(
             raise ProblemError(404, f"no result {key}", slug="unknown-key")
         # parse the stored JSON and write the table off the event loop: results can be MBs
         return await asyncio.to_thread(table_response, key, body, table, fmt)
+    encoded = hit.cache.get(key) if hit.cache is not None else None
     if if_none_match is not None and _matches(if_none_match, key):
-        if await asyncio.to_thread(store.has_result, key):
-            return Response(status_code=304, headers={"ETag": f'"{key}"'})
+        if encoded is not None or await asyncio.to_thread(store.has_result, key):
+            return Response(
+                status_code=304, headers={"ETag": f'"{key}"', "Vary": "Accept-Encoding"}
+            )
+    if encoded is not None:
+        return result_response(key, True, encoded, hit.gzip)
     body = await asyncio.to_thread(store.get_result, key)
     if body is None:
         pending = " yet; its job is still in progress" if runner.is_active(key) else ""
         raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
-    return result_response(key, True, body)
+    return await hit_response(key, body, hit)

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import functools
+from typing import Any
+
+from pydantic import BaseModel
 
 from pipeflow.model import PAPER_PIPE
 from pipeflow.profiles import Constant, Profile, polynomial
@@ -40,3 +43,38 @@ def reference_run(case: str, modes: int = 4, t_end: float = 0.25) -> Result:
             options=Options(rtol=1e-12, atol=1e-16),
         )
     )
+
+
+#: the paper's pipe as JSON
+PIPE: dict[str, Any] = {k: getattr(PAPER_PIPE, k) for k in ("E", "I", "L", "M1", "M2")}
+#: a tiny real request of every computation
+TINY: dict[str, dict[str, Any]] = {
+    "simulation": {"pipe": PIPE, "modes": 2, "time": {"t_end": 0.01, "samples": 11}},
+    "compare": {
+        "simulation": {"pipe": PIPE, "modes": 2, "time": {"t_end": 0.01, "samples": 11}},
+        "methods": ["cma", "rk4"],
+    },
+    "stability": {"pipe": PIPE, "modes": 3, "velocity_range": [0.0, 40.0], "points": 11},
+    "argand": {"pipe": PIPE, "modes": 3, "tracked_modes": 2, "points": 5}
+    | {"velocity_range": [0.0, 40.0]},
+    "campbell": {"pipe": PIPE, "modes": 3, "tracked_modes": 2, "points": 5}
+    | {"spin_range": [0.0, 1000.0]},
+    "spin_map": {"pipe": PIPE, "modes": 3, "velocity_points": 5, "spin_points": 2}
+    | {"velocity_range": [0.0, 60.0], "spin_range": [0.0, 1000.0]},
+    "beta_map": {"modes": 3, "beta_points": 2, "u_points": 11},
+    "resonance_chart": {"pipe": PIPE, "modes": 2, "mean_velocity": 10.0}
+    | {"amplitude_range": [0.0, 5.0], "frequency_range": [500.0, 1500.0]}
+    | {"amplitude_points": 2, "frequency_points": 2},
+    "floquet": {"pipe": PIPE, "modes": 2}
+    | {"flow": {"velocity": {"kind": "harmonic", "mean": 10.0, "amplitude": 5.0}}},
+}
+TINY["floquet"]["flow"]["velocity"]["frequency"] = 1000.0
+
+
+def tiny_request(name: str) -> BaseModel:
+    """The validated tiny request of computation ``name`` (its ``kind`` added if it has one)."""
+    from pipeflow.schema.registry import COMPUTATIONS
+
+    model = COMPUTATIONS[name].request
+    body = TINY[name]
+    return model.model_validate({"kind": name, **body} if "kind" in model.model_fields else body)

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from pipeflow.cli import ProgressBar, main
-from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 
 
 @pytest.fixture

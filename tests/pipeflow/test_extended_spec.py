@@ -13,17 +13,26 @@ import pytest
 from pydantic import ValidationError
 
 from pipeflow.model import PAPER_PIPE, Pipe
-from pipeflow.spec import SimulationSpec
+from pipeflow.schema.registry import STABILITY, computation_for, parse
+from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
+from pipeflow.schema.simulation import SimulationSpec
+from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 from pipeflow.stability.core import nondimensional_pipe
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.maps import beta_map
-from pipeflow.stability_spec import (
-    PAPER_PIPE_JSON,
-    StabilitySpec,
-    parse_sweep,
-    run_stability,
-    run_sweep,
-)
+
+
+def parse_sweep(body: Any) -> Any:
+    return parse(SWEEP_ENDPOINT, body)
+
+
+def run_sweep(spec: Any, progress: Any = None) -> dict[str, Any]:
+    return computation_for(spec).execute(spec, progress)
+
+
+def run_stability(spec: StabilitySpec, progress: Any = None) -> dict[str, Any]:
+    return STABILITY.execute(spec, progress)
+
 
 EXTENDED_PIPE: dict[str, Any] = {
     **PAPER_PIPE_JSON,

@@ -144,7 +144,7 @@ def test_bad_mode_shape_requests_name_the_field(
     kwargs: dict[str, object], parameter: str, field: str
 ) -> None:
     """The library names its parameter; the schema layer's mapping gives the request field."""
-    from pipeflow.spec import SIMULATION_FIELDS, request_fields
+    from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
 
     sim = Simulation(PAPER_PIPE, modes=2, t_end=0.1, samples=11, **kwargs)  # type: ignore[arg-type]
     with pytest.raises(InvalidInput) as err, request_fields(SIMULATION_FIELDS):

@@ -9,9 +9,9 @@ import pytest
 from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial, table
+from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
-from pipeflow.spec import SIMULATION_FIELDS, request_fields
 from tests.pipeflow.cases import paper_sim
 
 
@@ -52,7 +52,7 @@ def test_invalid_input_names_the_parameter(
     kw: dict[str, object], parameter: str, field: str
 ) -> None:
     """The library names its own parameter (no JSON path); the schema layer's one mapping
-    (pipeflow.spec.SIMULATION_FIELDS) turns it into the request field."""
+    (pipeflow.schema.simulation.SIMULATION_FIELDS) turns it into the request field."""
     with pytest.raises(PipeflowError) as err:
         simulate(Simulation(PAPER_PIPE, **kw))  # type: ignore[arg-type]
     assert err.value.parameter == parameter
@@ -183,8 +183,8 @@ def test_paper_example_by_default_is_right_to_1e_8() -> None:
     on the first 0.1 s at the example's sample spacing; measured over the full second:
     6.8e-9 (state) and 6.0e-9 (tip)."""
     from pipeflow.model import build_model
+    from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
     from pipeflow.solvers.base import relative_difference
-    from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
 
     spec = SimulationSpec.model_validate(PAPER_EXAMPLE)
     assert spec.method == "auto"

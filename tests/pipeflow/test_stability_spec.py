@@ -1,4 +1,4 @@
-"""Request specs of /v1/stability and /v1/sweeps: validation, cache keys, JSON output."""
+"""Request models of /v1/stability and /v1/sweeps: validation, normal forms, JSON output."""
 
 from __future__ import annotations
 
@@ -8,14 +8,19 @@ import pytest
 from pydantic import ValidationError
 
 from pipeflow.errors import Cancelled
-from pipeflow.spec import cache_key
-from pipeflow.stability_spec import (
-    PAPER_PIPE_JSON,
-    StabilitySpec,
-    parse_sweep,
-    run_stability,
-    run_sweep,
-)
+from pipeflow.schema.registry import STABILITY as STABILITY_COMPUTATION
+from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
+from pipeflow.schema.registry import computation_for, parse
+from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
+
+
+def parse_sweep(body):
+    return parse(SWEEP_ENDPOINT, body)
+
+
+def run_sweep(spec, progress=None):
+    return computation_for(spec).execute(spec, progress)
+
 
 STABILITY = {
     "pipe": PAPER_PIPE_JSON,
@@ -29,7 +34,7 @@ STABILITY = {
 def test_stability_roundtrip_json_and_progress():
     spec = StabilitySpec.model_validate(STABILITY)
     seen: list[float] = []
-    out = run_stability(spec, progress=seen.append)
+    out = STABILITY_COMPUTATION.execute(spec, progress=seen.append)
     text = json.dumps(out, allow_nan=False)
     assert json.loads(text)["kind"] == "stability"
     assert out["critical_velocity"] is not None
@@ -39,13 +44,25 @@ def test_stability_roundtrip_json_and_progress():
     assert seen and seen[-1] == 1.0 and all(0 <= x <= 1 for x in seen)
 
 
-def test_cache_key_ignores_spelling_and_sees_changes():
+def test_normal_form_ignores_spelling_and_sees_changes():
     a = StabilitySpec.model_validate(STABILITY)
-    b = StabilitySpec.model_validate({**STABILITY, "points": 41.0, "modes": 6})
+    b = StabilitySpec.model_validate({**{k: STABILITY[k] for k in reversed(STABILITY)}})
     c = StabilitySpec.model_validate({**STABILITY, "velocity_range": [-1.0, 41.0]})
-    assert cache_key(a, "stability") == cache_key(b, "stability")
-    assert cache_key(a, "stability") != cache_key(c, "stability")
-    assert cache_key(a, "stability") != cache_key(a, "sweep")
+    d = StabilitySpec.model_validate({k: v for k, v in STABILITY.items() if k != "rotation"})
+    assert a.canonical() == b.canonical()
+    assert a.canonical() != c.canonical()
+    assert d.canonical()["rotation"]["omega0"] == {"kind": "constant", "value": 0.0}
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("modes", "6"), ("modes", True), ("modes", 6.0), ("points", "41"), ("velocity_range", "0,1")],
+)
+def test_loose_types_are_refused(field, value):
+    """Strict inputs: a string or a boolean where a number belongs is an error naming it."""
+    with pytest.raises(ValidationError) as err:
+        StabilitySpec.model_validate({**STABILITY, field: value})
+    assert err.value.errors()[0]["loc"][0] == field
 
 
 @pytest.mark.parametrize(
@@ -114,7 +131,7 @@ def test_every_sweep_kind_runs_to_finite_json(body):
     out = run_sweep(spec)
     assert out["kind"] == body["kind"]
     json.dumps(out, allow_nan=False)
-    assert len(cache_key(spec, "sweep")) == 64
+    assert spec.canonical()["kind"] == body["kind"]
 
 
 def test_sweep_validation_and_cancel():

@@ -11,10 +11,11 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
 from fastapi.testclient import TestClient
 
-from pipeflow.spec import PAPER_EXAMPLE
+from pipeflow.schema.simulation import PAPER_EXAMPLE
 from pipeflow_client import Client
 from service.compute import job_document, run_sync, submit_job
 from service.deps import RunnerDep, StoreDep
+from service.keys import keyed
 from service.main import create_app
 from service.settings import Settings
 from tests.service.kinds_for_tests import SLEEP, SleepSpec
@@ -42,11 +43,12 @@ def test_router() -> APIRouter:
         store: StoreDep,
         refresh: Annotated[bool, Query()] = False,
     ) -> Response:
-        return await run_sync(runner, store, SLEEP, spec, refresh)
+        return await run_sync(runner, store, keyed(SLEEP, spec), refresh)
 
     @router.post("/sleep-jobs", status_code=202)
     async def sleep_job(spec: SleepSpec, runner: RunnerDep, store: StoreDep) -> JSONResponse:
-        key, job = await submit_job(runner, store, SLEEP, spec, False)
+        job = await submit_job(runner, store, keyed(SLEEP, spec), False)
+        key = job.key
         doc = job_document(job)
         doc = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in doc.items()}
         return JSONResponse(doc, 202, {"Location": f"/v1/jobs/{key}"})

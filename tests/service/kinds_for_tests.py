@@ -1,7 +1,8 @@
-"""Job kinds used only by the tests: cheap, controllable stand-ins for long simulations.
+"""Computations used only by the tests: cheap, controllable stand-ins for long simulations.
 
-Registered in :data:`service.kinds.KINDS` on import; the worker processes import this
-module by reference when they unpickle the functions.
+Registered in :data:`pipeflow.schema.registry.COMPUTATIONS` on import, without an endpoint
+(no route); the worker processes import this module by reference when they unpickle the
+functions.
 """
 
 from __future__ import annotations
@@ -11,8 +12,14 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from pipeflow.schema.registry import Computation, register
 from pipeflow.solvers.base import ProgressCallback
-from service.kinds import JobKind, register
+
+
+class SleepResult(BaseModel):
+    slept: float = Field(description="Seconds slept [s].")
+    tag: str
+    plots: list[str]
 
 
 class SleepSpec(BaseModel):
@@ -23,14 +30,16 @@ class SleepSpec(BaseModel):
     tag: str = Field("", description="Makes otherwise equal specs distinct.")
 
 
-def sleep(spec: SleepSpec, progress: ProgressCallback) -> dict[str, Any]:
+def sleep(spec: SleepSpec, progress: ProgressCallback | None) -> dict[str, Any]:
     """Sleep ``spec.seconds``, reporting progress unless told not to."""
     start = time.monotonic()
     while (elapsed := time.monotonic() - start) < spec.seconds:
         time.sleep(0.01)
-        if spec.report:
+        if spec.report and progress is not None:
             progress(elapsed / spec.seconds)
     return {"slept": spec.seconds, "tag": spec.tag}
 
 
-SLEEP = register(JobKind("test-sleep", SleepSpec, sleep))
+SLEEP = register(
+    Computation("test-sleep", SleepSpec, SleepResult, sleep, endpoint=None, budget="seconds <= 120")
+)

@@ -6,9 +6,10 @@ import copy
 import json
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
-from service.schemas import SimulationResponse
+from pipeflow.schema.results import SimulationResponse
 from tests.service.conftest import SMALL
 
 
@@ -167,14 +168,87 @@ def test_extreme_magnitudes_are_422_not_500(client: TestClient) -> None:
 
 
 def test_bad_json_and_missing_body(client: TestClient) -> None:
+    """Malformed JSON is a 400 problem (documented); a missing body a 422."""
     doc = _problem(
         client.post(
             "/v1/simulations", content=b"{not json", headers={"content-type": "application/json"}
         ),
-        422,
+        400,
     )
     assert doc["errors"][0]["type"] == "json_invalid"
     _problem(client.post("/v1/simulations"), 422)
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "field"),
+    [
+        ("pipe.E", True, "pipe.E"),
+        ("modes", "10", "modes"),
+        ("modes", True, "modes"),
+        ("rotation.omega0", {"kind": "constant", "value": False}, "rotation.omega0.value"),
+        ("time.t_end", "1", "time.t_end"),
+        ("output.modal", 1, "output.modal"),
+    ],
+)
+def test_inputs_are_strict(client: TestClient, path: str, value: Any, field: str) -> None:
+    """A boolean or a string where a number belongs (or a number for a boolean) is a 422
+    naming the field, never coerced (``"E": true`` was taken as 1 Pa)."""
+    body = _small()
+    node = body
+    *parents, leaf = path.split(".")
+    for part in parents:
+        node = node.setdefault(part, {})
+    node[leaf] = value
+    doc = _problem(client.post("/v1/simulations", json=body), 422)
+    assert _fields(doc) == [field]
+
+
+def test_content_negotiation(client: TestClient) -> None:
+    """415 for a body that is not JSON, 406 for an Accept the operation cannot meet."""
+    body = json.dumps(_small()).encode()
+    for ctype in ("text/plain", "application/x-www-form-urlencoded", "application/xml"):
+        doc = _problem(
+            client.post("/v1/simulations", content=body, headers={"content-type": ctype}), 415
+        )
+        assert doc["errors"][0]["field"] == "Content-Type"
+    doc = _problem(
+        client.post("/v1/sweeps", content=b"kind=argand", headers={"content-type": "text/plain"}),
+        415,
+    )
+    for accept in ("text/html", "image/png", "application/xml;q=1, text/csv"):
+        resp = client.post("/v1/simulations", json=_small(), headers={"accept": accept})
+        _problem(resp, 406)
+        _problem(client.get(f"/v1/jobs/{'0' * 64}", headers={"accept": accept}), 406)
+    key = "0" * 64
+    _problem(client.get(f"/v1/results/{key}", headers={"accept": "image/png"}), 406)
+    _problem(
+        client.get(f"/v1/results/{key}/plots/damping.png", headers={"accept": "text/csv"}), 406
+    )
+    _problem(client.get("/healthz", headers={"accept": "text/html"}), 406)
+    # what each offers is fine (the key is unknown: 404, after negotiation)
+    _problem(client.get(f"/v1/results/{key}", headers={"accept": "text/csv"}), 404)
+    _problem(client.get(f"/v1/results/{key}/plots/damping.png", headers={"accept": "image/*"}), 404)
+    # JSON by any name is fine
+    for accept in ("application/json", "*/*", "application/*;q=0.5", "application/problem+json"):
+        assert (
+            client.post("/v1/simulations", json=_small(), headers={"accept": accept}).status_code
+            == 200
+        )
+    ok = client.post(
+        "/v1/simulations", content=body, headers={"content-type": "application/json; charset=utf-8"}
+    )
+    assert ok.status_code == 200
+
+
+def test_405_names_every_allowed_method(client: TestClient) -> None:
+    """OPTIONS (or PUT) on /v1/jobs/{key} names GET and DELETE, which both exist."""
+    for method in ("OPTIONS", "PUT", "PATCH"):
+        resp = client.request(method, f"/v1/jobs/{'0' * 64}")
+        _problem(resp, 405)
+        assert {m.strip() for m in resp.headers["allow"].split(",")} == {"GET", "DELETE"}
+    resp = client.request("PUT", "/v1/simulations")
+    _problem(resp, 405)
+    assert resp.headers["allow"] == "POST"
 
 
 def test_library_refusal_is_422_with_field(client: TestClient) -> None:

@@ -8,12 +8,21 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
-from pipeflow.spec import PAPER_EXAMPLE, SimulationSpec
-from service.kinds import SIMULATION
+from pipeflow.schema.registry import SIMULATION, STABILITY
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
+from pipeflow.schema.stability import StabilitySpec
+from service.keys import keyed
 
 
 def _key(body: dict[str, Any]) -> str:
-    return SIMULATION.key(SimulationSpec.model_validate(body))
+    return keyed(SIMULATION, SimulationSpec.model_validate(body)).key
+
+
+def test_the_kind_salts_the_key() -> None:
+    """Two computations with equal normal forms never share a key."""
+    body = {"pipe": PAPER_EXAMPLE["pipe"], "velocity_range": [0.0, 1.0]}
+    spec = StabilitySpec.model_validate(body)
+    assert keyed(STABILITY, spec).key != keyed(SIMULATION, spec).key
 
 
 def test_key_order_is_irrelevant() -> None:

@@ -22,7 +22,7 @@ import httpx
 import numpy as np
 import pytest
 
-from pipeflow.spec import PAPER_EXAMPLE
+from pipeflow.schema.simulation import PAPER_EXAMPLE
 from pipeflow_client import AsyncClient, Client, RetryPolicy, ServiceError, SimulationResult
 from pipeflow_client.client import retry_after_seconds
 from tests.live import uvicorn_server

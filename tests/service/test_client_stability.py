@@ -11,7 +11,7 @@ import pytest
 
 import pipeflow_client
 from pipeflow.cli import main as cli_main
-from pipeflow.stability_spec import PAPER_PIPE_JSON, ArgandSweep, StabilitySpec
+from pipeflow.schema.stability import PAPER_PIPE_JSON, ArgandSweep, StabilitySpec
 from pipeflow_client import Client, ServiceError
 
 #: beta = 0.2 non-dimensional pipe (E = I = L = 1, M1 + M2 = 1): u = v sqrt(beta)

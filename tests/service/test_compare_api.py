@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from service.schemas import CompareResponse
+from pipeflow.schema.results import CompareResponse
 from tests.service.conftest import SMALL
 
 

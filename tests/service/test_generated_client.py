@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipeflow.schema.simulation import SimulationSpec
 from pipeflow.simulation import simulate
-from pipeflow.spec import SimulationSpec
 from tests.live import ROOT, need
 from tests.service.conftest import SMALL
 

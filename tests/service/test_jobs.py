@@ -5,9 +5,10 @@ from __future__ import annotations
 import time
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
-from tests.service.conftest import SMALL, wait_job
+from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
 
 
 def test_job_lifecycle(client: TestClient) -> None:
@@ -151,3 +152,42 @@ def test_saturated_503(tight: TestClient) -> None:
         tight.delete(f"/v1/jobs/{key}")
     _wait_idle(tight)
     assert tight.post("/v1/simulations", json=SMALL).status_code == 200
+
+
+def test_post_after_delete_never_answers_a_dead_job(
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The cancel race, forced: a POST of a spec right after DELETE of its running job, with
+    the cancelled run stopping while the POST is being answered.  The answer is a job that
+    runs (queued or running, then succeeded), never 202 ``cancelled`` with nothing running.
+
+    The interleaving is made deterministic through the store seam: the worker checks the
+    cancel flag only every second (``progress_interval_s``), and while the POST is handled
+    the job record is read only once the cancelled run has stopped.  Before the fix the POST
+    shared the stopping run, read the record after it ended cancelled, and answered that.
+    """
+    with make_client(tmp_path, workers=1, queue_size=2, progress_interval_s=1.0) as c:
+        wait_ready(c)
+        runner = c.app.state.runner  # type: ignore[attr-defined]
+        store = c.app.state.store  # type: ignore[attr-defined]
+        spec = {"seconds": 2.5, "tag": "race"}
+        key = _sleep_job(c, **spec)
+        wait_job(c, key, lambda j: j["status"] == "running")
+        assert c.delete(f"/v1/jobs/{key}").json()["status"] == "cancelled"
+        old = runner._flights[key].task  # still running: its next cancel check is ~1 s away
+        assert not old.done()
+        read = store.get_job
+
+        def get_job_after_the_old_run(k: str) -> Any:
+            while not old.done():
+                time.sleep(0.01)
+            return read(k)
+
+        monkeypatch.setattr(store, "get_job", get_job_after_the_old_run)
+        again = c.post("/test/sleep-jobs", json=spec)
+        monkeypatch.setattr(store, "get_job", read)
+        assert old.done() and old.exception() is not None  # it ended cancelled
+        assert again.status_code == 202
+        assert again.json()["status"] in ("queued", "running"), again.json()
+        assert runner.is_active(key)
+        assert wait_job(c, key)["status"] == "succeeded"

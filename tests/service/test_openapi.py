@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from pipeflow.spec import PAPER_EXAMPLE
+from pipeflow.schema.simulation import PAPER_EXAMPLE
 from service import openapi_gen
 
 
@@ -28,6 +28,8 @@ def test_operations_errors_and_example() -> None:
         "compareMethods",
         "runStability",
         "submitStabilityJob",
+        "submitSimulationJob",
+        "submitCompareJob",
         "submitSweep",
         "getJob",
         "cancelJob",
@@ -35,7 +37,11 @@ def test_operations_errors_and_example() -> None:
         "getResultPlot",
         "getHealth",
         "getReadiness",
+        "getMetrics",
     }
+    # every computing endpoint has the same pair: the result, and the job form
+    for path in ("/v1/simulations", "/v1/compare", "/v1/stability"):
+        assert ("POST", path) in ops and ("POST", path + "/jobs") in ops
     for op in ops.values():
         for code, resp in op["responses"].items():
             if int(code) >= 400:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import httpx
 
-from pipeflow.spec import PAPER_EXAMPLE
+from pipeflow.schema.simulation import PAPER_EXAMPLE
 from tests.live import free_port
 
 ROOT = Path(__file__).resolve().parents[2]

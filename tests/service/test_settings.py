@@ -51,5 +51,7 @@ def test_an_unwritable_data_dir_stops_the_server_with_a_clear_message(tmp_path: 
     )
     assert done.returncode != 0
     uid = os.getuid()
-    assert f"PIPEFLOW_DATA_DIR={data} is not a writable directory for uid {uid}" in done.stderr
-    assert f"(chown {uid} {data})" in done.stderr
+    # the service logs to stdout, uvicorn's start-up failure included (service.observability)
+    output = done.stdout + done.stderr
+    assert f"PIPEFLOW_DATA_DIR={data} is not a writable directory for uid {uid}" in output
+    assert f"(chown {uid} {data})" in output

@@ -15,9 +15,10 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from pipeflow.spec import cache_key
-from pipeflow.stability_spec import PAPER_PIPE_JSON, StabilitySpec, parse_sweep
-from service.stability_schemas import RESPONSE_BY_KIND
+from pipeflow.schema.registry import COMPUTATIONS, STABILITY, parse
+from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
+from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
+from service.keys import keyed
 from tests.service.conftest import make_client, wait_job, wait_ready
 
 #: the paper's pipe at w0 = 100 rad/s, 0..60 m/s, 10 modes (the endpoint's example)
@@ -93,7 +94,7 @@ def _fields(doc: dict[str, Any]) -> list[str | None]:
 
 def _matches_model(doc: dict[str, Any]) -> None:
     """The result has exactly the fields its response model documents (both ways)."""
-    model = RESPONSE_BY_KIND[doc["kind"]]
+    model = COMPUTATIONS[doc["kind"]].response
     model.model_validate(doc)
     assert set(doc) == set(model.model_fields), doc["kind"]
 
@@ -114,7 +115,7 @@ def test_paper_pipe_critical_velocity_and_cache(api: TestClient) -> None:
     assert r.status_code == 200, r.text
     doc = r.json()
     assert r.headers["x-cache"] == "MISS" and doc["cached"] is False
-    key = cache_key(StabilitySpec.model_validate(PAPER), "stability")
+    key = keyed(STABILITY, StabilitySpec.model_validate(PAPER)).key
     assert doc["key"] == key and r.headers["etag"] == f'"{key}"'
     assert doc["critical_velocity"] == pytest.approx(27.692, abs=1e-3)  # [m/s]
     first = doc["crossings"][0]
@@ -260,7 +261,7 @@ def test_every_sweep_kind_runs_as_a_job_with_plots(api: TestClient, kind: str) -
     key = job["key"]
     assert r.headers["location"] == f"/v1/jobs/{key}"
     assert job["kind"] == kind and job["status"] in ("queued", "running", "succeeded")
-    assert key == cache_key(parse_sweep(body), kind)
+    assert key == keyed(COMPUTATIONS[kind], parse(SWEEP_ENDPOINT, body)).key
     done = wait_job(api, key)
     assert done["status"] == "succeeded", done
     result = api.get(f"/v1/results/{key}")
@@ -394,7 +395,7 @@ def test_openapi_documents_the_new_operations(api: TestClient) -> None:
     examples = sweeps["requestBody"]["content"]["application/json"]["examples"]
     assert set(examples) == set(SWEEPS)
     for name, ex in examples.items():
-        assert parse_sweep(ex["value"]).kind == name
+        assert getattr(parse(SWEEP_ENDPOINT, ex["value"]), "kind", None) == name
     schemas = doc["components"]["schemas"]
     assert "[m/s]" in schemas["StabilityResponse"]["properties"]["critical_velocity"]["description"]
     result = doc["paths"]["/v1/results/{key}"]["get"]["responses"]["200"]["content"]

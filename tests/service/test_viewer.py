@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from pipeflow.spec import PAPER_EXAMPLE
+from pipeflow.schema.simulation import PAPER_EXAMPLE
 from service.routes.viewer import ASSETS
 from tests.service.conftest import make_client
 

@@ -1,24 +1,26 @@
-"""The JSON specification of a simulation: one schema for the service, the CLI and files.
+"""Request models of a simulation and of a method comparison: one schema for the service,
+the CLI and files.
 
 pydantic models with units in every description and bounds on every cost a request can
-ask for.  :meth:`SimulationSpec.to_simulation` turns a validated spec into the library's
-:class:`~pipeflow.simulation.Simulation`; :meth:`SimulationSpec.canonical` gives the
-normalised form (defaults filled, options the method does not read dropped) that the
-cache key is computed from.
+ask for.  Inputs are strict: a boolean or a string where a number belongs is refused
+(``"E": true`` is not 1 Pa).  :meth:`SimulationSpec.to_simulation` turns a validated spec
+into the library's :class:`~pipeflow.simulation.Simulation` (plain arguments);
+:meth:`SimulationSpec.canonical` gives the normalised form (defaults filled, options the
+method does not read dropped) that the service's cache key is computed from.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
-from typing import Annotated, Any, Literal, Protocol
+from typing import Annotated, Any, Literal
 
-import rfc8785
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from pipeflow import __version__, profiles
+from pipeflow import profiles
+from pipeflow.basis import MAX_MODES
+from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
 from pipeflow.modeshapes import (
@@ -120,14 +122,15 @@ def library_check(check: Callable[..., object], fields: Mapping[str, str], *args
 
 
 class StrictModel(BaseModel):
-    """Base of every request model: unknown fields and non-finite numbers are refused.
+    """Base of every request model: unknown fields, non-finite numbers and loose types are
+    refused (``strict``: no bool or string where a number belongs, no 3.0 for an integer).
 
     :meth:`canonical` is the normalised JSON form the cache key is computed from; models
     that normalise further (:class:`SimulationSpec`) override it.  Subclasses setting
     ``model_config`` (e.g. for schema examples) inherit these settings (pydantic merges it).
     """
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 
     def canonical(self) -> dict[str, Any]:
         """Normalised JSON form (every default filled in) that the cache key is computed from."""
@@ -339,27 +342,41 @@ class TimeSpec(StrictModel):
     )
 
 
+#: the library's option defaults (one definition: :class:`pipeflow.solvers.Options`)
+_OPTIONS = Options()
+
+
 class MethodOptions(StrictModel):
-    """Solver options; a method ignores the ones it does not read (and so does the cache key)."""
+    """Solver options (:class:`pipeflow.solvers.Options`, field for field, with bounds and
+    units); a method ignores the ones it does not read (and so does the cache key)."""
 
     step: float | None = Field(
-        None, gt=0, description="rk4/magnus: time step [s]; null picks one automatically."
+        _OPTIONS.step, gt=0, description="rk4/magnus: time step [s]; null picks one automatically."
     )
     max_steps: int = Field(
-        2_000_000, ge=1, le=MAX_STEPS_CEILING, description="Refuse runs needing more steps."
+        _OPTIONS.max_steps,
+        ge=1,
+        le=MAX_STEPS_CEILING,
+        description="Refuse runs needing more steps.",
     )
-    rtol: float = Field(1e-12, ge=1e-14, le=1e-2, description="reference: relative tolerance.")
+    rtol: float = Field(
+        _OPTIONS.rtol, ge=1e-14, le=1e-2, description="reference: relative tolerance [-]."
+    )
     atol: float = Field(
-        1e-15, ge=1e-20, le=1.0, description="reference: absolute tolerance [m of modal amplitude]."
+        _OPTIONS.atol,
+        ge=1e-20,
+        le=1.0,
+        description="reference: absolute tolerance [m of modal amplitude].",
     )
     integrator: Literal["DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA"] = Field(
-        "DOP853", description="reference: scipy solve_ivp method."
+        _OPTIONS.integrator,  # type: ignore[arg-type]
+        description="reference: scipy solve_ivp method.",
     )
     tolerance: float = Field(
-        1e-8, ge=1e-13, le=1e-1, description="magnus: relative accuracy target [-]."
+        _OPTIONS.tolerance, ge=1e-13, le=1e-1, description="magnus: relative accuracy target [-]."
     )
     condition_limit: float = Field(
-        1e8,
+        _OPTIONS.condition_limit,
         ge=10,
         le=1e14,
         description="cma: eigenvector 1-norm condition number above which expm is used [-].",
@@ -391,7 +408,7 @@ class OutputSpec(StrictModel):
         description="Extra stations x [m] (0 <= x <= L) whose displacement u(x, t) is returned.",
     )
     eigen_modes: int = Field(
-        3, ge=1, le=40, description="Lowest eigenvalue branches to trace (capped at modes)."
+        3, ge=1, le=MAX_MODES, description="Lowest eigenvalue branches to trace (capped at modes)."
     )
     eigen_samples: int = Field(
         201, ge=2, le=MAX_EIGEN_SAMPLES, description="Times at which eigenvalues are computed."
@@ -446,7 +463,9 @@ class SimulationSpec(StrictModel):
     plane: Plane = "in-plane"
     flow: FlowSpec = Field(default_factory=FlowSpec)
     initial: InitialSpec = Field(default_factory=InitialSpec)
-    modes: int = Field(10, ge=1, le=40, description="Number of Galerkin (cantilever) modes.")
+    modes: int = Field(
+        10, ge=1, le=MAX_MODES, description="Number of Galerkin (cantilever) modes [-]."
+    )
     time: TimeSpec = Field(default_factory=TimeSpec)
     method: str = Field(
         "auto",
@@ -484,7 +503,7 @@ class SimulationSpec(StrictModel):
         return self
 
     def to_simulation(self) -> Simulation:
-        opts = self.options
+        """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
         return Simulation(
             pipe=self.pipe.to_pipe(self.rotation.hub_radius, self.plane),
             flow=self.flow.velocity.to_profile(),
@@ -496,15 +515,7 @@ class SimulationSpec(StrictModel):
             t_end=self.time.t_end,
             samples=self.time.samples,
             method=self.method,
-            options=Options(
-                step=opts.step,
-                max_steps=opts.max_steps,
-                rtol=opts.rtol,
-                atol=opts.atol,
-                integrator=opts.integrator,
-                tolerance=opts.tolerance,
-                condition_limit=opts.condition_limit,
-            ),
+            options=Options(**self.options.model_dump()),
             positions=tuple(self.output.positions),
             eigen_modes=self.output.eigen_modes,
             eigen_samples=self.output.eigen_samples,
@@ -534,23 +545,37 @@ def run_simulation(spec: SimulationSpec, progress: ProgressCallback | None = Non
 PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_json_schema()["examples"][0]
 
 
-class Canonical(Protocol):
-    """A validated request that can give its normalised JSON form."""
+class CompareSpec(StrictModel):
+    """Body of ``POST /v1/compare``: one simulation, several methods."""
 
-    def canonical(self) -> dict[str, Any]: ...
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [{"simulation": PAPER_EXAMPLE, "methods": ["cma", "magnus", "rk4"]}]
+        },
+    )
 
+    simulation: SimulationSpec = Field(
+        description="The case to run; its 'method' is ignored, its 'options' apply to every "
+        "method that reads them."
+    )
+    methods: list[Literal[tuple(sorted(SOLVERS))]] = Field(  # type: ignore[valid-type]
+        default_factory=default_methods,
+        min_length=1,
+        max_length=MAX_METHODS,
+        description="Distinct method names to run (default: every method but 'reference' "
+        "and 'auto').",
+        json_schema_extra={"uniqueItems": True},
+    )
 
-def cache_key(spec: Canonical, kind: str = "simulation") -> str:
-    """SHA-256 of the RFC 8785 canonical JSON of the normalised spec, salted with the
-    pipeflow version and the job kind; the one parameter hash of every request kind.
+    @field_validator("methods")
+    @classmethod
+    def _distinct(cls, v: list[str]) -> list[str]:
+        if len(set(v)) != len(v):
+            raise ValueError("methods must be distinct")
+        return v
 
-    Equivalent requests (key order, ``1`` vs ``1.0``, defaults omitted or spelled out,
-    options the method ignores) share a key; any change to a number that matters changes it.
-    """
-    return hash_canonical(spec.canonical(), kind)
-
-
-def hash_canonical(canonical: dict[str, Any], kind: str) -> str:
-    """The hash behind :func:`cache_key`, for an already normalised JSON form."""
-    payload: dict[str, Any] = {"pipeflow": __version__, "kind": kind, "spec": canonical}
-    return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()
+    def canonical(self) -> dict[str, Any]:
+        """Normalised form for the cache key: every option kept (each method reads its own)."""
+        data = self.simulation.model_dump(mode="json")
+        data.pop("method")
+        return {"simulation": data, "methods": list(self.methods)}

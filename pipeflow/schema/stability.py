@@ -1,16 +1,17 @@
-"""JSON request specs of the stability analyses, and the pure functions that run them.
+"""Request models of the stability analyses, and how each runs (plain library calls).
 
-- ``POST /v1/stability``: :class:`StabilitySpec` -> :func:`run_stability` (critical flow
-  velocity at constant spin: every crossing of the stability boundary).
-- ``POST /v1/sweeps``: one of the :data:`SweepSpec` kinds -> :func:`run_sweep`:
+- ``POST /v1/stability``: :class:`StabilitySpec` (critical flow velocity at constant spin:
+  every crossing of the stability boundary).
+- ``POST /v1/sweeps``: one of the :data:`SweepModel` kinds, told apart by ``kind``:
   ``argand`` (eigenvalues against flow velocity), ``campbell`` (against spin),
   ``spin_map`` (critical velocity against spin), ``beta_map`` (u_cr(beta), non-dimensional),
   ``resonance_chart`` (Floquet chart of pulsating flow) and ``floquet`` (one periodic case).
 
-Same conventions as :mod:`pipeflow.spec`: pydantic models with units in every description,
-bounds on everything a request can spend, :meth:`canonical` (defaults filled in) for the
-cache key.  The run functions return JSON-ready dicts (every float finite) and take a
-``progress`` callback (fraction in [0, 1]) that may raise :class:`pipeflow.errors.Cancelled`.
+Same conventions as :mod:`pipeflow.schema.simulation`: strict pydantic models with units in
+every description, bounds on everything a request can spend, :meth:`canonical` (defaults
+filled in) for the cache key.  Each model's ``run`` method is the plain library call; it
+returns the result's ``to_dict`` form and takes a ``progress`` callback (fraction in
+[0, 1]) that may raise :class:`pipeflow.errors.Cancelled`.
 """
 
 from __future__ import annotations
@@ -18,12 +19,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
-from pydantic import ConfigDict, Field, TypeAdapter, model_validator
+import numpy as np
+from pydantic import ConfigDict, Field, Strict, model_validator
 
 from pipeflow.basis import MAX_MODES
 from pipeflow.model import PAPER_PIPE, Pipe
-from pipeflow.simulation import json_safe
-from pipeflow.spec import (
+from pipeflow.schema.simulation import (
     ConstantProfile,
     HarmonicProfile,
     HubRadius,
@@ -31,7 +32,6 @@ from pipeflow.spec import (
     Plane,
     StrictModel,
     library_check,
-    request_fields,
 )
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
@@ -103,13 +103,15 @@ class ConstantFlow(StrictModel):
     )
 
 
+StrictFloat = Annotated[float, Strict()]
+#: [lo, hi]: a JSON array of two numbers (lax only in accepting an array for the tuple)
+Pair = Annotated[tuple[StrictFloat, StrictFloat], Field(strict=False)]
+
 VelocityRange = Annotated[
-    tuple[float, float],
+    Pair,
     Field(description="[v_min, v_max] flow velocities [m/s], increasing; v < 0 is reverse flow."),
 ]
-SpinRange = Annotated[
-    tuple[float, float], Field(description="[w_min, w_max] spins w0 [rad/s], increasing.")
-]
+SpinRange = Annotated[Pair, Field(description="[w_min, w_max] spins w0 [rad/s], increasing.")]
 Modes = Annotated[int, Field(ge=1, le=MAX_MODES, description="Galerkin (cantilever) modes n.")]
 
 
@@ -147,6 +149,17 @@ class StabilitySpec(_Mounted):
         if abs(self.rotation.omega0.value) > MAX_SPIN:
             raise ValueError(f"rotation.omega0.value must lie within +-{MAX_SPIN:g} rad/s")
         return self
+
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """:func:`~pipeflow.stability.critical.critical_velocities` (``to_dict`` form)."""
+        return critical_velocities(
+            self.mounted_pipe(),
+            omega0=self.rotation.omega0.value,
+            velocity_range=self.velocity_range,
+            modes=self.modes,
+            points=self.points,
+            progress=progress,
+        ).to_dict()
 
 
 class _TrackedSweep(_Mounted):
@@ -280,10 +293,10 @@ class BetaMapSweep(StrictModel):
 
     kind: Literal["beta_map"] = "beta_map"
     modes: Modes = 10
-    beta_range: tuple[float, float] = Field(
+    beta_range: Pair = Field(
         (0.05, 0.95), description="[beta_min, beta_max] mass ratios M2/(M1+M2) in (0, 1) [-]."
     )
-    u_range: tuple[float, float] = Field(
+    u_range: Pair = Field(
         (0.0, 20.0), description="[u_min, u_max] flow numbers v L sqrt(M2/EI) >= 0 [-]."
     )
     gamma: float = Field(0.0, ge=0, le=1e3, description="Spin number w0 L^2 sqrt((M1+M2)/EI) [-].")
@@ -353,10 +366,8 @@ class ResonanceChartSweep(_Mounted):
     mean_velocity: float = Field(
         ge=-MAX_SPEED, le=MAX_SPEED, description="Mean flow velocity [m/s]."
     )
-    amplitude_range: tuple[float, float] = Field(
-        description="[a_min, a_max] pulsation amplitudes >= 0 [m/s]."
-    )
-    frequency_range: tuple[float, float] = Field(
+    amplitude_range: Pair = Field(description="[a_min, a_max] pulsation amplitudes >= 0 [m/s].")
+    frequency_range: Pair = Field(
         description="[Omega_min, Omega_max] pulsation frequencies > 0 [rad/s]."
     )
     amplitude_points: int = Field(21, ge=1, le=MAX_CHART_SIDE, description="Amplitude samples.")
@@ -444,49 +455,21 @@ class FloquetSweep(_Mounted):
         ).to_dict()
 
 
-SWEEP_KINDS = (
-    ArgandSweep,
-    CampbellSweep,
-    SpinMapSweep,
-    BetaMapSweep,
-    ResonanceChartSweep,
-    FloquetSweep,
+#: the request models asked for by ``kind`` at ``/v1/sweeps`` (their registry entries
+#: are in :mod:`pipeflow.schema.registry`)
+SweepModel = (
+    ArgandSweep | CampbellSweep | SpinMapSweep | BetaMapSweep | ResonanceChartSweep | FloquetSweep
 )
-SweepSpec = Annotated[
-    ArgandSweep | CampbellSweep | SpinMapSweep | BetaMapSweep | ResonanceChartSweep | FloquetSweep,
-    Field(discriminator="kind"),
-]
-SWEEP_ADAPTER: TypeAdapter[Any] = TypeAdapter(SweepSpec)
-
-
-def parse_sweep(data: Any) -> Any:
-    """Validate a ``/v1/sweeps`` body into its spec class (raises pydantic ValidationError)."""
-    return SWEEP_ADAPTER.validate_python(data)
 
 
 def _library_check(check: Callable[..., object], *args: Any) -> None:
-    """:func:`pipeflow.spec.library_check` with :data:`STABILITY_FIELDS`."""
-    library_check(check, STABILITY_FIELDS, *args)
-
-
-def run_stability(spec: StabilitySpec, progress: Progress | None = None) -> dict[str, Any]:
-    """Critical velocities for a :class:`StabilitySpec`: JSON-ready dict (SI units)."""
-    with request_fields(STABILITY_FIELDS):
-        res = critical_velocities(
-            spec.mounted_pipe(),
-            omega0=spec.rotation.omega0.value,
-            velocity_range=spec.velocity_range,
-            modes=spec.modes,
-            points=spec.points,
-            progress=progress,
-        )
-    return {"kind": "stability", **json_safe(res.to_dict())}
-
-
-def run_sweep(spec: Any, progress: Progress | None = None) -> dict[str, Any]:
-    """Run any :data:`SweepSpec` kind (its ``run`` method): JSON-ready dict (SI units),
-    ``kind`` echoed first."""
-    if not isinstance(spec, SWEEP_KINDS):
-        raise TypeError(f"not a sweep spec: {type(spec).__name__}")
-    with request_fields(STABILITY_FIELDS):
-        return dict(json_safe({"kind": spec.kind, **spec.run(progress)}))
+    """:func:`pipeflow.schema.simulation.library_check` with :data:`STABILITY_FIELDS`; a pipe
+    whose magnitudes overflow the model there (e.g. L = 5e-324 m: 1/L^3 = inf) is refused
+    naming ``pipe``."""
+    try:
+        library_check(check, STABILITY_FIELDS, *args)
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise ValueError(
+            f"pipe: the pipe's magnitudes take the model out of double precision "
+            f"({type(exc).__name__}: {exc}); check E, I, L, M1 and M2"
+        ) from None

@@ -1,0 +1,12 @@
+"""The request/response contract of pipeflow (pydantic), one definition of each model.
+
+- :mod:`pipeflow.schema.simulation`: simulation and comparison requests (and the strict
+  base model every request shares);
+- :mod:`pipeflow.schema.stability`: stability analysis and sweep requests;
+- :mod:`pipeflow.schema.results`: every result document;
+- :mod:`pipeflow.schema.registry`: :data:`~pipeflow.schema.registry.COMPUTATIONS`, the
+  table of computations the service's routes, job kinds and OpenAPI document are built from,
+  and where library parameter names are mapped onto request fields.
+
+The numerical modules never import this package: they take plain arguments.
+"""

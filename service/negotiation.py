@@ -1,0 +1,86 @@
+"""Content negotiation of the API: 415 for a body that is not JSON, 406 for an Accept
+header the operation cannot satisfy (both ``application/problem+json``).
+
+Used as route dependencies, which FastAPI runs before it validates the body, so a form or
+text body is a 415 rather than a 422 about its shape.  A request without ``Accept`` (or
+with ``*/*``) gets the operation's first media type; a body without ``Content-Type`` is
+read as JSON.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Coroutine
+from typing import Any
+
+from fastapi import Request
+
+from service.problems import PROBLEM_MEDIA_TYPE, ProblemError
+
+JSON = "application/json"
+
+
+def _media_ranges(accept: str) -> list[tuple[str, float]]:
+    """``(media range, q)`` pairs of an Accept header, q > 0 only."""
+    out = []
+    for part in accept.split(","):
+        media, *params = (p.strip() for p in part.split(";"))
+        q = 1.0
+        for p in params:
+            if p.startswith("q="):
+                try:
+                    q = float(p[2:])
+                except ValueError:
+                    q = 0.0
+        if media and q > 0:
+            out.append((media.lower(), q))
+    return out
+
+
+def acceptable(accept: str | None, offered: tuple[str, ...]) -> bool:
+    """Whether ``accept`` admits one of ``offered`` (or the problem document)."""
+    if not accept or not accept.strip():
+        return True
+    for media, _ in _media_ranges(accept):
+        kind, _, sub = media.partition("/")
+        for o in (*offered, PROBLEM_MEDIA_TYPE):
+            okind, _, osub = o.partition("/")
+            if media == "*/*" or (kind == okind and sub in ("*", osub)):
+                return True
+    return False
+
+
+def accepts(*offered: str) -> Callable[[Request], Coroutine[Any, Any, None]]:
+    """A dependency answering 406 unless ``Accept`` admits one of ``offered``."""
+
+    async def check(request: Request) -> None:
+        if "format" in request.query_params:  # ?format= overrides Accept where offered
+            return
+        accept = request.headers.get("accept")
+        if not acceptable(accept, offered):
+            raise ProblemError(
+                406,
+                f"cannot answer with any of Accept: {accept!r}; this operation gives "
+                + ", ".join(offered),
+                slug="not-acceptable",
+                errors=[{"field": "Accept", "location": "header", "message": "not acceptable"}],
+            )
+
+    return check
+
+
+async def json_body(request: Request) -> None:
+    """A dependency answering 415 unless the body is declared JSON (or not declared)."""
+    ctype = request.headers.get("content-type")
+    if ctype is None:
+        return
+    media = ctype.split(";")[0].strip().lower()
+    main, _, sub = media.partition("/")
+    if not (main == "application" and (sub == "json" or sub.endswith("+json"))):
+        raise ProblemError(
+            415,
+            f"the body must be application/json, not {ctype!r}",
+            slug="unsupported-media-type",
+            errors=[
+                {"field": "Content-Type", "location": "header", "message": "not application/json"}
+            ],
+        )

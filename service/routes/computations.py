@@ -1,0 +1,126 @@
+"""The computing routes, generated from :data:`pipeflow.schema.registry.COMPUTATIONS`.
+
+Every endpoint of the registry gets ``POST /v1/<path>`` (the result, or a job when the
+endpoint only runs as jobs) and ``POST /v1/<path>/jobs`` (202 with a job,
+``Location: /v1/jobs/{key}``), plus its aliases (``POST /v1/jobs`` for simulations).  The
+body is the computation's request model (a union told apart by ``kind`` where several
+computations share the endpoint), validated once by FastAPI and keyed once
+(:func:`service.keys.keyed`); the job id is the key, so the sync and job forms share one
+cache entry.  Nothing here is written per computation.
+"""
+
+# no ``from __future__ import annotations``: the handlers' annotations are built at run time
+
+from collections.abc import Callable
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Depends
+from fastapi.responses import JSONResponse, Response
+from pydantic import BaseModel
+
+from pipeflow.schema.registry import (
+    Computation,
+    Endpoint,
+    computation_for,
+    computations_at,
+    request_type,
+    response_type,
+)
+from service.compute import CACHE_HEADERS, JOB_ACCEPTED, Refresh, accept_job, run_sync
+from service.deps import HitDep, RunnerDep, StoreDep
+from service.keys import keyed
+from service.negotiation import JSON, accepts, json_body
+from service.problems import responses
+from service.schemas import JobStatus
+
+#: problem documents every computing operation can answer
+PROBLEMS = (400, 406, 413, 415, 422, 503)
+NEGOTIATION = [Depends(json_body), Depends(accepts(JSON))]
+
+
+def examples(endpoint: Endpoint) -> dict[str, Any]:
+    return {k: v for c in computations_at(endpoint) for k, v in c.examples.items()}
+
+
+def cost_note(endpoint: Endpoint) -> str:
+    """The cost bound of each computation at ``endpoint``, for the operation's description."""
+    lines = [f"- ``{c.name}``: {c.cost}" for c in computations_at(endpoint)]
+    return "\n\nCost bounds (a request beyond them is a 422 before any work):\n\n" + "\n".join(
+        lines
+    )
+
+
+def _computation(endpoint: Endpoint) -> Callable[[BaseModel], Computation]:
+    only = computations_at(endpoint)
+    if len(only) == 1:
+        return lambda _request: only[0]
+    return computation_for
+
+
+def router_for(endpoint: Endpoint) -> APIRouter:
+    """The routes of one endpoint of the registry."""
+    router = APIRouter(prefix="/v1", tags=[endpoint.tag])
+    body: Any = Annotated[request_type(endpoint), Body(openapi_examples=examples(endpoint))]
+    which = _computation(endpoint)
+
+    async def run(
+        request: body,
+        runner: RunnerDep,
+        store: StoreDep,
+        hit: HitDep,
+        refresh: Refresh = False,
+    ) -> Response:
+        return await run_sync(runner, store, keyed(which(request), request), refresh, hit)
+
+    async def submit(
+        request: body,
+        runner: RunnerDep,
+        store: StoreDep,
+        refresh: Refresh = False,
+    ) -> JSONResponse:
+        return await accept_job(runner, store, keyed(which(request), request), refresh)
+
+    costs = cost_note(endpoint)
+    job_description = (
+        f"The same computation as ``POST /v1/{endpoint.path}``, answered at once with its job "
+        "(202, ``Location: /v1/jobs/{key}``); poll the job, then ``GET /v1/results/{key}``.  "
+        "The job id is the parameter hash: resubmitting is idempotent, a finished result is "
+        "reused, and a failed or cancelled job is run again." + costs
+    )
+
+    def add_job_route(path: str, operation_id: str, description: str) -> None:
+        router.add_api_route(
+            path,
+            submit,
+            methods=["POST"],
+            operation_id=operation_id,
+            summary=endpoint.job_summary,
+            description=description,
+            status_code=202,
+            response_model=JobStatus,
+            responses={**JOB_ACCEPTED, **responses(*PROBLEMS)},
+            dependencies=NEGOTIATION,
+        )
+
+    if endpoint.run_operation is None:  # always a job
+        add_job_route(f"/{endpoint.path}", endpoint.job_operation, endpoint.description + costs)
+        return router
+    router.add_api_route(
+        f"/{endpoint.path}",
+        run,
+        methods=["POST"],
+        operation_id=endpoint.run_operation,
+        summary=endpoint.summary,
+        description=endpoint.description + costs,
+        response_model=response_type(endpoint),
+        responses={200: {"headers": CACHE_HEADERS}, **responses(409, *PROBLEMS)},
+        dependencies=NEGOTIATION,
+    )
+    add_job_route(f"/{endpoint.path}/jobs", endpoint.job_operation, job_description)
+    for path, operation_id in endpoint.job_aliases:
+        add_job_route(
+            path.removeprefix("/v1"),
+            operation_id,
+            f"Alias of ``POST /v1/{endpoint.path}/jobs``.  " + job_description,
+        )
+    return router

@@ -1,0 +1,39 @@
+"""Packaging: the numerical library and its schema need numpy, scipy and pydantic only; the
+service, the client and the plots are extras (pyproject.toml)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+#: modules of the extras, which ``import pipeflow`` and the library must not load
+EXTRAS = ("fastapi", "starlette", "uvicorn", "httpx", "matplotlib", "rfc8785", "pydantic_settings")
+
+
+def test_library_imports_no_extra() -> None:
+    """Importing every library module, schema and registry included, loads no extra (checked
+    in a fresh interpreter: the test process has them all loaded)."""
+    code = (
+        "import sys, json\n"
+        "import pipeflow, pipeflow.simulation, pipeflow.compare, pipeflow.stability\n"
+        "import pipeflow.schema.registry, pipeflow.export, pipeflow.plots, pipeflow.cli\n"
+        f"print(json.dumps([m for m in {list(EXTRAS)!r} if m in sys.modules]))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    assert json.loads(out.stdout) == []
+
+
+def test_dependencies_and_extras() -> None:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    base = {d.split(">")[0].split("=")[0] for d in project["dependencies"]}
+    assert base == {"numpy", "scipy", "pydantic"}
+    extras = project["optional-dependencies"]
+    assert {"service", "client", "plots", "dev"} <= set(extras)
+    assert any(d.startswith("fastapi") for d in extras["service"])
+    assert any(d.startswith("schemathesis") for d in extras["dev"])

@@ -1,0 +1,106 @@
+"""One request's walk from the HTTP body to the numerical model: validated once, keyed once.
+
+The service runs the real route, key, runner, job record and worker function; only the
+process pool is replaced by a thread (``InProcessRunner``), so that one profiler sees the
+whole walk.  The request model's validators are counted by the code objects they run
+(pydantic calls them on every validation, whoever validates), the normal form by
+``canonical`` and the arrival at the numerics by :func:`pipeflow.model.build_model`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from pipeflow import model as model_module
+from pipeflow import simulation as simulation_module
+from pipeflow.model import Pipe
+from pipeflow.schema import simulation as schema
+from service import worker
+from service.keys import Keyed
+from service.main import create_app
+from service.runner import Runner
+from service.settings import Settings
+from tests.service.conftest import SMALL
+
+
+class InProcessRunner(Runner):
+    """The runner with its worker processes replaced by a thread running ``worker.run``."""
+
+    async def _execute(self, job: Keyed) -> worker.Outcome:
+        self.computations += 1
+        return await asyncio.to_thread(
+            worker.run,
+            job.computation,
+            job.request,
+            job.key,
+            str(self.store.path),
+            self.settings.job_timeout_s,
+            self.settings.progress_interval_s,
+        )
+
+
+def test_body_to_pipe_model_validates_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    watched = {
+        schema.SimulationSpec._consistent.__code__: "SimulationSpec",
+        schema.PipeSpec._mass.__code__: "PipeSpec",
+    }
+    calls: Counter[str] = Counter()
+
+    def profile(frame: Any, event: str, arg: Any) -> None:
+        if event == "call" and frame.f_code in watched:
+            calls[watched[frame.f_code]] += 1
+
+    canonical = schema.SimulationSpec.canonical
+    built: list[tuple[Pipe, int]] = []
+    build_model = model_module.build_model
+
+    def counting_canonical(self: schema.SimulationSpec) -> dict[str, Any]:
+        calls["canonical"] += 1
+        return canonical(self)
+
+    def recording_build_model(pipe: Pipe, modes: int, *args: Any, **kw: Any) -> Any:
+        built.append((pipe, modes))
+        calls[f"validations before the model #{len(built)}"] = calls["SimulationSpec"]
+        return build_model(pipe, modes, *args, **kw)
+
+    monkeypatch.setattr(schema.SimulationSpec, "canonical", counting_canonical)
+    monkeypatch.setattr(simulation_module, "build_model", recording_build_model)
+    body = {**SMALL, "modes": 2, "time": {"t_end": 0.05, "samples": 21}}
+    app: Any = create_app(Settings(data_dir=tmp_path, workers=1))
+
+    async def walk() -> httpx.Response:
+        # one thread for the app (so the profiler sees it); the worker thread starts later
+        async with app.router.lifespan_context(app):
+            app.state.runner = InProcessRunner(app.state.settings, app.state.store)
+            app.state.runner.ready = True
+            transport = httpx.ASGITransport(app=app)
+            async with httpx.AsyncClient(transport=transport, base_url="http://walk") as c:
+                return await c.post("/v1/simulations", json=body)
+
+    # a thread of its own (with its own event loop: another test may have left one running
+    # in this thread), started after the profiler is installed for new threads
+    out: list[httpx.Response] = []
+    threading.setprofile(profile)
+    try:
+        thread = threading.Thread(target=lambda: out.append(asyncio.run(walk())))
+        thread.start()
+        thread.join(timeout=120)
+    finally:
+        threading.setprofile(None)  # type: ignore[arg-type]
+    assert out, "the walk did not finish"
+    resp = out[0]
+    assert resp.status_code == 200, resp.text
+    assert resp.headers["x-cache"] == "MISS"
+    # validated once (the route), normalised once (the key), and the pipe reached the model
+    assert calls["SimulationSpec"] == 1, calls
+    assert calls["PipeSpec"] == 1, calls
+    assert calls["canonical"] == 1, calls
+    assert built and built[0] == (Pipe(**body["pipe"]), 2)
+    assert calls["validations before the model #1"] == 1
