@@ -555,7 +555,7 @@ def test_a_tip_body_that_swamps_the_mass_matrix_is_refused(kw: dict[str, float],
     and its M^-1 is exact to 1e-12 x cond (checked against M)."""
     from pipeflow.errors import InvalidInput
     from pipeflow.model import MASS_COND_MAX
-    from pipeflow.spec import SIMULATION_FIELDS, request_fields
+    from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
 
     pipe = dataclasses.replace(PAPER_PIPE, **kw)
     with pytest.raises(InvalidInput, match="condition number") as err:

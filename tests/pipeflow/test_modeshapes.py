@@ -188,7 +188,7 @@ def test_mode_shape_output_size_is_bounded() -> None:
     import json
 
     from pipeflow.modeshapes import MAX_SHAPE_VALUES
-    from pipeflow.spec import SIMULATION_FIELDS, request_fields
+    from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
 
     times = tuple(np.linspace(0.0, 0.1, 32).tolist())
     big = Simulation(
