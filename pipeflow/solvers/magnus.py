@@ -386,10 +386,11 @@ class Magnus(Solver):
         if step is None and not (0 < opts.tolerance < 1):
             raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
         h0 = step if step is not None else t_end / PILOT_STEPS
-        # bounded in floating point before the cast; the error check's runs with twice and
-        # four times the step take half and a quarter as many again (1 + 1/2 + 1/4 = 7/4),
-        # so the first run gets 4/7 of the budget
-        first = budget if invariant else (4 * budget) // 7
+        # bounded in floating point before the cast; the error check's run with twice the
+        # step takes half as many again, and when it may refine (no user step) the run with
+        # four times the step a quarter: the first run gets 2/3 or 4/7 of the budget
+        refines = step is None
+        first = budget if invariant else (4 * budget) // 7 if refines else (2 * budget) // 3
         substeps = step_counts(dt, h0, first, "magnus", step is not None)
         if dt.size == 1 and not invariant:
             substeps = np.maximum(substeps, 2)  # the check needs a coarser run to compare with
@@ -413,11 +414,10 @@ class Magnus(Solver):
             # Richardson-type check: the same orders with twice and four times the step
             idx, coarse = plan.coarse(t)
             idx2, coarser = coarse.coarse(t[idx])
-            # the run with four times the step is counted too (it is made when the estimate
-            # asks for a refinement)
-            self._check_budget(
-                plan.steps + coarse.steps + coarser.steps, budget, dt, substeps, opts.tolerance
-            )
+            # the run with four times the step is counted too when it may be made (the
+            # estimate asks for a refinement, never with a user step)
+            check = coarse.steps + (coarser.steps if refines else 0)
+            self._check_budget(plan.steps + check, budget, dt, substeps, opts.tolerance)
             Zc, used = propagate(problem, gen, t[idx], coarse)
             exps += used
             d1 = relative_difference(Zc, Zaug[idx], N)
