@@ -50,6 +50,7 @@ from pipeflow.basis import (
     tip_slopes,
     tip_values,
 )
+from pipeflow.errors import InvalidInput
 from pipeflow.profiles import Profile
 
 FloatArray = NDArray[np.float64]
@@ -456,6 +457,27 @@ class PipeModel:
         return d0, v0
 
 
+#: the largest condition number of the mass matrix accepted: the solves with M then keep
+#: about 4 of the 16 significant digits (cond x eps = 1e-4)
+MASS_COND_MAX = 1e12
+
+
+def _check_mass_conditioning(M: FloatArray, tip_mass_part: float, tip_inertia_part: float) -> None:
+    """Refuse a tip body that swamps the pipe's own mass matrix (m_t/(m L) or J_t/(m L^3)
+    around 1e11 and more): its inverse would be rounding, not physics.  Names the larger of
+    the two tip terms (their sizes in M: m_t |phi(L)|^2 and J_t |phi'(L)|^2 [kg])."""
+    cond = float(np.linalg.cond(M))
+    if cond <= MASS_COND_MAX:
+        return
+    name = "tip_mass" if tip_mass_part >= tip_inertia_part else "tip_inertia"
+    raise InvalidInput(
+        f"{name} is too large for the modal basis: the mass matrix's condition number is "
+        f"{cond:.3g} (above {MASS_COND_MAX:.0e}), so the model would be rounding; reduce "
+        f"{name} (the tip body against the pipe's mass m L and m L^3)",
+        name,
+    )
+
+
 @lru_cache(maxsize=64)
 def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> PipeModel:
     """Assemble the Galerkin model for ``n`` modes (cached per pipe, n and order).
@@ -502,7 +524,9 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     if pipe.viscous:
         C_0 = C_0 + pipe.viscous * gram
 
-    Minv = np.linalg.inv(M)  # M is diagonal up to rounding without a tip body; n <= 40
+    _check_mass_conditioning(M, mt * float(tip @ tip), Jt * float(slope @ slope))
+    # M is diagonal up to rounding without a tip body (n <= 40): one solve for every block
+    Minv = np.linalg.solve(M, np.eye(n))
     omega_ref = np.sqrt(np.diag(K_0) / np.diag(M))
     T = np.concatenate([omega_ref, np.ones(n)])  # y = T z
 

@@ -30,6 +30,7 @@ from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
     MAX_SHAPE_TIMES,
+    MAX_SHAPE_VALUES,
     ModeShapes,
     frozen_mode_shapes,
 )
@@ -37,7 +38,7 @@ from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.base import ProgressCallback
-from pipeflow.spectra import Traces, rounding_level, select, spectrum
+from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
 
 FloatArray = NDArray[np.float64]
 
@@ -233,6 +234,17 @@ def validate(sim: Simulation) -> None:
         raise InvalidInput(
             f"mode-shape points must be between 2 and {MAX_SHAPE_POINTS}", "mode_shape_points"
         )
+    # the traced branches and the least-stable one (an upper bound: it may be among them)
+    values = (
+        len(sim.mode_shape_times) * sim.mode_shape_points * (min(sim.eigen_modes, sim.modes) + 1)
+    )
+    if values > MAX_SHAPE_VALUES:
+        raise InvalidInput(
+            f"mode shapes: {len(sim.mode_shape_times)} times x {sim.mode_shape_points} points x "
+            f"{min(sim.eigen_modes, sim.modes) + 1} branches (eigen_modes + 1) = {values} values, "
+            f"more than {MAX_SHAPE_VALUES}; ask fewer points, times or eigen_modes",
+            "mode_shape_points",
+        )
 
 
 def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Result:
@@ -278,8 +290,8 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     else:
         exponents = cma_exponents(model, loading, eigen_t, branches)
     # the whole frozen spectrum decides growth, not only the traced branches
-    sigma_max = spec[0].real.max(axis=1)  # per eigen_t [1/s]
-    unstable = np.flatnonzero(sigma_max > rounding_level(spec[0]))
+    sigma_max = max_growth_rates(spec[0])  # per eigen_t [1/s]
+    unstable = np.flatnonzero(sigma_max > 0)
     first_unstable = (
         first_unstable_time(model, loading, eigen_t, int(unstable[0]), problem.t)
         if unstable.size
@@ -375,7 +387,7 @@ def first_unstable_time(
         xi = np.asarray(
             np.linalg.eigvals(model.state_matrix(loading.coefficients(inside))), complex
         )
-        over = np.flatnonzero(xi.real.max(axis=1) > rounding_level(xi))
+        over = np.flatnonzero(max_growth_rates(xi) > 0)
         if over.size:
             return float(inside[over[0]])
     return float(eigen_t[k])

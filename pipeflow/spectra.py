@@ -79,6 +79,17 @@ def rounding_level(xi: ComplexArray) -> FloatArray:
     return np.asarray(MARGINAL_RTOL * np.max(np.abs(xi), axis=-1))
 
 
+def max_growth_rates(xi: ComplexArray) -> FloatArray:
+    """Per-point largest sigma [1/s], 0 where it is within :func:`rounding_level` of 0.
+
+    The one test of growth: a point is unstable where this is > 0.  (The paper's v = 0.4 t
+    has sigma = 0 exactly at t = 0, computed as +1e-12; with viscous damping 1e9 N s/m^2
+    the spectral radius is 3e13 1/s and the largest sigma comes out +2e-3, rounding.)
+    """
+    sigma = np.asarray(xi.real.max(axis=-1))
+    return np.where(np.abs(sigma) > rounding_level(xi), sigma, 0.0)
+
+
 def decompose(S: NDArray[np.float64]) -> tuple[ComplexArray, ComplexArray, ComplexArray]:
     """Batched eigen-decomposition of ``S`` (shape ``(N, m, m)``).
 

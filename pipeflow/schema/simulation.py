@@ -23,7 +23,12 @@ from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import PipeflowError
 from pipeflow.model import Pipe
-from pipeflow.modeshapes import DEFAULT_SHAPE_POINTS, MAX_SHAPE_POINTS, MAX_SHAPE_TIMES
+from pipeflow.modeshapes import (
+    DEFAULT_SHAPE_POINTS,
+    MAX_SHAPE_POINTS,
+    MAX_SHAPE_TIMES,
+    MAX_SHAPE_VALUES,
+)
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
@@ -65,6 +70,8 @@ Plane = Annotated[
 #: comes from; the one place where library error names become JSON paths
 SIMULATION_FIELDS: dict[str, str] = {
     "pipe": "pipe",
+    "tip_mass": "pipe.tip_mass",
+    "tip_inertia": "pipe.tip_inertia",
     "flow": "flow.velocity",
     "spin": "rotation.omega0",
     "omega0": "rotation.omega0",
@@ -390,7 +397,7 @@ class ModeShapesSpec(StrictModel):
         ge=2,
         le=MAX_SHAPE_POINTS,
         description="Stations from x = 0 to x = L [m], evenly spaced, at which each shape is "
-        "evaluated.",
+        f"evaluated. times x points x (output.eigen_modes + 1) is at most {MAX_SHAPE_VALUES}.",
     )
 
 

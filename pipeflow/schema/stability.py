@@ -57,6 +57,8 @@ MAX_SPIN = 1e7
 #: the library's names: modes, velocity_range, points, tolerance...)
 STABILITY_FIELDS: dict[str, str] = {
     "flow": "flow.velocity",
+    "tip_mass": "pipe.tip_mass",
+    "tip_inertia": "pipe.tip_inertia",
     "spin": "rotation.omega0",
     "omega0": "rotation.omega0",
 }

@@ -387,8 +387,10 @@ class Magnus(Solver):
             raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
         h0 = step if step is not None else t_end / PILOT_STEPS
         # bounded in floating point before the cast; the error check's run with twice the
-        # step takes half as many again, so the first run gets 2/3 of the budget
-        first = budget if invariant else (2 * budget) // 3
+        # step takes half as many again, and when it may refine (no user step) the run with
+        # four times the step a quarter: the first run gets 2/3 or 4/7 of the budget
+        refines = step is None
+        first = budget if invariant else (4 * budget) // 7 if refines else (2 * budget) // 3
         substeps = step_counts(dt, h0, first, "magnus", step is not None)
         if dt.size == 1 and not invariant:
             substeps = np.maximum(substeps, 2)  # the check needs a coarser run to compare with
@@ -412,7 +414,10 @@ class Magnus(Solver):
             # Richardson-type check: the same orders with twice and four times the step
             idx, coarse = plan.coarse(t)
             idx2, coarser = coarse.coarse(t[idx])
-            self._check_budget(plan.steps + coarse.steps, budget, dt, substeps, opts.tolerance)
+            # the run with four times the step is counted too when it may be made (the
+            # estimate asks for a refinement, never with a user step)
+            check = coarse.steps + (coarser.steps if refines else 0)
+            self._check_budget(plan.steps + check, budget, dt, substeps, opts.tolerance)
             Zc, used = propagate(problem, gen, t[idx], coarse)
             exps += used
             d1 = relative_difference(Zc, Zaug[idx], N)

@@ -59,7 +59,7 @@ class ExcitationCrossing:
 
     order : n of the line n x w0 [-] (1: synchronous, 2: twice per revolution, ...).
     mode : mode number of the branch.
-    spin : w0 at the crossing [rad/s]; frequency = order x spin [rad/s].
+    spin : w0 at the crossing [rad/s]; frequency = order x |spin| [rad/s].
     sigma : damping of the branch there [1/s] (> 0: unstable).
     """
 
@@ -106,13 +106,14 @@ class ZeroCrossing:
 
 
 def _abs_omega_minus(br: Branches, j: int, order: float, x: float, k: int) -> float:
-    return abs(br.branch_at(j, k, x).imag) - order * x
+    return abs(br.branch_at(j, k, x).imag) - order * abs(x)
 
 
 def excitation_crossings(
     br: Branches, chosen: Sequence[int], orders: Sequence[float]
 ) -> list[ExcitationCrossing]:
-    """Every root of |omega_j(w0)| - n w0 of the tracked branches ``chosen`` of a spin sweep.
+    """Every root of |omega_j(w0)| - n |w0| of the tracked branches ``chosen`` of a spin sweep
+    (the excitation lines n |w0| at either sense of rotation).
 
     Bracketed on the sweep grid ``br.p`` [rad/s] and located by Brent's method on the frozen
     spectrum (:meth:`Branches.branch_at`, the branch followed by eigenvector overlap) to
@@ -123,7 +124,7 @@ def excitation_crossings(
     p = br.p
     for n in orders:
         for j in chosen:
-            g = np.abs(br.xi[:, j].imag) - n * p
+            g = np.abs(br.xi[:, j].imag) - n * np.abs(p)
             for k in np.flatnonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0):
                 f = partial(_abs_omega_minus, br, int(j), float(n))
                 a, b = float(p[k]), float(p[k + 1])
@@ -134,7 +135,7 @@ def excitation_crossings(
                     brentq(f, a, b, args=(int(k),), xtol=1e-14 * scale + 1e-300, rtol=CROSSING_RTOL)
                 )
                 xi = br.branch_at(int(j), int(k), w)
-                out.append(ExcitationCrossing(float(n), int(br.mode[j]), w, n * w, xi.real))
+                out.append(ExcitationCrossing(float(n), int(br.mode[j]), w, n * abs(w), xi.real))
     return sorted(out, key=lambda c: (c.order, c.spin))
 
 

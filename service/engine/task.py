@@ -243,7 +243,8 @@ def out_of_range_problem(cause: str) -> dict[str, Any]:
     return problem(
         422,
         f"the inputs take the computation out of the range of double precision ({cause}); "
-        "check the magnitudes of pipe (E, I, L, M1, M2), rotation.omega0 and flow.velocity",
+        "check the magnitudes of pipe (E, I, L, M1, M2, damping, tip_mass, tip_inertia), "
+        "rotation.omega0, rotation.hub_radius and flow.velocity",
         slug="numerical-range",
         title="Inputs out of numerical range",
     )

@@ -11,14 +11,13 @@ None of these routes is part of the API, so all are left out of the OpenAPI docu
 
 from __future__ import annotations
 
-from functools import lru_cache
 from pathlib import Path
 
 import fastapi_offline
 from fastapi import APIRouter, Request, Response
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 
-from service.problems import ProblemError
+from service.routes.assets import AllowList
 
 ASSET_DIR = Path(fastapi_offline.__file__).resolve().parent / "static"
 
@@ -80,16 +79,10 @@ async def redoc(request: Request) -> Response:
     )
 
 
-@lru_cache(maxsize=len(ASSETS))
-def _read(name: str) -> bytes:
-    return (ASSET_DIR / name).read_bytes()
+_FILES = AllowList(ASSET_DIR, ASSETS, "documentation file")
 
 
 @router.get("/static/docs/{name}")
 async def docs_asset(name: str) -> Response:
     """One of the documentation assets (allow-list :data:`ASSETS`)."""
-    if name not in ASSETS:
-        raise ProblemError(404, f"no documentation file {name!r}", slug="not-found")
-    return Response(
-        _read(name), media_type=ASSETS[name], headers={"Cache-Control": "public, max-age=3600"}
-    )
+    return _FILES.response(name)

@@ -14,12 +14,11 @@ system.  Neither route is part of the API, so both are left out of the OpenAPI d
 
 from __future__ import annotations
 
-from functools import lru_cache
 from pathlib import Path
 
 from fastapi import APIRouter, Response
 
-from service.problems import ProblemError
+from service.routes.assets import AllowList
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 
@@ -37,16 +36,15 @@ ASSETS: dict[str, str] = {
 router = APIRouter(include_in_schema=False)
 
 
-@lru_cache(maxsize=len(ASSETS) + 2)
-def _read(name: str) -> bytes:
-    return (STATIC_DIR / name).read_bytes()
+#: the assets, and the two pages (read through the same cache, served by their routes)
+_FILES = AllowList(STATIC_DIR, ASSETS, "static file")
 
 
 @router.get("/")
 async def viewer_page() -> Response:
     """The viewer page."""
     return Response(
-        _read("index.html"),
+        _FILES.read("index.html"),
         media_type="text/html; charset=utf-8",
         headers={"Cache-Control": "no-cache"},
     )
@@ -56,7 +54,7 @@ async def viewer_page() -> Response:
 async def stability_page() -> Response:
     """The stability page (critical velocities, sweeps, maps)."""
     return Response(
-        _read("stability.html"),
+        _FILES.read("stability.html"),
         media_type="text/html; charset=utf-8",
         headers={"Cache-Control": "no-cache"},
     )
@@ -65,8 +63,4 @@ async def stability_page() -> Response:
 @router.get("/static/{name}")
 async def viewer_asset(name: str) -> Response:
     """One of the viewer's assets (allow-list :data:`ASSETS`)."""
-    if name not in ASSETS:
-        raise ProblemError(404, f"no static file {name!r}", slug="not-found")
-    return Response(
-        _read(name), media_type=ASSETS[name], headers={"Cache-Control": "public, max-age=3600"}
-    )
+    return _FILES.response(name)

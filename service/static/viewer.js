@@ -112,8 +112,10 @@
     const least = (ev.modes || []).find((m) => m.least_stable) || null;
     const rate = typeof diag.max_growth_rate === "number" ? diag.max_growth_rate : null;
     const first = result.first_unstable_time;
-    const unstable = (first !== undefined && first !== null) || (rate !== null && rate > 0)
-      || result.status === "overflow" || result.status === "diverged"
+    // the library's verdicts (growth above the spectrum's rounding level), not the sign of
+    // a rate that may be rounding
+    const unstable = (first !== undefined && first !== null)
+      || result.status === "overflow" || result.status === "diverging"
       || (result.divergence_time !== undefined && result.divergence_time !== null);
     return { unstable, first, rate, least };
   }

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +91,21 @@ def test_damped_modes_solve_their_characteristic_equation(alpha: float, c: float
 
 
 # -- tip mass --------------------------------------------------------------------------------
+def bracketed_roots(
+    f: Callable[[float], float], lo: float, hi: float, points: int, count: int
+) -> np.ndarray:
+    """The first ``count`` roots of ``f`` on [lo, hi]: sign changes on a grid of ``points``,
+    each located by Brent's method to 1e-15."""
+    grid = np.linspace(lo, hi, points)
+    vals = [f(z) for z in grid]
+    roots = [
+        brentq(f, a, b, xtol=1e-15)
+        for a, b, fa, fb in zip(grid, grid[1:], vals, vals[1:], strict=False)
+        if fa * fb < 0
+    ]
+    return np.array(roots[:count])
+
+
 def tip_mass_roots(mu: float, count: int) -> np.ndarray:
     """Roots l of 1 + cos l cosh l + mu l (cos l sinh l - sin l cosh l) = 0 (divided by
     cosh l, which has the same roots and does not overflow)."""
@@ -99,14 +115,7 @@ def tip_mass_roots(mu: float, count: int) -> np.ndarray:
             1.0 / math.cosh(z) + math.cos(z) + mu * z * (math.cos(z) * math.tanh(z) - math.sin(z))
         )
 
-    grid = np.linspace(0.1, 4.0 * count + 4.0, 4000)
-    vals = [f(z) for z in grid]
-    roots = [
-        brentq(f, a, b, xtol=1e-15)
-        for a, b, fa, fb in zip(grid, grid[1:], vals, vals[1:], strict=False)
-        if fa * fb < 0
-    ]
-    return np.array(roots[:count])
+    return bracketed_roots(f, 0.1, 4.0 * count + 4.0, 4000, count)
 
 
 @pytest.mark.parametrize(("mu", "n"), [(0.2, 20), (1.0, 30)])
@@ -488,14 +497,7 @@ def tip_body_roots(mu: float, j: float, count: int) -> np.ndarray:
             + mu * j * z**4 * (1 - c * ch)
         ) / ch  # fmt: skip
 
-    grid = np.linspace(0.05, 4.0 * count + 4.0, 5000)
-    vals = [f(z) for z in grid]
-    roots = [
-        brentq(f, a, b, xtol=1e-15)
-        for a, b, fa, fb in zip(grid, grid[1:], vals, vals[1:], strict=False)
-        if fa * fb < 0
-    ]
-    return np.array(roots[:count])
+    return bracketed_roots(f, 0.05, 4.0 * count + 4.0, 5000, count)
 
 
 @pytest.mark.parametrize(("mu", "j"), [(0.0, 0.01), (0.5, 0.01), (1.0, 0.1)])
@@ -537,3 +539,33 @@ def test_results_with_tip_inertia_warn_about_its_convergence() -> None:
         crit = critical_velocities(pipe, velocity_range=(0.0, 5.0), modes=4, points=21)
         for warnings in (sim.warnings, crit.warnings):
             assert any("pipe.tip_inertia" in w for w in warnings) is expected
+
+
+@pytest.mark.parametrize(
+    ("kw", "name"),
+    [({"tip_inertia": 1e12}, "tip_inertia"), ({"tip_mass": 1e9}, "tip_mass"),
+     ({"tip_inertia": 1.0}, "tip_inertia")],
+)  # fmt: skip
+def test_a_tip_body_that_swamps_the_mass_matrix_is_refused(kw: dict[str, float], name: str) -> None:
+    """Paper pipe (m L = 4.7e-7 kg): J_t = 1e12 kg m^2 made M singular to rounding (inv(M)
+    raised 'Singular matrix' at 10 modes, and the stability analysis returned its range end
+    as critical velocity); J_t = 1 kg m^2 gives cond(M) = 2.4e13 at 10 modes.  Above
+    MASS_COND_MAX = 1e12 (solves keep about 4 digits) the build raises InvalidInput naming
+    the tip term, mapped to the request field.  A 1 kg tip mass (cond 4.5e7) still builds,
+    and its M^-1 is exact to 1e-12 x cond (checked against M)."""
+    from pipeflow.errors import InvalidInput
+    from pipeflow.model import MASS_COND_MAX
+    from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
+
+    pipe = dataclasses.replace(PAPER_PIPE, **kw)
+    with pytest.raises(InvalidInput, match="condition number") as err:
+        build_model(pipe, 10)
+    assert err.value.parameter == name
+    with pytest.raises(InvalidInput) as err, request_fields(SIMULATION_FIELDS):
+        simulate(Simulation(pipe, modes=10))
+    assert err.value.field == f"pipe.{name}"
+    ok = build_model(dataclasses.replace(PAPER_PIPE, tip_mass=1.0), 10)
+    cond = np.linalg.cond(ok.M)
+    assert 1e7 < cond < MASS_COND_MAX
+    residual = ok.M @ np.linalg.solve(ok.M, np.eye(10)) - np.eye(10)
+    assert np.max(np.abs(residual)) < 1e-12 * cond

@@ -8,6 +8,7 @@ the balanced-state difference over max over time of the reference state.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 
 import numpy as np
@@ -189,6 +190,34 @@ def test_step_budget_names_the_field() -> None:
     with pytest.raises(BudgetExceeded) as info:
         SOLVERS["magnus"].solve(p)
     assert info.value.parameter == "step"  # the user's step is too small
+
+
+@pytest.mark.parametrize("max_steps", [600, 800, 2000, 3000])
+def test_no_attempt_propagates_more_steps_than_the_budget(
+    monkeypatch: pytest.MonkeyPatch, max_steps: int
+) -> None:
+    """An attempt propagates the run, the check with twice the step and, when it refines,
+    the run with four times the step (1 + 1/2 + 1/4 of the steps): all three count against
+    max_steps before any is made.  Before the fix the third was not counted: with
+    max_steps = 600 one attempt propagated 400 + 200 + 100 = 700 steps.  Counted at the
+    seam (``magnus.propagate``), whichever way the run ends (result or BudgetExceeded)."""
+    from pipeflow.solvers import magnus
+
+    t = np.linspace(0.0, 0.2, 201)
+    attempts: list[int] = []
+    original = magnus.propagate
+
+    def counting(problem: Problem, gen: object, times: np.ndarray, plan: object) -> object:
+        if times.size == t.size:  # a new attempt starts with the run on every output time
+            attempts.append(0)
+        attempts[-1] += plan.steps  # type: ignore[attr-defined]
+        return original(problem, gen, times, plan)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(magnus, "propagate", counting)
+    p = _problem(4, polynomial(0, 0.4), Constant(100.0), t, tolerance=1e-10, max_steps=max_steps)
+    with contextlib.suppress(BudgetExceeded):
+        SOLVERS["magnus"].solve(p)
+    assert max(attempts, default=0) <= max_steps, attempts
 
 
 def test_bad_tolerance_names_the_field() -> None:

@@ -176,3 +176,38 @@ def test_shapes_follow_the_traced_branches_including_the_least_stable() -> None:
     modes = r.to_dict()["mode_shapes"]["modes"]
     assert [m["mode"] for m in modes] == [m["mode"] for m in r.to_dict()["eigenvalues"]["modes"]]
     assert modes[-1]["mode"] == 5
+
+
+def test_mode_shape_output_size_is_bounded() -> None:
+    """times x points x branches is capped at MAX_SHAPE_VALUES (the reviewer's 32 times x
+    2001 points x 41 branches made 114 MB of JSON from a 1 KB request).  The branch count
+    is eigen_modes (capped at modes) plus the least-stable branch.  Refused up front, naming
+    output.mode_shapes.points; 32 x 2001 x (2 + 1) = 192096 (modes = 2) is under the cap and
+    runs (2 branches here: the least-stable one is among the traced), and its JSON block
+    holds that many shape values in 4.8 MB (asserted < 10 MB)."""
+    import json
+
+    from pipeflow.modeshapes import MAX_SHAPE_VALUES
+    from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
+
+    times = tuple(np.linspace(0.0, 0.1, 32).tolist())
+    big = Simulation(
+        PAPER_PIPE, modes=40, eigen_modes=40, t_end=0.1, samples=11, mode_shape_times=times,
+        mode_shape_points=2001,
+    )  # fmt: skip
+    with pytest.raises(InvalidInput, match=str(MAX_SHAPE_VALUES)) as err:
+        with request_fields(SIMULATION_FIELDS):
+            simulate(big)
+    assert err.value.field == "output.mode_shapes.points"
+    ok = simulate(
+        Simulation(
+            PAPER_PIPE, modes=2, t_end=0.1, samples=11, mode_shape_times=times,
+            mode_shape_points=2001,
+        )
+    )  # fmt: skip
+    assert ok.mode_shapes is not None
+    block = ok.to_dict()["mode_shapes"]
+    values = sum(len(row) for m in block["modes"] for row in m["real"])
+    assert values in (32 * 2001 * 2, 32 * 2001 * 3)  # the least-stable branch may be traced
+    assert values <= MAX_SHAPE_VALUES
+    assert len(json.dumps(block)) < 10e6

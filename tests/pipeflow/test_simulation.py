@@ -103,6 +103,22 @@ def test_growth_rate_comes_from_the_whole_spectrum(v: float, unstable: bool) -> 
         assert len(modes) == 4 and modes[-1]["least_stable"] and modes[-1]["mode"] == 5
 
 
+@pytest.mark.parametrize("viscous", [0.0, 1e9])
+def test_rounding_is_not_growth(viscous: float) -> None:
+    """The paper's example (v = 0.4 t, w0 = 100 rad/s): at t = 0 the undamped spectrum is on
+    the imaginary axis (sigma = 0 exactly), computed as +1.4e-12 1/s, and with v > 0 every
+    branch decays, so the largest growth rate is exactly 0, not unstable.  With viscous
+    damping 1e9 N s/m^2 the spectral radius is 3e13 1/s and the largest sigma came out
+    +1.9e-3 1/s: below the rounding level (1e-11 x radius = 0.28 1/s), so also 0.  Before
+    the fix max_growth_rate was the raw max and the viewer showed "Unstable run"."""
+    import dataclasses
+
+    r = simulate(Simulation(dataclasses.replace(PAPER_PIPE, viscous=viscous)))
+    assert r.status == "ok"
+    assert r.diagnostics["max_growth_rate"] == 0.0
+    assert r.first_unstable_time is None
+
+
 def test_first_unstable_time_of_a_ramp_through_the_critical_velocity() -> None:
     """v = 20 + 100 t m/s passes the critical velocity (27.69 m/s; located to 1e-10 by
     pipeflow.stability.critical_velocities, Brent on the tracked branch) at t_cr = 0.0769 s:

@@ -140,3 +140,25 @@ def test_bad_excitation_orders_name_the_field():
     with pytest.raises(InvalidInput) as e:
         sweep(PAPER_PIPE, "spin", (0.0, 100.0), 1.0, modes=4, tracked=2, orders=(1.0, -2.0))
     assert e.value.parameter == "orders"
+
+
+def test_campbell_excitation_crossings_at_negative_spin_mirror_positive_spin():
+    """The excitation lines are n |w0|: a sweep over w0 in (-200, -1) rad/s finds the
+    crossings of (1, 200) at -w0 (reviewer's case, paper pipe at v = 1 m/s: mode 1 meets the
+    2 |w0| line at |w0| = 138.47 rad/s, frequency 276.94 rad/s).  Before the fix the lines
+    were n w0 < 0 and no crossing was found.  The two sweeps are independent computations
+    (the spectrum is even in w0 here); spins agree to 1e-9 relative (both located by
+    Brent to CROSSING_RTOL, margin for eigenvalue rounding), and a frozen eigenvalue at the
+    crossing has |omega| = 2 |w0| to 1e-9."""
+    kw = dict(fixed=1.0, modes=4, tracked=3, points=41, orders=(1.0, 2.0))
+    pos = sweep(PAPER_PIPE, "spin", (1.0, 200.0), **kw).excitation  # type: ignore[arg-type]
+    neg = sweep(PAPER_PIPE, "spin", (-200.0, -1.0), **kw).excitation  # type: ignore[arg-type]
+    assert len(pos) == len(neg) >= 1
+    assert pos[0].spin == pytest.approx(138.47, abs=0.005)
+    for p, n in zip(pos, sorted(neg, key=lambda c: (c.order, -c.spin)), strict=True):
+        assert (n.order, n.mode) == (p.order, p.mode)
+        assert n.spin == pytest.approx(-p.spin, rel=1e-9)
+        assert n.frequency == pytest.approx(p.frequency, rel=1e-9)
+        assert n.frequency == pytest.approx(n.order * abs(n.spin), rel=1e-12)
+        xi = eigenvalues(build_model(PAPER_PIPE, 4), 1.0, n.spin)[0]
+        assert np.min(np.abs(np.abs(xi.imag) - n.frequency)) < 1e-9 * n.frequency

@@ -80,3 +80,25 @@ def test_stability_out_of_plane_with_damping(client: TestClient) -> None:
     assert doc["critical_velocity"] is not None
     assert doc["dimensionless"]["hub_ratio"] == pytest.approx(0.4)
     assert doc["dimensionless"]["alpha"] > 0
+
+
+@pytest.mark.parametrize(("name", "value"), [("tip_inertia", 1e12), ("tip_mass", 1e9)])
+def test_a_tip_body_beyond_the_modal_basis_is_422_naming_the_field(
+    client: TestClient, name: str, value: float
+) -> None:
+    """J_t = 1e12 kg m^2 (schema maximum) on the paper pipe made the mass matrix singular to
+    rounding (condition number 3e18): the simulation failed with 'Singular matrix' and
+    /v1/stability answered 200 with the range end 54 m/s as critical velocity.  Both are
+    now a 422 problem naming the field (model build: condition number above 1e12)."""
+    stability = {k: _extended()[k] for k in ("pipe", "rotation", "plane")}
+    for path, body in (
+        ("/v1/simulations", _extended()),
+        ("/v1/stability", {**stability, "velocity_range": [0, 54]}),
+    ):
+        body["pipe"][name] = value
+        r = client.post(path, json=body)
+        assert r.status_code == 422, (path, r.text)
+        assert r.headers["content-type"] == "application/problem+json"
+        doc = r.json()
+        assert f"pipe.{name}" in [e["field"] for e in doc["errors"]], (path, doc)
+        assert "condition number" in r.text

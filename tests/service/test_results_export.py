@@ -220,3 +220,21 @@ def test_parquet_without_pyarrow_on_the_server_is_406_naming_format(
     assert r.headers["content-type"] == "application/problem+json"
     assert r.json()["errors"][0]["field"] == "format"
     assert "pip install 'pipeflow[parquet]'" in r.json()["detail"]
+
+
+def test_too_many_mode_shape_values_is_a_422_naming_the_field(tc: Any) -> None:
+    """32 times x 2001 points x 41 branches (modes = eigen_modes = 40) made 114 MB of JSON;
+    now a 422 problem naming output.mode_shapes.points, with the cap in the message."""
+    from pipeflow.modeshapes import MAX_SHAPE_VALUES
+
+    times = [0.1 * k / 31 for k in range(32)]
+    spec = dict(
+        SMALL,
+        modes=40,
+        output={"eigen_modes": 40, "mode_shapes": {"times": times, "points": 2001}},
+    )
+    r = tc.post("/v1/simulations", json=spec)
+    assert r.status_code == 422, r.text
+    assert r.headers["content-type"] == "application/problem+json"
+    assert "output.mode_shapes.points" in [e["field"] for e in r.json()["errors"]]
+    assert str(MAX_SHAPE_VALUES) in r.text
