@@ -19,8 +19,9 @@ from service.problems import PROBLEM_MEDIA_TYPE, ProblemError
 JSON = "application/json"
 
 
-def _media_ranges(accept: str) -> list[tuple[str, float]]:
-    """``(media range, q)`` pairs of an Accept header, q > 0 only."""
+def media_ranges(accept: str) -> list[tuple[str, float]]:
+    """``(media range, q)`` pairs of an Accept header in its order, q > 0 only (the one
+    parser of Accept; :func:`service.routes.exports.wanted_format` ranks them)."""
     out = []
     for part in accept.split(","):
         media, *params = (p.strip() for p in part.split(";"))
@@ -40,7 +41,7 @@ def acceptable(accept: str | None, offered: tuple[str, ...]) -> bool:
     """Whether ``accept`` admits one of ``offered`` (or the problem document)."""
     if not accept or not accept.strip():
         return True
-    for media, _ in _media_ranges(accept):
+    for media, _ in media_ranges(accept):
         kind, _, sub = media.partition("/")
         for o in (*offered, PROBLEM_MEDIA_TYPE):
             okind, _, osub = o.partition("/")

@@ -31,7 +31,7 @@ from pipeflow.export import (
     to_parquet,
 )
 from service.deps import StoreDep
-from service.negotiation import accepts
+from service.negotiation import accepts, media_ranges
 from service.problems import ProblemError, responses
 from service.schemas import KEY_PATTERN
 
@@ -69,21 +69,9 @@ def wanted_format(fmt: str | None, accept: str | None) -> str:
         return fmt
     if not accept:
         return "json"
-    ranked = []
-    for i, part in enumerate(accept.split(",")):
-        media, *params = (p.strip() for p in part.split(";"))
-        q = 1.0
-        for p in params:
-            if p.startswith("q="):
-                try:
-                    q = float(p[2:])
-                except ValueError:
-                    q = 0.0
-        ranked.append((q, -i, media.lower()))
+    ranked = [(q, -i, media) for i, (media, q) in enumerate(media_ranges(accept))]
     by_media = {media: name for name, media in TABLE_MEDIA_TYPES.items()}
-    for q, _, media in sorted(ranked, reverse=True):
-        if q <= 0:
-            continue
+    for _, _, media in sorted(ranked, reverse=True):
         if media in by_media:
             return by_media[media]
         if media in ("application/json", "application/*", "*/*", "application/problem+json"):
