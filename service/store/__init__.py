@@ -303,6 +303,25 @@ class Store:
         row = conn.execute(query.with_for_update() if lock else query).first()
         return Job.from_row(row) if row is not None else None
 
+    def _create_or_reset(
+        self,
+        conn: Connection,
+        key: str,
+        created: dict[str, Any],
+        reset: dict[str, Any],
+    ) -> None:
+        """Insert job ``key`` with the ``created`` columns, or, if its row exists and is not
+        active, update it with the ``reset`` columns (an active job is shared as it is)."""
+        inserted = conn.execute(
+            self._insert(jobs)
+            .values(key=key, **created)
+            .on_conflict_do_nothing(index_elements=["key"])
+        ).rowcount
+        if not inserted:
+            conn.execute(
+                update(jobs).where(jobs.c.key == key, jobs.c.status.notin_(ACTIVE)).values(**reset)
+            )
+
     def enqueue_job(
         self, key: str, kind: str, spec: dict[str, Any], *, refresh: bool = False
     ) -> Job:
@@ -310,10 +329,10 @@ class Store:
         an active one is left as it is (identical requests share it)."""
         now = time.time()
         with self._write() as conn:
-            created = conn.execute(
-                self._insert(jobs)
-                .values(
-                    key=key,
+            self._create_or_reset(
+                conn,
+                key,
+                dict(
                     kind=kind,
                     spec=json.dumps(spec),
                     status="queued",
@@ -322,33 +341,27 @@ class Store:
                     updated=now,
                     heartbeat=now,
                     refresh=refresh,
-                )
-                .on_conflict_do_nothing(index_elements=["key"])
-            ).rowcount
-            if not created:
-                conn.execute(
-                    update(jobs)
-                    .where(jobs.c.key == key, jobs.c.status.notin_(ACTIVE))
-                    .values(
-                        kind=kind,
-                        spec=json.dumps(spec),
-                        status="queued",
-                        progress=0.0,
-                        error=None,
-                        created=now,
-                        started=None,
-                        finished=None,
-                        updated=now,
-                        cancel=0,
-                        attempts=0,
-                        last_retry_reason=None,
-                        refresh=refresh,
-                        generation=jobs.c.generation + 1,
-                        owner=None,
-                        worker=None,
-                        heartbeat=now,
-                    )
-                )
+                ),
+                dict(
+                    kind=kind,
+                    spec=json.dumps(spec),
+                    status="queued",
+                    progress=0.0,
+                    error=None,
+                    created=now,
+                    started=None,
+                    finished=None,
+                    updated=now,
+                    cancel=0,
+                    attempts=0,
+                    last_retry_reason=None,
+                    refresh=refresh,
+                    generation=jobs.c.generation + 1,
+                    owner=None,
+                    worker=None,
+                    heartbeat=now,
+                ),
+            )
             job = self._job(conn, key)
         assert job is not None  # written in this transaction
         return job
@@ -387,10 +400,10 @@ class Store:
         """Record a job whose result is already stored (a resubmission of a cached run)."""
         now = time.time()
         with self._write() as conn:
-            created = conn.execute(
-                self._insert(jobs)
-                .values(
-                    key=key,
+            self._create_or_reset(
+                conn,
+                key,
+                dict(
                     kind=kind,
                     spec=json.dumps(spec),
                     status="succeeded",
@@ -399,21 +412,15 @@ class Store:
                     started=now,
                     finished=now,
                     updated=now,
-                )
-                .on_conflict_do_nothing(index_elements=["key"])
-            ).rowcount
-            if not created:
-                conn.execute(
-                    update(jobs)
-                    .where(jobs.c.key == key, jobs.c.status.notin_(ACTIVE))
-                    .values(
-                        status="succeeded",
-                        progress=1.0,
-                        error=None,
-                        finished=func.coalesce(jobs.c.finished, now),
-                        updated=now,
-                    )
-                )
+                ),
+                dict(
+                    status="succeeded",
+                    progress=1.0,
+                    error=None,
+                    finished=func.coalesce(jobs.c.finished, now),
+                    updated=now,
+                ),
+            )
 
     def request_cancel(self, key: str) -> Job | None:
         """Flag an active job as cancelled (its attempt stops at its next heartbeat)."""
