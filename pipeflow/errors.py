@@ -9,6 +9,8 @@ into library calls, maps that name onto the request field (``field``, a dotted p
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class PipeflowError(ValueError):
     """Base class: a request pipeflow refuses, with the parameter it concerns.
@@ -27,6 +29,18 @@ class PipeflowError(ValueError):
         """Record the request field this error concerns (the schema layer's mapping)."""
         self.field = field
         return self
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # pickled whole (subclasses take other constructor arguments): an error raised by
+        # a piece of a fan-out on another process reaches the caller with its parameter
+        return (_rebuild, (type(self), self.message, dict(self.__dict__)))
+
+
+def _rebuild(cls: type[PipeflowError], message: str, state: dict[str, Any]) -> PipeflowError:
+    err = cls.__new__(cls)
+    ValueError.__init__(err, message)
+    err.__dict__.update(state)
+    return err
 
 
 class InvalidInput(PipeflowError):

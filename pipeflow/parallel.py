@@ -2,7 +2,8 @@
 
 Library code that can split its work calls :func:`fan_out` with a module-level function
 and the pieces, and gets ``(index, result)`` pairs back in completion order; it reports
-progress and merges as they arrive.  Where the pieces run is the host's choice, installed
+progress and merges as they arrive (:func:`gather` does both: results in index order,
+progress after each piece).  Where the pieces run is the host's choice, installed
 for the duration of a computation with :func:`hosting` (a context variable, like joblib's
 ``parallel_backend``): by default they run here, one after another, so a library call
 without a host behaves exactly as a serial loop.  The service's Dask task installs a host
@@ -104,15 +105,62 @@ def fan_out(fn: Callable[[T], R], items: Sequence[T]) -> Iterator[tuple[int, R]]
     return host.map(fn, items)
 
 
-def split(n: int, pieces_per_worker: int = 4, min_size: int = 1) -> list[range]:
+def split(
+    n: int, pieces_per_worker: int = 4, min_size: int = 1, max_size: int | None = None
+) -> list[range]:
     """``range(n)`` cut into contiguous chunks for the current host: about
     ``pieces_per_worker`` chunks per unit of width (so a slow piece does not leave the
-    other workers idle), none smaller than ``min_size``; one chunk on the serial host."""
+    other workers idle), none smaller than ``min_size``; one chunk on the serial host.
+
+    ``max_size`` caps every chunk on any host, the serial one included, so that a long
+    computation still reports progress (and can be cancelled) between chunks."""
     if n <= 0:
         return []
     width = max(1, int(current_host().width))
     if width == 1:
-        return [range(n)]
-    count = max(1, min(n // max(1, min_size), width * pieces_per_worker))
-    size = math.ceil(n / count)
+        size = n
+    else:
+        count = max(1, min(n // max(1, min_size), width * pieces_per_worker))
+        size = math.ceil(n / count)
+    if max_size is not None:
+        size = max(1, min(size, int(max_size)))
     return [range(i, min(n, i + size)) for i in range(0, n, size)]
+
+
+def gather(
+    fn: Callable[[T], R],
+    items: Sequence[T],
+    progress: Callable[[float], None] | None = None,
+    weights: Sequence[float] | None = None,
+) -> list[R]:
+    """``[fn(item) for item in items]`` computed by :func:`fan_out` and merged in index
+    order, whatever order the pieces finish in.
+
+    After each piece ``progress`` gets the fraction of the work done (by ``weights``, one
+    per item, default equal); it may raise (``Cancelled``): the fan-out is then closed,
+    which abandons the pieces not yet finished, and the exception propagates.
+    """
+    items = list(items)
+    w = [1.0] * len(items) if weights is None else [float(x) for x in weights]
+    if len(w) != len(items):
+        raise ValueError("one weight per item")
+    total = sum(w) or 1.0
+    out: list[Any] = [None] * len(items)
+    seen = [False] * len(items)
+    done = 0.0
+    pieces = fan_out(fn, items)
+    try:
+        for i, result in pieces:
+            if seen[i]:
+                raise RuntimeError(f"the host returned piece {i} twice")
+            out[i], seen[i] = result, True
+            done += w[i]
+            if progress is not None:
+                progress(min(1.0, done / total))
+    finally:
+        close = getattr(pieces, "close", None)
+        if close is not None:
+            close()
+    if not all(seen):
+        raise RuntimeError(f"the host returned {sum(seen)} of {len(items)} pieces")
+    return out

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
+from pipeflow import parallel
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
@@ -386,6 +387,61 @@ class ResonanceChart:
         }
 
 
+#: frequencies of a resonance chart computed by one piece, at most (progress between pieces)
+MAX_CHART_PIECE = 4
+
+
+@dataclass(frozen=True)
+class _ChartColumns:
+    """A piece of a resonance chart: the columns of pulsation frequencies ``frequencies``
+    [rad/s] over all amplitudes ``amplitudes`` [m/s] (picklable)."""
+
+    pipe: Pipe
+    modes: int
+    mean_velocity: float
+    omega0: float
+    amplitudes: FloatArray
+    frequencies: FloatArray
+    tolerance: float
+
+
+def _chart_columns(piece: _ChartColumns) -> tuple[FloatArray, list[int], list[float]]:
+    """Max |lambda| (amplitudes x frequencies of ``piece``), the Magnus steps per period
+    and the error estimate of each column: the steps are set by step doubling on the largest
+    amplitude (the hardest case), then all amplitudes are propagated in one batch."""
+    model = build_model(piece.pipe, piece.modes)
+    amps = piece.amplitudes
+    w2 = piece.omega0 * piece.omega0
+    mean_velocity = piece.mean_velocity
+    mod = np.empty((amps.size, piece.frequencies.size))
+    steps_used: list[int] = []
+    errors: list[float] = []
+    for j, Om in enumerate(piece.frequencies):
+        Om = float(Om)
+        period = 2 * math.pi / Om
+
+        def coeffs(
+            t: FloatArray, a: FloatArray, Om: float = Om
+        ) -> tuple[FloatArray, FloatArray, FloatArray]:
+            s, c = np.sin(Om * t), np.cos(Om * t)
+            v = mean_velocity + a[:, None] * s[None]
+            vdot = a[:, None] * Om * c[None]
+            return v, vdot, np.full_like(v, w2)
+
+        _, steps, err = _converged_monodromy(
+            model,
+            lambda t, coeffs=coeffs: coeffs(t, amps[-1:]),
+            period,
+            piece.tolerance,
+            _initial_steps(model, period),
+        )
+        Phi = _monodromy_steps(model, lambda t, coeffs=coeffs: coeffs(t, amps), period, steps)
+        mod[:, j] = np.max(np.abs(np.linalg.eigvals(Phi)), axis=-1)
+        steps_used.append(steps)
+        errors.append(err)
+    return mod, steps_used, errors
+
+
 def resonance_chart(
     pipe: Pipe,
     mean_velocity: float,
@@ -402,7 +458,9 @@ def resonance_chart(
 
     Flow v(t) = mean_velocity + a sin(Omega t) [m/s], constant spin omega0 [rad/s].  For
     each Omega the steps per period are set by step doubling on the largest amplitude
-    (the hardest case), then all amplitudes are propagated in one batch.
+    (the hardest case), then all amplitudes are propagated in one batch.  The frequencies
+    are cut into pieces (:func:`pipeflow.parallel.split`) that run on the installed host and
+    are merged by index; ``progress`` is called after each piece.
     """
     check_modes(modes)
     check_range(*amplitude_range, parameter="amplitude_range")
@@ -417,34 +475,23 @@ def resonance_chart(
     model = build_model(pipe, modes)
     amps = np.linspace(*amplitude_range, amplitude_points)
     freqs = np.linspace(*frequency_range, frequency_points)
-    w2 = omega0 * omega0
+    # as many pieces as split() makes, but strided: the cost grows with the period, so
+    # every piece gets low and high frequencies alike (at most MAX_CHART_PIECE each)
+    count = len(parallel.split(freqs.size, max_size=MAX_CHART_PIECE))
+    columns = [list(range(k, freqs.size, count)) for k in range(count)]
+    pieces = [
+        _ChartColumns(pipe, modes, mean_velocity, omega0, amps, freqs[c], tolerance)
+        for c in columns
+    ]
+    parts = parallel.gather(_chart_columns, pieces, progress, [len(c) for c in columns])
     mod = np.empty((amps.size, freqs.size))
-    steps_used: list[int] = []
+    steps_used = [0] * freqs.size
     err_max = 0.0
-    for j, Om in enumerate(freqs):
-        period = 2 * math.pi / Om
-
-        def coeffs(
-            t: FloatArray, a: FloatArray, Om: float = Om
-        ) -> tuple[FloatArray, FloatArray, FloatArray]:
-            s, c = np.sin(Om * t), np.cos(Om * t)
-            v = mean_velocity + a[:, None] * s[None]
-            vdot = a[:, None] * Om * c[None]
-            return v, vdot, np.full_like(v, w2)
-
-        _, steps, err = _converged_monodromy(
-            model,
-            lambda t, coeffs=coeffs: coeffs(t, amps[-1:]),
-            period,
-            tolerance,
-            _initial_steps(model, period),
-        )
-        Phi = _monodromy_steps(model, lambda t, coeffs=coeffs: coeffs(t, amps), period, steps)
-        mod[:, j] = np.max(np.abs(np.linalg.eigvals(Phi)), axis=-1)
-        steps_used.append(steps)
-        err_max = max(err_max, err)
-        if progress is not None:
-            progress((j + 1) / freqs.size)
+    for c, (m, steps, err) in zip(columns, parts, strict=True):
+        mod[:, c] = m
+        for j, n in zip(c, steps, strict=True):
+            steps_used[j] = n
+        err_max = max([err_max, *err])
     band = max(1e-9, 100.0 * err_max)
     warnings = []
     if mean_velocity - amplitude_range[1] < 0:

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from pipeflow import parallel
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, build_model
 from pipeflow.spectra import rounding_level
@@ -65,15 +66,14 @@ def check_map_work(points: int, modes: int, parameter: str) -> None:
         )
 
 
-def _spectra(model: PipeModel, v: FloatArray, w0: FloatArray, progress: Progress | None) -> Any:
+def _spectra(model: PipeModel, v: FloatArray, w0: FloatArray) -> Any:
+    """Eigenvalues on the grid ``v`` x ``w0`` (broadcast), in batches of :data:`CHUNK`."""
     vv, ww = np.broadcast_arrays(v, w0)
     shape = vv.shape
     vv, ww = vv.ravel(), ww.ravel()
     out = np.empty((vv.size, model.size), dtype=complex)
     for i in range(0, vv.size, CHUNK):
         out[i : i + CHUNK] = eigenvalues(model, vv[i : i + CHUNK], ww[i : i + CHUNK])
-        if progress is not None:
-            progress(0.8 * min(1.0, (i + CHUNK) / vv.size))
     return out.reshape(*shape, model.size)
 
 
@@ -178,6 +178,35 @@ class SpinMap:
         }
 
 
+@dataclass(frozen=True)
+class _SpinLines:
+    """A piece of a spin map: the lines of constant spin ``spins`` [rad/s] over the whole
+    velocity grid ``velocities`` [m/s] (picklable: a host may run it elsewhere)."""
+
+    pipe: Pipe
+    modes: int
+    velocities: FloatArray
+    spins: FloatArray
+    rtol: float
+
+
+def _spin_lines(piece: _SpinLines) -> tuple[FloatArray, list[list[BoundaryCrossing]], list[bool]]:
+    """Growth rates (spins x velocities) [1/s], boundary crossings and stability at the
+    first v >= 0 of each line of ``piece``: every point and line is computed on its own,
+    so the map does not depend on how it is cut."""
+    model = build_model(piece.pipe, piece.modes)
+    v = piece.velocities
+    xi = _spectra(model, v[None, :], piece.spins[:, None])
+    start = int(np.searchsorted(v, 0.0))
+    crossings, stable = [], []
+    for i, w0 in enumerate(piece.spins):
+        line = _line(model, v, float(w0), xi[i], piece.rtol) if start < v.size else []
+        ok = bool(start < v.size and xi[i, start].real.max() <= rounding_level(xi[i, start]))
+        crossings.append(line)
+        stable.append(ok)
+    return xi.real.max(axis=-1), crossings, stable
+
+
 def spin_map(
     pipe: Pipe,
     velocity_range: tuple[float, float],
@@ -192,7 +221,9 @@ def spin_map(
 
     velocity_range [m/s] and spin_range [rad/s] are sampled evenly; crossings are searched
     on the v >= 0 part of each line (v < 0 gets the reverse-flow caveat) and located to
-    relative tolerance ``rtol``.
+    relative tolerance ``rtol``.  The spins are cut into chunks (:func:`pipeflow.parallel.split`,
+    at most :data:`CHUNK` eigenproblems each) that run on the installed host and are merged
+    in order; ``progress`` is called after each chunk.
     """
     check_modes(modes)
     check_range(*velocity_range, parameter="velocity_range")
@@ -200,32 +231,24 @@ def spin_map(
     if velocity_points < 3 or spin_points < 1:
         raise InvalidInput("need >= 3 velocity points and >= 1 spin point", parameter="points")
     check_map_work(velocity_points * spin_points, modes, "spin_points")
-    model = build_model(pipe, modes)
     v = np.linspace(*velocity_range, velocity_points)
     if velocity_range[0] < 0 < velocity_range[1]:
         v = np.union1d(v, [0.0])  # the line must pass through the marginal point v = 0
     w = np.linspace(*spin_range, spin_points)
-    xi = _spectra(model, v[None, :], w[:, None], progress)
     warnings = [REVERSE_FLOW_CAVEAT] if velocity_range[0] < 0 else []
-    crossings, stable, critical = [], [], []
-    start = int(np.searchsorted(v, 0.0))
-    for i in range(w.size):
-        line = _line(model, v, float(w[i]), xi[i], rtol) if start < v.size else []
-        ok = bool(start < v.size and xi[i, start].real.max() <= rounding_level(xi[i, start]))
-        crossings.append(line)
-        stable.append(ok)
-        critical.append(_first_loss(line))
-        if progress is not None:
-            progress(0.8 + 0.2 * (i + 1) / w.size)
+    chunks = parallel.split(w.size, max_size=max(1, CHUNK // v.size))
+    pieces = [_SpinLines(pipe, modes, v, w[c.start : c.stop], rtol) for c in chunks]
+    parts = parallel.gather(_spin_lines, pieces, progress, [len(c) for c in chunks])
+    crossings = [line for part in parts for line in part[1]]
     return SpinMap(
         pipe=pipe,
         modes=modes,
         spins=w,
         velocities=v,
-        growth=xi.real.max(axis=-1),
+        growth=np.concatenate([part[0] for part in parts]),
         crossings=crossings,
-        stable_at_start=stable,
-        critical_velocity=critical,
+        stable_at_start=[ok for part in parts for ok in part[2]],
+        critical_velocity=[_first_loss(line) for line in crossings],
         warnings=warnings,
     )
 
@@ -289,6 +312,37 @@ class BetaMap:
         }
 
 
+@dataclass(frozen=True)
+class _BetaLines:
+    """A piece of a beta map: the lines of constant mass ratio ``betas`` [-] over the flow
+    numbers ``u`` [-] at spin number ``gamma`` [-] (picklable)."""
+
+    betas: FloatArray
+    u: FloatArray
+    gamma: float
+    modes: int
+    rtol: float
+    groups: dict[str, float]
+    plane: str
+
+
+def _beta_lines(piece: _BetaLines) -> tuple[list[list[BoundaryCrossing]], list[bool]]:
+    """Boundary crossings in u and stability at the first u of each beta of ``piece``."""
+    crossings, stable = [], []
+    u = piece.u
+    for beta in piece.betas:
+        pipe = nondimensional_pipe(float(beta), piece.groups, piece.plane)
+        model = build_model(pipe, piece.modes)
+        scale = 1.0 / math.sqrt(beta)  # v = u / sqrt(beta)
+        xi = eigenvalues(model, u * scale, piece.gamma)
+        line = _line(model, u * scale, piece.gamma, xi, piece.rtol)
+        crossings.append(
+            [BoundaryCrossing(c.velocity / scale, c.direction, c.kind, c.frequency) for c in line]
+        )
+        stable.append(bool(xi[0].real.max() <= rounding_level(xi[0])))
+    return crossings, stable
+
+
 def beta_map(
     beta_range: tuple[float, float],
     u_range: tuple[float, float] = (0.0, 20.0),
@@ -324,18 +378,14 @@ def beta_map(
     check_map_work(beta_points * u_points, modes, "u_points")
     betas = np.linspace(*beta_range, beta_points)
     u = np.linspace(*u_range, u_points)
-    crossings, stable = [], []
-    for i, beta in enumerate(betas):
-        model = build_model(nondimensional_pipe(float(beta), groups, plane), modes)
-        scale = 1.0 / math.sqrt(beta)  # v = u / sqrt(beta)
-        xi = eigenvalues(model, u * scale, gamma)
-        line = _line(model, u * scale, gamma, xi, rtol)
-        crossings.append(
-            [BoundaryCrossing(c.velocity / scale, c.direction, c.kind, c.frequency) for c in line]
-        )
-        stable.append(bool(xi[0].real.max() <= rounding_level(xi[0])))
-        if progress is not None:
-            progress((i + 1) / betas.size)
+    chunks = parallel.split(betas.size, max_size=max(1, CHUNK // u.size))
+    pieces = [
+        _BetaLines(betas[c.start : c.stop], u, float(gamma), modes, rtol, dict(groups or {}), plane)
+        for c in chunks
+    ]
+    parts = parallel.gather(_beta_lines, pieces, progress, [len(c) for c in chunks])
+    crossings = [line for part in parts for line in part[0]]
+    stable = [ok for part in parts for ok in part[1]]
     return BetaMap(
         modes=modes,
         gamma=float(gamma),

@@ -115,3 +115,24 @@ def test_harmonic_spin_and_input_errors():
     with pytest.raises(InvalidInput) as e:
         floquet(PIPE, polynomial(0.0, 1.0), None, modes=3)
     assert e.value.parameter == "flow"
+
+
+def test_resonance_chart_cut_into_pieces_equals_the_serial_chart():
+    """On a host of width 3 that finishes the pieces last-first, the chart (strided
+    frequency columns) equals the serial one bit for bit (tolerance 0: each frequency's
+    step doubling and propagation only depend on that frequency), and one column equals a
+    chart computed for that frequency alone."""
+    from pipeflow import parallel
+    from tests.pipeflow.test_parallel import _Reversed
+
+    def chart(freqs=(300.0, 1500.0), points=7):
+        return resonance_chart(PIPE, V0, (0.0, 0.5 * V0), freqs, modes=2,
+                               amplitude_points=4, frequency_points=points)  # fmt: skip
+
+    serial = chart()
+    with parallel.hosting(_Reversed()):
+        fanned = chart()
+    assert serial.to_dict() == fanned.to_dict()
+    alone = chart((float(serial.frequencies[3]), 2000.0), 2)
+    assert np.array_equal(alone.max_multiplier[:, 0], serial.max_multiplier[:, 3])
+    assert alone.steps[0] == serial.steps[3]

@@ -50,3 +50,98 @@ def test_split_covers_every_index_once() -> None:
                 assert len(chunks) <= 3 * 4
                 if n >= min_size:
                     assert all(len(c) >= min(min_size, n) or c is chunks[-1] for c in chunks)
+
+
+class _Recorder:
+    """A serial host of width 2 that remembers the pieces it was given and whether its
+    iteration was closed before the end."""
+
+    width = 2
+
+    def __init__(self) -> None:
+        self.started: list[int] = []
+        self.closed_early = False
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        try:
+            for i, item in enumerate(items):
+                self.started.append(i)
+                yield i, fn(item)
+        except GeneratorExit:
+            self.closed_early = len(self.started) < len(items)
+            raise
+
+
+def test_split_max_size_caps_chunks_on_every_host() -> None:
+    assert parallel.split(10, max_size=4) == [range(0, 4), range(4, 8), range(8, 10)]
+    with parallel.hosting(_Reversed()):
+        chunks = parallel.split(100, max_size=5)
+        assert [i for c in chunks for i in c] == list(range(100))
+        assert max(len(c) for c in chunks) == 5
+
+
+def test_gather_merges_in_index_order_with_weighted_progress() -> None:
+    seen: list[float] = []
+    with parallel.hosting(_Reversed()):
+        out = parallel.gather(_square, [1, 2, 3, 4], seen.append, weights=[1, 1, 1, 5])
+    assert out == [1, 4, 9, 16]
+    # reversed completion: the heavy last piece first
+    assert seen == [5 / 8, 6 / 8, 7 / 8, 1.0]
+    assert parallel.gather(_square, []) == []
+
+
+def test_gather_closes_the_fan_out_when_progress_raises() -> None:
+    """A cancel raised by the progress callback leaves the host's iteration (which is how a
+    host abandons the pieces not yet finished) and reaches the caller."""
+
+    class Stop(Exception):
+        pass
+
+    def stop(fraction: float) -> None:
+        raise Stop
+
+    host = _Recorder()
+    with parallel.hosting(host):
+        try:
+            parallel.gather(_square, [1, 2, 3, 4], stop)
+        except Stop:
+            pass
+        else:
+            raise AssertionError("the callback's exception was swallowed")
+    assert host.started == [0] and host.closed_early
+
+
+def test_gather_refuses_a_host_that_loses_or_repeats_pieces() -> None:
+    class Lossy:
+        width = 2
+
+        def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+            yield 0, fn(items[0])
+            if len(items) > 2:  # repeats a piece; else loses the second one
+                yield 0, fn(items[0])
+
+    with parallel.hosting(Lossy()):
+        for items in ([1, 2], [1, 2, 3]):
+            try:
+                parallel.gather(_square, items)
+            except RuntimeError as exc:
+                assert ("twice" if len(items) > 2 else "1 of 2") in str(exc)
+            else:
+                raise AssertionError("a faulty host went unnoticed")
+
+
+def test_library_errors_survive_pickling_with_their_parameter() -> None:
+    """A piece may run in another process: its PipeflowError comes back pickled, with the
+    parameter, the request field and the subclass's own attributes."""
+    import pickle
+
+    from pipeflow.errors import BudgetExceeded, InvalidInput, UnstableStep
+
+    for err in (
+        InvalidInput("bad", parameter="modes").at("modes"),
+        BudgetExceeded("big", parameter="step", smallest_step=1e-4),
+        UnstableStep("unstable", "step", 2e-3),
+    ):
+        back = pickle.loads(pickle.dumps(err))
+        assert type(back) is type(err) and str(back) == str(err)
+        assert back.__dict__ == err.__dict__

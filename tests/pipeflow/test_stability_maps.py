@@ -47,3 +47,37 @@ def test_beta_map_matches_dimensional_analysis():
     pipe = nondimensional_pipe(0.5)
     one = critical_velocities(pipe, 0.0, (0.0, 12.0 / math.sqrt(0.5)), 8, points=61)
     assert b.u_cr[0] == pytest.approx(one.dimensionless()["u_cr"], rel=1e-6)
+
+
+def test_maps_cut_into_pieces_finished_in_reverse_order_equal_the_serial_maps():
+    """The fan-out (pipeflow.parallel) does not change a map: on a host of width 3 that
+    finishes the pieces last-first, the spin map (reverse-flow range, so v = 0 is
+    inserted) and the beta map equal the serial ones bit for bit (tolerance 0: every line
+    is computed on its own from the same inputs, only the cut and the order differ), and
+    the spin map's points equal single-point eigenvalue calls (to 1e-12 relative: a batch
+    of one is assembled along another BLAS path, seen differing by 3e-14)."""
+    from pipeflow import parallel
+    from pipeflow.model import build_model
+    from pipeflow.stability.core import eigenvalues
+    from tests.pipeflow.test_parallel import _Reversed
+
+    def maps(progress=None):
+        return (
+            spin_map(PAPER_PIPE, (-5.0, 50.0), (0.0, 1500.0), modes=6, velocity_points=30,
+                     spin_points=11, progress=progress),
+            beta_map((0.1, 0.9), modes=5, beta_points=13, u_points=61, progress=progress),
+        )  # fmt: skip
+
+    serial = maps()
+    seen: list[float] = []
+    with parallel.hosting(_Reversed()):
+        assert len(parallel.split(11)) > 1
+        fanned = maps(seen.append)
+    for a, b in zip(serial, fanned, strict=True):
+        assert a.to_dict() == b.to_dict()
+    assert seen[-1] == 1.0 and len(seen) > 2
+    m = fanned[0]
+    model = build_model(PAPER_PIPE, 6)
+    for i, k in ((0, 0), (5, 7), (10, 29)):
+        one = eigenvalues(model, m.velocities[k], m.spins[i])[0].real.max()
+        assert m.growth[i, k] == pytest.approx(one, rel=1e-12)
