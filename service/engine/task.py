@@ -14,7 +14,10 @@ The return value is small (the body goes to the store): ``(outcome, detail, seco
 outcome ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
 already) | ``elsewhere`` (a live attempt holds the lease) | ``lost`` (another attempt took
 the lease) | ``storage`` (the store refused a write; detail = (message, full)).
-Errors travel as problem dicts, never as pickled exceptions.  The request arrives
+Errors travel as problem dicts, never as pickled exceptions.  A computation that fans out
+(:mod:`pipeflow.parallel`) spreads its pieces over the cluster through
+:class:`service.engine.fanout.DaskHost`; the result's ``diagnostics.fan_out`` then counts
+the pieces and the workers that ran them.  The request arrives
 validated by the route (pickled, not validated again) and the result is encoded by
 :func:`service.encoding.dumps` (non-finite numbers become null).  The log lines of a
 computation (logger ``service.worker``) carry the id of the request that started it.
@@ -34,8 +37,10 @@ from typing import TYPE_CHECKING, Any
 
 from numpy.linalg import LinAlgError
 
+from pipeflow import parallel
 from pipeflow.errors import Cancelled, PipeflowError
 from service import encoding, observability
+from service.engine.fanout import DaskHost, in_worker
 from service.problems import pipeflow_problem, problem
 from service.store import StorageError, Store
 
@@ -195,9 +200,11 @@ def _compute(
         if beat.stop is not None:
             raise Cancelled(beat.stop)
 
+    host = DaskHost() if in_worker() else None  # fan-outs spread over the cluster
     try:
         beat.deadline = time.monotonic() + cfg.timeout_s  # the limit is on the computation
-        result = computation.execute(request, progress)
+        with parallel.hosting(host=host):
+            result = computation.execute(request, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:
             return ("error", runtime_problem(cfg.timeout_s))
@@ -213,6 +220,9 @@ def _compute(
             "error",
             problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
         )
+    fan_out = host.diagnostics() if host is not None else None
+    if fan_out is not None and isinstance(result.get("diagnostics"), dict):
+        result["diagnostics"] = {**result["diagnostics"], "fan_out": fan_out}
     try:
         return ("ok", encoding.dumps(result))  # non-finite numbers -> null (the one rule)
     except Exception as exc:

@@ -1,0 +1,168 @@
+"""Maps fan out over the cluster (service.engine.fanout): real Dask workers, real pieces.
+
+The embedded LocalCluster with 2 worker processes: a spin map job's pieces run on both
+workers (each piece reports the worker that ran it; the result's ``diagnostics.fan_out``
+counts them), its result equals the library call's, a cancel stops the pieces not yet
+started (seen in the scheduler's own task records), and an error raised inside a piece
+reaches the job as a problem naming the field.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from fastapi.testclient import TestClient
+
+from pipeflow import parallel
+from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.schema.stability import PAPER_PIPE_JSON
+from service import encoding
+from service.engine.fanout import PIECE_PREFIX
+from tests.service import processes
+from tests.service.conftest import make_client, wait_job, wait_ready
+
+#: the issue's map: the paper's pipe, 100 x 100 points, 10 modes
+MAP: dict[str, Any] = {
+    "kind": "spin_map",
+    "pipe": PAPER_PIPE_JSON,
+    "modes": 10,
+    "velocity_range": [0.0, 60.0],
+    "spin_range": [0.0, 2000.0],
+    "velocity_points": 100,
+    "spin_points": 100,
+}
+
+
+class _Width2:
+    """Stands for a cluster of 2 threads when counting the pieces the library makes."""
+
+    width = 2
+
+    def map(self, fn: Any, items: Any) -> Any:
+        return parallel.SERIAL.map(fn, items)
+
+
+def _pieces_on_two_threads() -> int:
+    with parallel.hosting(_Width2()):
+        return len(parallel.split(100, max_size=4096 // 100))
+
+
+def _library(spec: dict[str, Any]) -> dict[str, Any]:
+    """The plain library call (serial, in this process) as the service encodes it."""
+    computation = COMPUTATIONS[spec["kind"]]
+    result = computation.execute(computation.request.model_validate(spec))
+    doc: dict[str, Any] = json.loads(encoding.dumps(result))
+    return doc
+
+
+def test_spin_map_job_runs_on_both_workers_and_equals_the_library_call(tmp_path: Path) -> None:
+    """Over HTTP to a real uvicorn server with 2 workers: the 100 x 100 x 10-mode map's 8
+    pieces ran on 2 distinct workers, and the result equals the serial library call exactly
+    (tolerance 0: each line is computed on its own; only the diagnostics' fan_out entry is
+    the service's own)."""
+    with processes.server(
+        tmp_path / "server.log", PIPEFLOW_DATA_DIR=str(tmp_path / "data"), PIPEFLOW_WORKERS="2"
+    ) as (_, url):
+        r = httpx.post(f"{url}/v1/sweeps", json=MAP, timeout=30)
+        assert r.status_code == 202, r.text
+        key = r.json()["key"]
+        assert processes.wait_job(url, key)["status"] == "succeeded"
+        doc = httpx.get(f"{url}/v1/results/{key}", timeout=30).json()
+    assert doc.pop("key") == key and doc.pop("cached") is True  # the results endpoint's own
+    fan_out = doc["diagnostics"].pop("fan_out")
+    assert fan_out == {"pieces": _pieces_on_two_threads(), "workers": 2}
+    assert fan_out["pieces"] == 8
+    assert doc == _library(MAP)
+
+
+def _piece_records(dask_scheduler: Any) -> dict[str, list[str]]:
+    """Run on the scheduler: the states each piece went through (from its transition
+    log) and the pieces it still holds, with their state."""
+    seen: dict[str, list[str]] = {}
+    for entry in dask_scheduler.transition_log:
+        key, finish = str(entry[0]), str(entry[2])
+        if key.startswith(PIECE_PREFIX):
+            seen.setdefault(key, []).append(finish)
+    held = {
+        str(k): [ts.state]
+        for k, ts in dask_scheduler.tasks.items()
+        if str(k).startswith(PIECE_PREFIX)
+    }
+    return {"seen": seen, "held": held}  # type: ignore[dict-item]
+
+
+@pytest.fixture(scope="module")
+def two(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+    """The app with its embedded cluster of 2 workers, progress recorded every 20 ms."""
+    with make_client(
+        tmp_path_factory.mktemp("fanout"), workers=2, queue_size=4, progress_interval_s=0.02
+    ) as c:
+        wait_ready(c)
+        yield c
+
+
+def _on_scheduler(client: TestClient) -> dict[str, Any]:
+    from distributed import Client
+
+    address = client.app.state.runner._cluster.scheduler_address  # type: ignore[attr-defined]
+    with Client(address, timeout="30s") as dask:
+        records: dict[str, Any] = dask.run_on_scheduler(_piece_records)
+    return records
+
+
+def test_cancelling_a_fanned_out_job_stops_its_pieces(two: TestClient) -> None:
+    """A 200 x 200 x 20-mode map (10 pieces of about 1.5 s each) cancelled once its first
+    piece is in: the job ends cancelled, the scheduler soon holds none of its pieces, and
+    fewer pieces finished than were submitted (the queued ones never ran)."""
+    spec = MAP | {"modes": 20, "velocity_points": 200, "spin_points": 200}
+    key = two.post("/v1/sweeps", json=spec).json()["key"]
+    wait_job(
+        two, key, until=lambda j: j["progress"] > 0 or j["status"] not in ("queued", "running")
+    )
+    assert two.delete(f"/v1/jobs/{key}").status_code == 200
+    assert wait_job(two, key)["status"] == "cancelled"
+    _wait_released(two)
+    seen = _on_scheduler(two)["seen"]
+    finished = [k for k, states in seen.items() if "memory" in states]
+    assert len(seen) == 10, sorted(seen)
+    assert 1 <= len(finished) < len(seen), seen
+
+
+def test_an_error_inside_a_piece_reaches_the_job_with_its_field(two: TestClient) -> None:
+    """A resonance chart whose monodromy matrices cannot reach tolerance 1e-12 with 6 modes
+    within the step budget: the BudgetExceeded is raised by the step doubling inside a piece
+    on a worker process, and the job fails with the library's 422 problem naming the
+    request field ``tolerance``, as it does in-process."""
+    spec = {
+        "kind": "resonance_chart",
+        "pipe": PAPER_PIPE_JSON,
+        "modes": 6,
+        "mean_velocity": 10.0,
+        "amplitude_range": [0.0, 8.0],
+        "frequency_range": [100.0, 4000.0],
+        "amplitude_points": 3,
+        "frequency_points": 4,
+        "tolerance": 1e-12,
+    }
+    key = two.post("/v1/sweeps", json=spec).json()["key"]
+    job = wait_job(two, key, timeout=120)
+    assert job["status"] == "failed", job
+    error = job["error"]
+    assert error["status"] == 422 and error["type"].endswith("/budget-exceeded")
+    assert error["errors"][0]["field"] == "tolerance"
+    assert "did not converge to 1e-12" in error["detail"]
+    assert not _on_scheduler(two)["held"] or _wait_released(two)
+
+
+def _wait_released(client: TestClient) -> bool:
+    end = time.monotonic() + 30
+    while _on_scheduler(client)["held"]:
+        assert time.monotonic() < end, "the failed chart's pieces are still held"
+        time.sleep(0.2)
+    return True
