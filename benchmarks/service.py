@@ -500,9 +500,9 @@ def table(rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-def write_section(path: Path, label: str, text: str) -> None:
-    """Replace (or append) the section ``## Service benchmark: <label>`` of ``path``."""
-    title = f"## Service benchmark: {label}"
+def write_section(path: Path, label: str, text: str, prefix: str = "Service benchmark") -> None:
+    """Replace (or append) the section ``## <prefix>: <label>`` of ``path``."""
+    title = f"## {prefix}: {label}"
     old = path.read_text() if path.exists() else ""
     pattern = re.compile(rf"^{re.escape(title)}\n.*?(?=^## |\Z)", re.S | re.M)
     section = f"{title}\n\n{text.rstrip()}\n\n"

@@ -92,3 +92,27 @@ def test_service_benchmark_smoke(tmp_path: Path) -> None:
     for what in ("cold LTI", "fresh worker", "paper example", "one client", "wrk", "mixed"):
         assert any(what in r for r in rows), what
     assert re.search(r"\| 0 errors / [1-9]\d*", section), section
+
+
+def test_fanout_benchmark_smoke(tmp_path: Path) -> None:
+    """benchmarks/bench_fanout.py --smoke runs a tiny spin map job on a 1-worker and a
+    2-worker server and writes its section: the 2-worker job reports pieces on 2 workers.
+    No timing is asserted (the ratio is the benchmark's business)."""
+    import subprocess
+
+    from tests.live import ROOT
+
+    out = tmp_path / "RESULTS.md"
+    out.write_text("# results\n\n## other section\n\nkept\n")
+    proc = subprocess.run(
+        [sys.executable, "benchmarks/bench_fanout.py", "--smoke", "--label", "smoke", "--out",
+         str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    text = out.read_text()
+    assert "## other section\n\nkept" in text
+    section = text.split("## Fan-out benchmark (issue 11): smoke", 1)[1]
+    assert "2 workers vs 1:" in section
+    row = next(line for line in section.splitlines() if "PIPEFLOW_WORKERS=2" in line)
+    assert "'workers': 2" in row, row

@@ -1,0 +1,273 @@
+"""Fan-out benchmark of issue 11: a spin map job on 1 worker against 2 workers.
+
+    python benchmarks/bench_fanout.py              # ~2 min on the 2-core machine
+    python benchmarks/bench_fanout.py --smoke      # seconds: a tiny map, one repetition
+    python benchmarks/bench_fanout.py --label x    # names the section written to RESULTS.md
+
+The user's path: two servers started the README's way (``uvicorn service.main:app --port
+P`` from the repo root, a fresh data directory each), one with ``PIPEFLOW_WORKERS=1`` and
+one with ``PIPEFLOW_WORKERS=2``, both up for the whole run.  Each repetition submits the
+issue's map (the paper's pipe, 100 x 100 (v, w0) points on [0, 60] m/s x [0, 2000]
+rad/s, 10 modes) to ``POST /v1/sweeps``, polls ``GET /v1/jobs/{key}`` every 20 ms until it
+succeeded and fetches ``GET /v1/results/{key}``: the time from the POST to the result's
+last byte.  Every repetition is a distinct key (the spin range's upper end moved by
+1e-9 relative), so the cache never answers; the two servers take turns (1, 2, 1, 2, ...)
+so that a change of the machine's load hits both.  One unmeasured job per server first
+(the workers' first spin map pays lazy imports).  The plain library call (the registry's
+``execute`` of the same request, serial, one BLAS thread, in this process) is timed in the
+same run.  Reports medians, the 2-vs-1 ratio against the 1.6x target of the issue, the
+workers' own compute time (the job record's started..finished) and the result's
+``diagnostics.fan_out`` (pieces and the distinct workers that ran them).
+
+``--sweeps`` adds the measurement behind leaving argand/campbell sweeps serial: the batched
+frozen spectra of a sweep (``pipeflow.spectra.decompose``: eigenvalues and left/right
+eigenvectors at every point) computed here against 8 pieces on a 2-worker LocalCluster
+(eigenvectors shipped back), beside the whole sweep's time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import statistics
+import sys
+import tempfile
+import time
+from contextlib import ExitStack
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")  # the library call on one core, like one worker
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
+from pipeflow.schema.stability import PAPER_PIPE_JSON  # noqa: E402
+
+
+def _service_bench() -> Any:
+    """benchmarks/service.py (its server start-up, machine line and section writer),
+    loaded by path: as a script's neighbour its name would shadow the ``service`` package."""
+    path = ROOT / "benchmarks" / "service.py"
+    spec = importlib.util.spec_from_file_location("pipeflow_bench_service", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+BENCH = _service_bench()
+RESULTS = ROOT / "benchmarks" / "RESULTS.md"
+TARGET = 1.6
+POLL_S = 0.02
+
+#: the issue's map: 100 x 100 points x 10 modes, the paper's pipe
+MAP: dict[str, Any] = {
+    "kind": "spin_map",
+    "pipe": PAPER_PIPE_JSON,
+    "modes": 10,
+    "velocity_range": [0.0, 60.0],
+    "spin_range": [0.0, 2000.0],
+    "velocity_points": 100,
+    "spin_points": 100,
+}
+SMOKE_MAP = MAP | {"modes": 4, "velocity_points": 20, "spin_points": 12}
+
+
+def variant(spec: dict[str, Any], i: int) -> dict[str, Any]:
+    """A distinct key: the spin range's upper end moved by ``i`` x 1e-9 relative."""
+    lo, hi = spec["spin_range"]
+    return spec | {"spin_range": [lo, hi * (1.0 + 1e-9 * i)]}
+
+
+def job_over_http(client: httpx.Client, url: str, spec: dict[str, Any]) -> dict[str, Any]:
+    """POST, poll to success, GET the result: wall time [s], compute time [s], fan_out."""
+    started = time.perf_counter()
+    r = client.post(f"{url}/v1/sweeps", json=spec)
+    r.raise_for_status()
+    key = r.json()["key"]
+    while True:
+        job = client.get(f"{url}/v1/jobs/{key}").json()
+        if job["status"] == "succeeded":
+            break
+        if job["status"] in ("failed", "cancelled"):
+            raise RuntimeError(f"job {key} {job['status']}: {job.get('error')}")
+        time.sleep(POLL_S)
+    doc = client.get(f"{url}/v1/results/{key}").json()
+    wall = time.perf_counter() - started
+    t0, t1 = (datetime.fromisoformat(job[k]).timestamp() for k in ("started", "finished"))
+    return {"wall": wall, "compute": t1 - t0, "fan_out": doc["diagnostics"].get("fan_out")}
+
+
+def library_call(spec: dict[str, Any]) -> float:
+    computation = COMPUTATIONS[spec["kind"]]
+    request = computation.request.model_validate(spec)
+    started = time.perf_counter()
+    computation.execute(request)
+    return time.perf_counter() - started
+
+
+def run(spec: dict[str, Any], repeats: int) -> dict[str, Any]:
+    tmp = Path(tempfile.mkdtemp(prefix="pipeflow-bench-fanout-"))
+    env = {"PIPEFLOW_LOG_LEVEL": "WARNING"}
+    runs: dict[int, list[dict[str, Any]]] = {1: [], 2: []}
+    library: list[float] = []
+    with ExitStack() as stack:
+        urls = {
+            n: stack.enter_context(
+                BENCH.server(
+                    tmp / f"data{n}", tmp / f"server{n}.log", env | {"PIPEFLOW_WORKERS": str(n)}
+                )
+            )[0]
+            for n in (1, 2)
+        }
+        client = stack.enter_context(httpx.Client(timeout=120))
+        library_call(spec)  # first use in this process, unmeasured
+        for n in (1, 2):
+            job_over_http(client, urls[n], variant(spec, 10_000 + n))  # warm-up, unmeasured
+        for i in range(repeats):
+            library.append(library_call(spec))
+            for n in (1, 2):
+                runs[n].append(job_over_http(client, urls[n], variant(spec, 2 * i + n)))
+    return {"library": library, "runs": runs, "load_after": os.getloadavg()}
+
+
+def _sweep_piece(args: tuple[int, Any]) -> Any:
+    from pipeflow.model import PAPER_PIPE, build_model
+    from pipeflow.spectra import decompose
+    from pipeflow.stability.core import state_matrices
+
+    modes, p = args
+    return decompose(state_matrices(build_model(PAPER_PIPE, modes), p, 100.0))
+
+
+def sweep_probe() -> str:
+    """Frozen spectra of velocity sweeps (w0 = 100 rad/s, v in [0, 60] m/s): here vs 8
+    pieces on 2 workers, and the whole ``sweep`` here (best of 3 each)."""
+    import numpy as np
+    from distributed import Client, LocalCluster
+
+    from pipeflow.model import PAPER_PIPE
+    from pipeflow.stability.sweeps import sweep
+
+    def best(fn: Any, *args: Any) -> float:
+        times = []
+        for _ in range(3):
+            t = time.perf_counter()
+            fn(*args)
+            times.append(time.perf_counter() - t)
+        return min(times)
+
+    rows = []
+    env = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, dashboard_address=None, env=env, processes=True
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        client.gather(client.map(_sweep_piece, [(2, np.linspace(0, 1, 3))] * 4, pure=False))
+        for modes, points in ((10, 201), (10, 2001), (20, 2001), (40, 2001)):
+            p = np.linspace(0.0, 60.0, points)
+            parts = [(modes, q) for q in np.array_split(p, 8)]
+            here = best(_sweep_piece, (modes, p))
+            fanned = best(lambda ps: client.gather(client.map(_sweep_piece, ps, pure=False)), parts)
+            whole = best(sweep, PAPER_PIPE, "velocity", (0.0, 60.0), 100.0, modes, 4, points)
+            rows.append(
+                f"| {modes} | {points} | {whole * 1e3:.0f} | {here * 1e3:.0f} | "
+                f"{fanned * 1e3:.0f} | {(here - fanned) / whole:+.0%} |"
+            )
+    return "\n".join(
+        [
+            "Argand sweeps (w0 = 100 rad/s, v in [0, 60] m/s, 4 tracked modes), best of 3 [ms]: "
+            "the frozen spectra here vs in 8 pieces on a 2-worker LocalCluster.",
+            "",
+            "| modes | points | whole sweep | spectra here | spectra, 8 pieces on 2 workers "
+            "| gain on the sweep |",
+            "|---:|---:|---:|---:|---:|---:|",
+            *rows,
+        ]
+    )
+
+
+def median(values: list[float]) -> float:
+    return float(statistics.median(values))
+
+
+def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: bool) -> str:
+    one = median([r["wall"] for r in raw["runs"][1]])
+    two = median([r["wall"] for r in raw["runs"][2]])
+    c1 = median([r["compute"] for r in raw["runs"][1]])
+    c2 = median([r["compute"] for r in raw["runs"][2]])
+    lib = median(raw["library"])
+    ratio = one / two
+    fan = raw["runs"][2][-1]["fan_out"]
+    fan1 = raw["runs"][1][-1]["fan_out"]
+    size = f"{spec['velocity_points']} x {spec['spin_points']} x {spec['modes']} modes"
+    rows = [
+        ["library call `execute` (serial, 1 BLAS thread)", f"{lib * 1e3:.0f} ms", "", ""],
+        ["job over HTTP, `PIPEFLOW_WORKERS=1`", f"{one * 1e3:.0f} ms", f"{c1 * 1e3:.0f} ms",
+         f"{fan1 or 'in place (1 thread)'}"],
+        ["job over HTTP, `PIPEFLOW_WORKERS=2`", f"{two * 1e3:.0f} ms", f"{c2 * 1e3:.0f} ms",
+         f"{fan}"],
+    ]  # fmt: skip
+    lines = [
+        f"`python benchmarks/bench_fanout.py{' --smoke' if smoke else ''}` "
+        f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+        f"{time.monotonic() - started:.0f} s): {raw['machine']}; load average "
+        + " ".join(f"{x:.1f}" for x in raw["load_after"])
+        + f" at the end. Spin map {size}, the paper's pipe, v in [0, 60] m/s, w0 in "
+        f"[0, 2000] rad/s; {len(raw['library'])} repetitions, medians.",
+        "",
+        "| what | median wall time (POST to result) | median compute (job started..finished) "
+        "| diagnostics.fan_out |",
+        "|---|---:|---:|---|",
+        *("| " + " | ".join(r) + " |" for r in rows),
+        "",
+        f"**2 workers vs 1: {ratio:.2f}x** (target >= {TARGET}x: "
+        f"{'met' if ratio >= TARGET else 'MISSED'}); compute only: {c1 / c2:.2f}x; "
+        f"1-worker job vs the library call: {one / lib:.2f}x.",
+        "",
+        "wall [ms], 1 worker: " + ", ".join(f"{r['wall'] * 1e3:.0f}" for r in raw["runs"][1]),
+        "",
+        "wall [ms], 2 workers: " + ", ".join(f"{r['wall'] * 1e3:.0f}" for r in raw["runs"][2]),
+        "",
+        "library [ms]: " + ", ".join(f"{x * 1e3:.0f}" for x in raw["library"]),
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--smoke", action="store_true", help="a tiny map, one repetition")
+    ap.add_argument("--repeats", type=int, default=9, help="measured jobs per server")
+    ap.add_argument("--label", default="latest", help="section name in RESULTS.md")
+    ap.add_argument("--out", type=Path, default=RESULTS, help="Markdown file to write into")
+    ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--sweeps", action="store_true", help="also the sweep-spectra probe")
+    args = ap.parse_args(argv)
+    spec = SMOKE_MAP if args.smoke else MAP
+    started = time.monotonic()
+    desc = BENCH.machine()
+    raw = run(spec, 1 if args.smoke else args.repeats)
+    raw["machine"] = desc
+    text = report(spec, raw, started, args.smoke)
+    if args.sweeps:
+        text += "\n\n" + sweep_probe()
+    print(text, flush=True)
+    if not args.no_write:
+        BENCH.write_section(args.out, args.label, text, prefix="Fan-out benchmark (issue 11)")
+        print(f"\nwritten to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
