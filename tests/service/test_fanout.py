@@ -116,22 +116,52 @@ def _on_scheduler(client: TestClient) -> dict[str, Any]:
     return records
 
 
+def _stopped_pieces(client: TestClient, name: str) -> tuple[int, int]:
+    """Once the scheduler holds no piece any more: (pieces submitted, pieces finished) of
+    the one fan-out of ``name`` it saw (keys: prefix-name-token-index)."""
+    _wait_released(client)
+    seen = _on_scheduler(client)["seen"]
+    tokens = {k.rsplit("-", 2)[1] for k in seen if k.startswith(f"{PIECE_PREFIX}-{name}-")}
+    assert len(tokens) == 1, tokens
+    prefix = f"{PIECE_PREFIX}-{name}-{tokens.pop()}-"
+    mine = {k: v for k, v in seen.items() if k.startswith(prefix)}
+    return len(mine), sum("memory" in states for states in mine.values())
+
+
+#: 200 x 200 points, 20 modes: 10 pieces of about 1.5 s each on this machine
+BIG = MAP | {"modes": 20, "velocity_points": 200, "spin_points": 200}
+
+
+def _first_piece_in(job: dict[str, Any]) -> bool:
+    return bool(job["progress"] > 0 or job["status"] not in ("queued", "running"))
+
+
 def test_cancelling_a_fanned_out_job_stops_its_pieces(two: TestClient) -> None:
-    """A 200 x 200 x 20-mode map (10 pieces of about 1.5 s each) cancelled once its first
-    piece is in: the job ends cancelled, the scheduler soon holds none of its pieces, and
-    fewer pieces finished than were submitted (the queued ones never ran)."""
-    spec = MAP | {"modes": 20, "velocity_points": 200, "spin_points": 200}
-    key = two.post("/v1/sweeps", json=spec).json()["key"]
-    wait_job(
-        two, key, until=lambda j: j["progress"] > 0 or j["status"] not in ("queued", "running")
-    )
+    """The big map cancelled once its first piece is in: the job ends cancelled, the
+    scheduler soon holds none of its pieces, and fewer pieces finished than were submitted
+    (the queued ones never ran; the running ones finish their chunk)."""
+    key = two.post("/v1/sweeps", json=BIG).json()["key"]
+    wait_job(two, key, until=_first_piece_in)
     assert two.delete(f"/v1/jobs/{key}").status_code == 200
     assert wait_job(two, key)["status"] == "cancelled"
-    _wait_released(two)
-    seen = _on_scheduler(two)["seen"]
-    finished = [k for k, states in seen.items() if "memory" in states]
-    assert len(seen) == 10, sorted(seen)
-    assert 1 <= len(finished) < len(seen), seen
+    submitted, finished = _stopped_pieces(two, "_spin_lines")
+    assert submitted == 10
+    assert 1 <= finished < submitted
+
+
+def test_runtime_limit_stops_a_fanned_out_job(tmp_path: Path) -> None:
+    """With a 2 s runtime limit the big map (about 8 s on 2 workers) fails with the
+    runtime-limit problem, checked between pieces, and its remaining pieces are cancelled."""
+    with make_client(
+        tmp_path, workers=2, queue_size=2, job_timeout_s=2.0, progress_interval_s=0.02
+    ) as c:
+        wait_ready(c)
+        key = c.post("/v1/sweeps", json=BIG).json()["key"]
+        job = wait_job(c, key, timeout=60)
+        assert job["status"] == "failed", job
+        assert job["error"]["type"].endswith("/runtime-limit"), job["error"]
+        submitted, finished = _stopped_pieces(c, "_spin_lines")
+        assert submitted == 10 and finished < submitted
 
 
 def test_an_error_inside_a_piece_reaches_the_job_with_its_field(two: TestClient) -> None:
