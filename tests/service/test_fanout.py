@@ -149,6 +149,53 @@ def test_cancelling_a_fanned_out_job_stops_its_pieces(two: TestClient) -> None:
     assert 1 <= finished < submitted
 
 
+def _job_worker(prefix: str, dask_scheduler: Any = None) -> dict[str, Any]:
+    """Run on the scheduler: the worker computing the task whose key starts with
+    ``prefix`` (the job's own task), and every worker."""
+    on = [
+        ts.processing_on.address
+        for k, ts in dask_scheduler.tasks.items()
+        if str(k).startswith(prefix) and ts.processing_on is not None
+    ]
+    return {"job": on, "workers": sorted(dask_scheduler.workers)}
+
+
+def test_a_piece_whose_worker_dies_is_rerun(two: TestClient) -> None:
+    """SIGKILL of the worker that does not hold the job's task, while the big map's pieces
+    run: the scheduler reruns its pieces elsewhere, the job succeeds in its first attempt,
+    and its lines equal the library's pieces computed here (tolerance 0)."""
+    import os
+    import signal
+
+    import numpy as np
+    from distributed import Client
+
+    from pipeflow.stability import maps
+
+    spec = BIG | {"spin_range": [0.0, 1999.0]}  # a key of its own
+    key = two.post("/v1/sweeps", json=spec).json()["key"]
+    wait_job(two, key, until=_first_piece_in)
+    address = two.app.state.runner._cluster.scheduler_address  # type: ignore[attr-defined]
+    with Client(address, timeout="30s") as dask:
+        where = dask.run_on_scheduler(_job_worker, f"spin_map-{key}")
+        assert len(where["job"]) == 1, where
+        other = next(w for w in where["workers"] if w != where["job"][0])
+        pid = dask.run(os.getpid, workers=[other])[other]
+        os.kill(pid, signal.SIGKILL)
+    job = wait_job(two, key, timeout=120)
+    assert job["status"] == "succeeded" and job["attempts"] == 1, job
+    doc = two.get(f"/v1/results/{key}").json()
+    assert doc["diagnostics"]["fan_out"]["pieces"] == 10
+    request = COMPUTATIONS["spin_map"].request.model_validate(spec)
+    v = np.linspace(0.0, 60.0, 200)
+    rows = [0, 101, 199]
+    w = np.linspace(0.0, 1999.0, 200)[rows]
+    growth, _, stable = maps._spin_lines(maps._SpinLines(request.mounted_pipe(), 20, v, w, 1e-10))
+    for i, row in enumerate(rows):
+        assert doc["growth_rate"][row] == growth[i].tolist()
+        assert doc["stable_at_start"][row] == stable[i]
+
+
 def test_runtime_limit_stops_a_fanned_out_job(tmp_path: Path) -> None:
     """With a 2 s runtime limit the big map (about 8 s on 2 workers) fails with the
     runtime-limit problem, checked between pieces, and its remaining pieces are cancelled."""
