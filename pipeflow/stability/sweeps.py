@@ -10,9 +10,9 @@ followed member of the pair may be the lower one; its partner is the conjugate).
 A sweep does not fan out (:mod:`pipeflow.parallel`): its frozen spectra are one batched
 call, and measured on 2 workers (``benchmarks/bench_fanout.py --sweeps``, figures in
 ``benchmarks/RESULTS.md``) shipping their eigenvectors back costs more than computing them
-at the usual sizes (10 modes, 201 points: 31 ms here, 79 ms in 8 pieces) and gains little
-of the whole sweep at the largest (40 modes, 2001 points), whose time is mostly the serial
-tracking and crossing searches.
+at the usual sizes (10 modes, 201 points: 25 ms here, 43 ms in 8 pieces) and gains at most
+14% of the whole sweep at the largest (40 modes, 2001 points), whose time is mostly the
+serial tracking and crossing searches.
 """
 
 from __future__ import annotations
