@@ -497,3 +497,44 @@ class FloquetResponse(_Result):
     diagnostics: dict[str, Any] = Field(
         description="steps_per_period, error_estimate, galerkin_modes, propagator."
     )
+
+
+# -- POST /v1/studies ------------------------------------------------------------------------
+
+
+class StudyColumn(BaseModel):
+    name: str = Field(
+        description="Column name: index, key, status, cached, each overridden field's path, "
+        "the base kind's summary (simulation: peak_tip_displacement, final_sigma_1, "
+        "final_omega_1, method_used, result_status; stability: critical_velocity, "
+        "critical_mode, critical_kind, stable_throughout), error_type, error_field, "
+        "error_detail."
+    )
+    unit: str = Field(
+        description="SI unit of the column's numbers ('-': dimensionless; '': text or a flag)."
+    )
+    description: str = Field(description="What the column holds.")
+
+
+class StudyCounts(BaseModel):
+    total: int = Field(description="Cases in the study [-].")
+    ok: int = Field(description="Cases that ran [-].")
+    failed: int = Field(description="Cases that failed (their rows say why) [-].")
+    cached: int = Field(description="Cases whose summary came from the cache [-].")
+    computed: int = Field(
+        description="Case computations run for this study [-] (cases with equal keys share one)."
+    )
+
+
+class StudyResponse(_Result):
+    """A design study: one row of summaries per case (CSV: ``?format=csv&table=study``)."""
+
+    kind: Literal["study"] = Field(description="Result kind.")
+    base_kind: Literal["simulation", "stability"] = Field(description="The cases' computation.")
+    overrides: list[str] = Field(description="The overridden fields (dotted paths), in order.")
+    columns: list[StudyColumn] = Field(description="The table's columns, in row order.")
+    rows: list[list[str | int | float | bool | None]] = Field(
+        description="One row per case, in case order, values in the columns' units; null "
+        "where a case has no value (a field it does not override, a failed case's summary)."
+    )
+    counts: StudyCounts = Field(description="How many cases ran, failed, came from the cache.")
