@@ -49,9 +49,11 @@ TABLES: dict[str, str] = {
     "eigenvalues": "frozen-time eigenvalues of S(t): sigma [1/s], omega [rad/s] per branch",
     "cma_exponents": "eigenvalues of P(t)/t (the CMA exponents): sigma [1/s], omega [rad/s]",
     "mode_shapes": "complex mode shapes along x [m]: real and imaginary parts [-] per time",
-    "study": "a design study: one row per case, its overrides and summaries (units in the "
-    "header)",
+    "study": "a design study: one row per case, its overrides and summaries (units in the header)",
 }
+
+#: the tables of a simulation's result (all but a study's)
+SIMULATION_TABLES: tuple[str, ...] = tuple(t for t in TABLES if t != "study")
 
 CSV_MEDIA_TYPE = "text/csv"
 PARQUET_MEDIA_TYPE = "application/vnd.apache.parquet"

@@ -63,15 +63,22 @@ class Column:
 
 
 LEADING = (
-    Column("index", "-", "Position of the case in the study (list order, or grid order with "
-           "the last field varying fastest)."),
+    Column(
+        "index",
+        "-",
+        "Position of the case in the study (list order; grid: the fields sorted by "
+        "path, the last varying fastest).",
+    ),
     Column("key", "", "The case's own cache key: the key of the standalone request."),
     Column("status", "", "ok, or failed (the error_* columns say why)."),
     Column("cached", "", "True when the summary came from the cache, not computed now."),
 )
 TRAILING = (
-    Column("error_type", "", "Failed cases: the problem type (e.g. budget-exceeded, "
-           "invalid-input, numerical-range)."),
+    Column(
+        "error_type",
+        "",
+        "Failed cases: the problem type (e.g. budget-exceeded, invalid-input, numerical-range).",
+    ),
     Column("error_field", "", "Failed cases: the field of the case's own request at fault."),
     Column("error_detail", "", "Failed cases: what went wrong."),
 )
@@ -79,8 +86,12 @@ TRAILING = (
 SUMMARY_COLUMNS: dict[str, tuple[Column, ...]] = {
     "simulation": (
         Column("peak_tip_displacement", "m", "max |u(L, t)| over the output times."),
-        Column("final_sigma_1", "1/s", "Damping sigma of the fundamental (branch 1 of the "
-               "frozen spectrum) at the last output time t_end; > 0: growing."),
+        Column(
+            "final_sigma_1",
+            "1/s",
+            "Damping sigma of the fundamental (branch 1 of the "
+            "frozen spectrum) at the last output time t_end; > 0: growing.",
+        ),
         Column("final_omega_1", "rad/s", "Frequency omega of the fundamental at t_end."),
         Column("method_used", "", "The solver that ran (what 'auto' chose)."),
         Column("result_status", "", "The simulation's status: ok, diverging or overflow."),
@@ -123,11 +134,7 @@ def summarise(kind: str, result: dict[str, Any]) -> dict[str, Any]:
         }
     critical = result["critical_velocity"]
     first = next(
-        (
-            c
-            for c in result["crossings"]
-            if c["direction"] == "loss" and c["velocity"] == critical
-        ),
+        (c for c in result["crossings"] if c["direction"] == "loss" and c["velocity"] == critical),
         None,
     )
     return {

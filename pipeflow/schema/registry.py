@@ -20,7 +20,7 @@ from pydantic import BaseModel, Field, TypeAdapter
 
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
-from pipeflow.export import TABLES
+from pipeflow.export import SIMULATION_TABLES
 from pipeflow.plots import available_plots
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
@@ -217,7 +217,7 @@ SIMULATION = register(
             "displacements",
             "mode_shapes",
         ),
-        tables=tuple(t for t in TABLES if t != "study"),  # the time-history tables
+        tables=SIMULATION_TABLES,
         examples={
             "paper": {
                 "summary": "The paper's section 5: v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s",

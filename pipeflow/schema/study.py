@@ -3,12 +3,13 @@
 ``POST /v1/studies`` takes :class:`StudySpec`: a ``base`` (``{"kind": "simulation" |
 "stability", "spec": <that computation's request>}``) and either ``cases``, a list of
 overrides (``[{"pipe.E": 7e9}, {"pipe.E": 8e9, "pipe.L": 0.03}]``), or ``grid``, a
-cartesian product of values per field (``{"pipe.L": [0.02, 0.025], "pipe.M2": [...]}``,
-the last field varying fastest).  An override names a numeric field of the base request
-by its dotted JSON path, list items by their index (``flow.velocity.coefficients.1``,
-``velocity_range.1``); its value is a JSON number in the field's own unit (SI, as the
-field's description states).  Nothing is ever evaluated: a path is looked up in the base
-request, a value is a number.
+cartesian product of values per field (``{"pipe.L": [0.02, 0.025], "pipe.M2": [...]}``;
+JSON objects are unordered, so the cases follow the fields sorted by path, the last
+varying fastest: any order of the fields is the same study, with the same key).  An
+override names a numeric field of the base request by its dotted JSON path, list items by
+their index (``flow.velocity.coefficients.1``, ``velocity_range.1``); its value is a JSON
+number in the field's own unit (SI, as the field's description states).  Nothing is ever
+evaluated: a path is looked up in the base request, a value is a number.
 
 Validation happens before any work, so a bad study is one 422 naming its field:
 
@@ -144,7 +145,9 @@ def _assign(sparse: dict[str, Any], full: dict[str, Any], path: str, value: Any)
 
 def _error(kind: str, loc: tuple[Any, ...], message: str, value: Any) -> InitErrorDetails:
     return InitErrorDetails(
-        type=PydanticCustomError(kind, message), loc=loc, input=value  # type: ignore[typeddict-item]
+        type=PydanticCustomError(kind, message),
+        loc=loc,
+        input=value,  # type: ignore[typeddict-item]
     )
 
 
@@ -170,7 +173,11 @@ class StudySpec(StrictModel):
                 {
                     "base": {
                         "kind": "simulation",
-                        "spec": {**PAPER_EXAMPLE, "modes": 4, "time": {"t_end": 0.2, "samples": 101}},
+                        "spec": {
+                            **PAPER_EXAMPLE,
+                            "modes": 4,
+                            "time": {"t_end": 0.2, "samples": 101},
+                        },
                     },
                     "grid": {
                         "pipe.M2": [1.0e-5, 1.6485e-5],
@@ -182,9 +189,7 @@ class StudySpec(StrictModel):
     )
 
     base: BaseRequest = Field(description="The request every case starts from, with its kind.")
-    cases: (
-        list[Annotated[dict[Path, Number], Field(max_length=MAX_OVERRIDES)]] | None
-    ) = Field(
+    cases: list[Annotated[dict[Path, Number], Field(max_length=MAX_OVERRIDES)]] | None = Field(
         None,
         min_length=1,
         max_length=MAX_CASES,
@@ -198,8 +203,9 @@ class StudySpec(StrictModel):
             min_length=1,
             max_length=MAX_OVERRIDES,
             description="Grid mode: field path -> the values it takes, each in that field's SI "
-            "unit (e.g. {'pipe.L': [0.02, 0.025]} [m]); the cases are every combination, the "
-            f"last field varying fastest. The product of the lengths is at most {MAX_CASES}.",
+            "unit (e.g. {'pipe.L': [0.02, 0.025]} [m]); the cases are every combination, "
+            "in the order of the fields sorted by path, the last varying fastest. The "
+            f"product of the lengths is at most {MAX_CASES}.",
         )
     )
 
@@ -211,7 +217,7 @@ class StudySpec(StrictModel):
     def paths(self) -> list[str]:
         """The overridden fields, in order of first appearance (the table's columns)."""
         if self.grid is not None:
-            return list(self.grid)
+            return sorted(self.grid)
         return list(dict.fromkeys(p for case in self.cases or [] for p in case))
 
     def count(self) -> int:
@@ -223,7 +229,7 @@ class StudySpec(StrictModel):
     def overrides(self) -> Iterator[dict[str, int | float]]:
         """Each case's overrides, in case order."""
         if self.grid is not None:
-            axes = list(self.grid.items())
+            axes = sorted(self.grid.items())
             for values in itertools.product(*(v for _, v in axes)):
                 yield {path: value for (path, _), value in zip(axes, values, strict=True)}
         else:
@@ -268,7 +274,7 @@ class StudySpec(StrictModel):
     def _grid_index(self, i: int) -> dict[str, int]:
         """Case ``i`` of the grid: the index of its value along each field."""
         out: dict[str, int] = {}
-        for path, values in reversed(list((self.grid or {}).items())):
+        for path, values in reversed(sorted((self.grid or {}).items())):
             i, out[path] = divmod(i, len(values))
         return out
 
@@ -280,7 +286,7 @@ class StudySpec(StrictModel):
                 "field, combined as a cartesian product)"
             )
         if self.grid is not None and self.count() > MAX_CASES:
-            sizes = " x ".join(str(len(v)) for v in self.grid.values())
+            sizes = " x ".join(str(len(v)) for _, v in sorted(self.grid.items()))
             raise ValueError(f"grid: {sizes} = {self.count()} cases, more than {MAX_CASES}")
         self._check_paths()
         self.expand()  # every case valid, or a 422 naming it, before any work
@@ -310,13 +316,13 @@ class StudySpec(StrictModel):
             raise ValidationError.from_exception_data("StudySpec", errors)
 
     def canonical(self) -> dict[str, Any]:
-        """Normalised form for the study's key: the base's own normal form, then the cases;
-        a grid as ``[[path, values], ...]`` since its order sets the order of the cases."""
+        """Normalised form for the study's key (and a valid request again: a job is
+        recovered from it): the base's own normal form, then the cases or the grid."""
         out: dict[str, Any] = {
             "base": {"kind": self.base_kind, "spec": self.base.spec.canonical()},
         }
         if self.grid is not None:
-            out["grid"] = [[path, list(values)] for path, values in self.grid.items()]
+            out["grid"] = {path: list(values) for path, values in self.grid.items()}
         else:
             out["cases"] = [dict(c) for c in self.cases or []]
         return out
