@@ -175,7 +175,7 @@ def run_case(kind: str, request: BaseModel) -> dict[str, Any]:
     return {"status": "ok", **summarise(kind, result)}
 
 
-def run_cases(piece: tuple[str, list[BaseModel]]) -> list[dict[str, Any]]:
+def run_cases(piece: tuple[str, Sequence[BaseModel]]) -> list[dict[str, Any]]:
     """The fanned-out piece: ``(kind, requests)`` -> their summaries (:func:`run_case`)."""
     kind, requests = piece
     return [run_case(kind, r) for r in requests]

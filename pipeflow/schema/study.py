@@ -111,7 +111,7 @@ class Case:
 
     index: int
     overrides: dict[str, int | float]
-    request: BaseModel
+    request: StrictModel
 
 
 def _resolve(tree: Any, path: str) -> tuple[bool, Any]:
@@ -147,7 +147,7 @@ def _error(kind: str, loc: tuple[Any, ...], message: str, value: Any) -> InitErr
     return InitErrorDetails(
         type=PydanticCustomError(kind, message),
         loc=loc,
-        input=value,  # type: ignore[typeddict-item]
+        input=value,
     )
 
 

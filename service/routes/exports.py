@@ -16,7 +16,7 @@ from __future__ import annotations
 import asyncio
 import json
 import threading
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Header, Path, Response
 
@@ -46,7 +46,10 @@ IMMUTABLE = "public, max-age=86400, immutable"
 #: the bytes as a file rather than trying to parse them as JSON)
 BINARY = {"type": "string", "format": "binary"}
 
-Table = Literal[tuple(TABLES)]  # type: ignore[valid-type]
+if TYPE_CHECKING:
+    Table = str
+else:  # the names of pipeflow.export.TABLES (one list), for the query's schema
+    Table = Literal[tuple(TABLES)]
 TABLE_DESCRIPTION = (
     "CSV/Parquet table (default: the result's first, 'history' for a simulation, 'study' "
     "for a study): " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
