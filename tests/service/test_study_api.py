@@ -172,3 +172,34 @@ def test_bad_studies_are_refused_naming_the_field_before_any_work(api: TestClien
     text = {"base": base, "cases": [{"pipe.E": "7e9"}]}
     assert problem_fields(api, text) == [("cases.0.pipe.E", "#/cases/0/pipe.E")]
     assert api.app.state.store.job_counts() == jobs  # type: ignore[attr-defined]
+
+
+def test_the_client_runs_a_study_and_reads_its_csv(api: TestClient) -> None:
+    from pipeflow_client import Client
+
+    body = {
+        "base": {
+            "kind": "stability",
+            "spec": {
+                "pipe": BASE["pipe"],
+                "modes": 4,
+                "velocity_range": [0.0, 60.0],
+                "points": 101,
+            },
+        },
+        "grid": {"rotation.omega0.value": [0.0, 100.0]},
+    }
+    seen: list[float] = []
+    with Client(str(api.base_url), http=api) as client:
+        doc = client.study(body, progress=seen.append, poll=0.05, timeout=240)
+        text = client.result_csv(doc["key"], table="study")
+    rows = named(doc)
+    assert [r["rotation.omega0.value"] for r in rows] == [0.0, 100.0]
+    alone = api.post(
+        "/v1/stability",
+        json={**body["base"]["spec"], "rotation": {"omega0": {"kind": "constant", "value": 100.0}}},
+    ).json()
+    assert rows[1]["key"] == alone["key"]
+    assert rows[1]["critical_velocity"] == pytest.approx(alone["critical_velocity"], rel=1e-12)
+    header = next(csv.reader(io.StringIO(text)))
+    assert "critical_velocity [m/s]" in header and "rotation.omega0.value [rad/s]" in header
