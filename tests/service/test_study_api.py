@@ -19,6 +19,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
+from pipeflow.schema.results import StudyResponse
 from pipeflow.schema.study import MAX_CASES
 from service.store.tables import results
 from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
@@ -74,6 +75,8 @@ def test_a_study_job_gives_a_table_of_the_standalone_results_and_its_csv(
     }
     doc = run(api, body)
     assert doc["kind"] == "study" and doc["base_kind"] == "simulation"
+    StudyResponse.model_validate(doc)  # exactly the documented fields, both ways
+    assert set(doc) == set(StudyResponse.model_fields)
     assert doc["counts"] == {"total": 3, "ok": 2, "failed": 1, "cached": 0, "computed": 3}
     rows = named(doc)
     # a failing case is a row, not a failed study
