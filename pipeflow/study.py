@@ -155,8 +155,7 @@ def run_case(kind: str, request: BaseModel) -> dict[str, Any]:
     try:
         result = _computation(kind).execute(request)
     except PipeflowError as exc:
-        slug = "".join("-" + c.lower() if c.isupper() else c for c in type(exc).__name__)
-        return {"status": "failed", **_failure(slug.lstrip("-"), exc.field, exc.message)}
+        return {"status": "failed", **_failure(exc.slug, exc.field, exc.message)}
     except (ArithmeticError, LinAlgError) as exc:
         return {
             "status": "failed",
