@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pipeflow.model import PAPER_PIPE, Coefficients, Pipe, build_model
+from pipeflow.model import GROUPS, PAPER_PIPE, Coefficients, Pipe, build_model
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
@@ -363,16 +363,25 @@ def test_pipe_refuses_an_unknown_plane() -> None:
 
 
 def test_dimensionless_groups() -> None:
-    """Definitions (Paidoussis 1998 eq. (3.71) for alpha and sigma): on the unit pipe with
-    m = 1 each group equals its field."""
-    p = Pipe(**UNIT, M1=0.5, M2=0.5, kelvin_voigt=0.1, viscous=0.2, tip_mass=0.3)
+    """The definitions (docs/model.md sec. 6; Paidoussis 1998 eq. (3.71) for alpha and the
+    viscous ratio), written out here on a pipe where no scale is 1 (m = 3 kg/m, EI = 14 N m^2,
+    L = 2 m): rel 1e-14 (a few roundings of the same products). On the unit pipe with m = 1
+    each group equals its field."""
+    p = Pipe(E=7.0, I=2.0, L=2.0, M1=1.0, M2=2.0, kelvin_voigt=0.1, viscous=0.2, tip_mass=0.3)
     p = dataclasses.replace(p, tip_inertia=0.4, hub_radius=0.5)
-    g = p.dimensionless_groups()
-    assert g == pytest.approx(
-        {"alpha": 0.1, "sigma": 0.2, "tip_mass_ratio": 0.3, "tip_inertia_ratio": 0.4,
-         "hub_ratio": 0.5},
-        rel=1e-15,
+    m, EI, L = 3.0, 14.0, 2.0
+    assert p.dimensionless_groups() == pytest.approx(
+        {"alpha": 0.1 * math.sqrt(EI / m) / L**2, "viscous_ratio": 0.2 * L**2 / math.sqrt(EI * m),
+         "tip_mass_ratio": 0.3 / (m * L), "tip_inertia_ratio": 0.4 / (m * L**3),
+         "hub_ratio": 0.5 / L},
+        rel=1e-14,
     )  # fmt: skip
+    assert list(p.dimensionless_groups()) == list(GROUPS)
+    unit = Pipe(**UNIT, M1=0.5, M2=0.5, kelvin_voigt=0.1, viscous=0.2, tip_mass=0.3)
+    unit = dataclasses.replace(unit, tip_inertia=0.4, hub_radius=0.5)
+    assert unit.dimensionless_groups() == pytest.approx(
+        {g.name: getattr(unit, g.field) for g in GROUPS.values()}, rel=1e-15
+    )
 
 
 def test_heavily_damped_high_modes_keep_their_numbers() -> None:
