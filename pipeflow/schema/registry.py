@@ -80,6 +80,9 @@ class Computation:
     examples: Mapping[str, dict[str, Any]] = field(default_factory=dict)
     #: library parameter name -> request field (JSON path); unnamed ones map to themselves
     fields: Mapping[str, str] = field(default_factory=dict)
+    #: validation too costly for model validation (run by :func:`parse`, in a thread by the
+    #: service before it accepts the request; raises ValidationError naming the field)
+    check: Callable[[Any], None] | None = None
 
     @property
     def cost(self) -> str:
@@ -164,8 +167,12 @@ def response_type(endpoint: Endpoint) -> Any:
 
 
 def parse(endpoint: Endpoint, data: Any) -> BaseModel:
-    """Validate a JSON body (already decoded) for ``endpoint`` (raises ValidationError)."""
+    """Validate a JSON body (already decoded) for ``endpoint``, including its computation's
+    :attr:`Computation.check` (raises ValidationError)."""
     model: BaseModel = TypeAdapter(request_type(endpoint)).validate_python(data)
+    check = computation_for(model).check
+    if check is not None:
+        check(model)
     return model
 
 
@@ -503,6 +510,7 @@ STUDY = register(
         f"bounded as its base computation is (simulation: {SIMULATION.cost}; stability: "
         f"{STABILITY.cost}): at most {MAX_CASES} times the base's bound",
         tables=("study",),
+        check=StudySpec.check,
         examples={
             "simulation_grid": {
                 "summary": "The paper's example (4 modes, 0.2 s) over fluid mass x spin, 6 cases",

@@ -23,6 +23,7 @@ from pipeflow import study as study_module
 from pipeflow.errors import Cancelled
 from pipeflow.export import available_tables, to_csv
 from pipeflow.model import PAPER_PIPE
+from pipeflow.schema import registry
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.results import StudyResponse
@@ -48,9 +49,21 @@ def study(**body: Any) -> StudySpec:
 
 
 def errors(body: dict[str, Any]) -> list[tuple[tuple[Any, ...], str]]:
+    """The errors of ``body``: its model validation, else its case check (both run by
+    :func:`pipeflow.schema.registry.parse`, the service runs the check in a thread)."""
     with pytest.raises(ValidationError) as info:
-        StudySpec.model_validate(body)
+        StudySpec.model_validate(body).check()
     return [(tuple(e["loc"]), e["msg"]) for e in info.value.errors()]
+
+
+def test_case_check_is_separate_from_model_validation_and_parse_runs_both() -> None:
+    bad = {"base": SIM, "cases": [{}, {"pipe.E": -1.0}]}
+    spec = StudySpec.model_validate(bad)  # cheap structural validation only
+    with pytest.raises(ValidationError) as info:
+        spec.check()
+    assert [tuple(e["loc"]) for e in info.value.errors()] == [("cases", 1, "pipe.E")]
+    with pytest.raises(ValidationError):
+        registry.parse(registry.STUDIES, bad)
 
 
 class DictMemo:
