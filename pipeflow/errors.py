@@ -9,6 +9,7 @@ into library calls, maps that name onto the request field (``field``, a dotted p
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 
@@ -24,6 +25,11 @@ class PipeflowError(ValueError):
         self.message = message
         self.parameter = parameter
         self.field: str | None = None
+
+    @property
+    def slug(self) -> str:
+        """The kind of refusal as a problem type: ``BudgetExceeded`` -> ``budget-exceeded``."""
+        return re.sub(r"(?<!^)(?=[A-Z])", "-", type(self).__name__).lower()
 
     def at(self, field: str | None) -> PipeflowError:
         """Record the request field this error concerns (the schema layer's mapping)."""

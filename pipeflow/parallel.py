@@ -111,19 +111,17 @@ def split(
     """``range(n)`` cut into contiguous chunks for the current host: about
     ``pieces_per_worker`` chunks per unit of width (so a slow piece does not leave the
     other workers idle), none smaller than ``min_size``; one chunk on the serial host.
-
-    ``max_size`` caps every chunk on any host, the serial one included, so that a long
-    computation still reports progress (and can be cancelled) between chunks."""
+    With ``max_size``, none larger than that either (more chunks, on any host: e.g. to
+    report progress between them); ``max_size`` wins over ``min_size``."""
     if n <= 0:
         return []
     width = max(1, int(current_host().width))
-    if width == 1:
-        size = n
-    else:
+    count = 1
+    if width > 1:
         count = max(1, min(n // max(1, min_size), width * pieces_per_worker))
-        size = math.ceil(n / count)
     if max_size is not None:
-        size = max(1, min(size, int(max_size)))
+        count = max(count, math.ceil(n / max(1, max_size)))
+    size = math.ceil(n / count)
     return [range(i, min(n, i + size)) for i in range(0, n, size)]
 
 

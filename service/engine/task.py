@@ -43,6 +43,7 @@ from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
 from service.problems import pipeflow_problem, problem
 from service.store import StorageError, Store
+from service.store.memo import StoreMemo
 
 log = logging.getLogger("service.engine.task")
 #: the computation's own lines (started, finished), with the request id
@@ -203,7 +204,8 @@ def _compute(
     host = DaskHost() if in_worker() else None  # fan-outs spread over the cluster
     try:
         beat.deadline = time.monotonic() + cfg.timeout_s  # the limit is on the computation
-        with parallel.hosting(host=host):
+        # pieces computed before (a study's cases) come from the store, new ones go there
+        with parallel.hosting(host=host, memo=StoreMemo(beat.store)):
             result = computation.execute(request, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:

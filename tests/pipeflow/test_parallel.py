@@ -52,6 +52,19 @@ def test_split_covers_every_index_once() -> None:
                     assert all(len(c) >= min(min_size, n) or c is chunks[-1] for c in chunks)
 
 
+def test_split_with_max_size_bounds_every_chunk_on_any_host() -> None:
+    """``max_size`` (used by studies to report progress between chunks) cuts the serial
+    host's single chunk too, and never leaves a chunk above it on a wide host."""
+    assert parallel.split(10, max_size=4) == [range(0, 4), range(4, 8), range(8, 10)]
+    assert parallel.split(3, max_size=16) == [range(3)]
+    with parallel.hosting(_Reversed()):
+        for n in (1, 7, 100, 1001):
+            for max_size in (1, 3, 16):
+                chunks = parallel.split(n, max_size=max_size)
+                assert [i for c in chunks for i in c] == list(range(n))
+                assert max(len(c) for c in chunks) <= max_size
+
+
 class _Recorder:
     """A serial host of width 2 that remembers the pieces it was given and whether its
     iteration was closed before the end."""
@@ -70,14 +83,6 @@ class _Recorder:
         except GeneratorExit:
             self.closed_early = len(self.started) < len(items)
             raise
-
-
-def test_split_max_size_caps_chunks_on_every_host() -> None:
-    assert parallel.split(10, max_size=4) == [range(0, 4), range(4, 8), range(8, 10)]
-    with parallel.hosting(_Reversed()):
-        chunks = parallel.split(100, max_size=5)
-        assert [i for c in chunks for i in c] == list(range(100))
-        assert max(len(c) for c in chunks) == 5
 
 
 def test_gather_merges_in_index_order_with_weighted_progress() -> None:
