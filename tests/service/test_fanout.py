@@ -243,3 +243,22 @@ def _wait_released(client: TestClient) -> bool:
         assert time.monotonic() < end, "the failed chart's pieces are still held"
         time.sleep(0.2)
     return True
+
+
+def test_a_study_fans_its_cases_out_through_the_same_host(two: TestClient) -> None:
+    """A 64-case grid study (tiny simulations): its chunks of cases ran as Dask pieces (8 on
+    a cluster of 2 threads, all finished) and every case has its row."""
+    from tests.pipeflow.cases import TINY
+
+    body = {
+        "base": TINY["study"]["base"],
+        "grid": {"pipe.E": [7e9 + i * 1e7 for i in range(64)]},
+    }
+    r = two.post("/v1/studies", json=body)
+    assert r.status_code == 202, r.text
+    key = r.json()["key"]
+    assert wait_job(two, key, timeout=120)["status"] == "succeeded"
+    submitted, finished = _stopped_pieces(two, "run_cases")
+    assert submitted == finished == 8
+    doc = two.get(f"/v1/results/{key}").json()
+    assert len(doc["rows"]) == 64
