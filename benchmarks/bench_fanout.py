@@ -53,7 +53,6 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
-from pipeflow.schema.stability import PAPER_PIPE_JSON  # noqa: E402
 
 
 def _service_bench() -> Any:
@@ -73,16 +72,8 @@ RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 TARGET = 1.6
 POLL_S = 0.02
 
-#: the issue's map: 100 x 100 points x 10 modes, the paper's pipe
-MAP: dict[str, Any] = {
-    "kind": "spin_map",
-    "pipe": PAPER_PIPE_JSON,
-    "modes": 10,
-    "velocity_range": [0.0, 60.0],
-    "spin_range": [0.0, 2000.0],
-    "velocity_points": 100,
-    "spin_points": 100,
-}
+#: the issue's map (the registry's example): the paper's pipe, 100 x 100 points, 10 modes
+MAP: dict[str, Any] = COMPUTATIONS["spin_map"].examples["spin_map"]["value"]
 SMOKE_MAP = MAP | {"modes": 4, "velocity_points": 20, "spin_points": 12}
 
 

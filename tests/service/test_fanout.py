@@ -27,16 +27,8 @@ from service.engine.fanout import PIECE_PREFIX
 from tests.service import processes
 from tests.service.conftest import make_client, wait_job, wait_ready
 
-#: the issue's map: the paper's pipe, 100 x 100 points, 10 modes
-MAP: dict[str, Any] = {
-    "kind": "spin_map",
-    "pipe": PAPER_PIPE_JSON,
-    "modes": 10,
-    "velocity_range": [0.0, 60.0],
-    "spin_range": [0.0, 2000.0],
-    "velocity_points": 100,
-    "spin_points": 100,
-}
+#: the issue's map (the registry's example): the paper's pipe, 100 x 100 points, 10 modes
+MAP: dict[str, Any] = COMPUTATIONS["spin_map"].examples["spin_map"]["value"]
 
 
 class _Width2:
