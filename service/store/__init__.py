@@ -60,6 +60,12 @@ def sqlite_url(path: Path | str) -> str:
     return f"sqlite:///{Path(path)}"
 
 
+#: zlib level of stored results: on a 2001-sample result (125 kB of JSON) level 1 takes
+#: 0.6 ms for 29.7 kB, level 6 7.2 ms for 27.4 kB (8% smaller): the compression is paid on
+#: every cold request, the space only bounds the cache
+ZLIB_LEVEL = 1
+
+
 @dataclass(frozen=True)
 class Job:
     """One job record; times are Unix seconds (UTC)."""
@@ -251,7 +257,7 @@ class Store:
 
     def put_result(self, key: str, kind: str, body: bytes) -> None:
         """Store ``body`` compressed; evict least-recently-used results beyond the bound."""
-        stored = zlib.compress(body, 6)
+        stored = zlib.compress(body, ZLIB_LEVEL)
         now = time.time()
         with self._write() as conn:
             self._write_touched(conn)
