@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import re
 import time
 from typing import Any
 
@@ -14,6 +15,8 @@ from service import observability
 from service.problems import problem, response
 
 access_log = logging.getLogger("service.access")
+#: the key at the start of a result's ETag (``"<key>"``, ``"<key>-gzip"``, ``"<key>-t.csv"``)
+_TAGGED_KEY = re.compile(r'(?:W/)?"([0-9a-f]{64})')
 
 
 class BodyLimit:
@@ -117,7 +120,8 @@ class RequestContext:
             route = scope.get("route")
             template = getattr(route, "path", None) or "<unmatched>"
             etag = seen["etag"]
-            key = etag.strip('"') if etag else (scope.get("path_params") or {}).get("key")
+            tagged = _TAGGED_KEY.match(etag) if etag else None
+            key = tagged.group(1) if tagged else (scope.get("path_params") or {}).get("key")
             observability.record_request(
                 template, scope["method"], seen["status"], seconds, seen["cache"]
             )

@@ -63,12 +63,14 @@ def test_hit_is_the_stored_bytes_and_gzip_decodes_to_them(app_client: TestClient
     )
     assert headers["x-cache"] == "HIT" and "content-encoding" not in headers
     assert plain == envelope(key, True, stored)
-    assert headers["vary"] == "Accept-Encoding"
+    assert headers["vary"] == "Accept-Encoding" and headers["etag"] == f'"{key}"'
+
     # gzip: compressed, and it decompresses to exactly those bytes
     headers, packed = raw(
         app_client, "POST", "/v1/simulations", json=spec, headers={"Accept-Encoding": "gzip"}
     )
     assert headers["content-encoding"] == "gzip" and headers["x-cache"] == "HIT"
+    assert headers["etag"] == f'"{key}-gzip"'  # another representation, another strong tag
     assert gzip.decompress(packed) == plain
     assert len(packed) < len(plain) / 2  # measured ~4x smaller on this 201-sample result
     assert int(headers["content-length"]) == len(packed)
@@ -96,8 +98,9 @@ def test_a_hit_is_answered_from_memory(app_client: TestClient, monkeypatch: Any)
     assert again.content == first.content
     key = again.json()["key"]
     assert app_client.get(f"/v1/results/{key}").content == first.content
-    etag = {"If-None-Match": f'"{key}"'}
-    assert app_client.get(f"/v1/results/{key}", headers=etag).status_code == 304
+    for coding, tag in (("identity", f'"{key}"'), ("gzip", f'"{key}-gzip"')):
+        etag = {"If-None-Match": tag, "Accept-Encoding": coding}
+        assert app_client.get(f"/v1/results/{key}", headers=etag).status_code == 304
 
 
 def test_refresh_drops_the_encoded_hit(app_client: TestClient) -> None:
