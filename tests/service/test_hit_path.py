@@ -180,3 +180,86 @@ def test_request_key_memo_equals_the_key() -> None:
             assert keyed(simulation, spec).key == expected
         keys.append(keyed(simulation, spec).key)
     assert len(set(keys)) == len(keys)
+
+
+def test_repeated_hit_bytes_skip_the_route(app_client: TestClient, monkeypatch: Any) -> None:
+    """The same body bytes again are answered by the fast path (the route, which would key
+    the body, is not called) with the route's own answer, byte for byte, in both codings;
+    counted under the route's template with its cache result; a query string, other
+    bytes of the same request, or failed negotiation go to the route as before."""
+    from service.routes import computations
+    from tests.service.test_observability import sample
+
+    spec = dict(SMALL, modes=2, time={"t_end": 0.1, "samples": 61})
+    body = json.dumps(spec).encode()
+    post = {"content": body, "headers": {"Content-Type": "application/json"}}
+    miss = app_client.post("/v1/simulations", **post)
+    assert miss.status_code == 200 and miss.headers["X-Cache"] == "MISS"
+    key = miss.json()["key"]
+    _, route_plain = raw(
+        app_client,
+        "POST",
+        "/v1/simulations",
+        content=body,
+        headers={"Content-Type": "application/json", "Accept-Encoding": "identity"},
+    )
+    calls: list[Any] = []
+    real_keyed = computations.keyed
+
+    def counted(*args: Any) -> Any:
+        calls.append(args)
+        return real_keyed(*args)
+
+    monkeypatch.setattr(computations, "keyed", counted)
+    before = app_client.get("/metrics").text
+    for coding in ("identity", "gzip"):
+        headers, sent = raw(
+            app_client,
+            "POST",
+            "/v1/simulations",
+            content=body,
+            headers={"Content-Type": "application/json", "Accept-Encoding": coding},
+        )
+        assert headers["x-cache"] == "HIT" and headers["vary"] == "Accept-Encoding"
+        assert headers["content-location"] == f"/v1/results/{key}"
+        if coding == "gzip":
+            assert headers["content-encoding"] == "gzip" and headers["etag"] == f'"{key}-gzip"'
+            sent = gzip.decompress(sent)
+        else:
+            assert "content-encoding" not in headers and headers["etag"] == f'"{key}"'
+        assert sent == route_plain
+        assert headers["x-request-id"]
+    assert calls == []  # neither parsed nor keyed again
+    after = app_client.get("/metrics").text
+    label = {"route": "/v1/simulations", "method": "POST", "status": "200"}
+    n = sample(after, "pipeflow_http_requests_total", **label)
+    assert n == sample(before, "pipeflow_http_requests_total", **label) + 2
+    hits = {"route": "/v1/simulations", "result": "hit"}
+    assert sample(after, "pipeflow_cache_lookups_total", **hits) == (
+        sample(before, "pipeflow_cache_lookups_total", **hits) + 2
+    )
+    # the route still runs for: a query string, other bytes of the same request
+    again = app_client.post("/v1/simulations", params={"refresh": "false"}, **post)
+    assert again.headers["X-Cache"] == "HIT" and len(calls) == 1
+    reordered = json.dumps(dict(reversed(list(spec.items())))).encode()
+    same = app_client.post(
+        "/v1/simulations", content=reordered, headers={"Content-Type": "application/json"}
+    )
+    assert same.json()["key"] == key and len(calls) == 2
+    # negotiation is not skipped: the same bytes as text, or asking for CSV, are refused
+    as_text = app_client.post(
+        "/v1/simulations", content=body, headers={"Content-Type": "text/plain"}
+    )
+    assert as_text.status_code == 415
+    as_csv = app_client.post(
+        "/v1/simulations",
+        content=body,
+        headers={"Content-Type": "application/json", "Accept": "text/csv"},
+    )
+    assert as_csv.status_code == 406
+    # a refresh drops the hit answer: the same bytes then take the route (and recompute)
+    fresh = app_client.post("/v1/simulations", params={"refresh": "true"}, **post)
+    assert fresh.headers["X-Cache"] == "MISS"
+    n_calls = len(calls)
+    assert app_client.post("/v1/simulations", **post).headers["X-Cache"] == "HIT"
+    assert len(calls) == n_calls + 1
