@@ -30,6 +30,7 @@ import contextlib
 import functools
 import logging
 import time
+import uuid
 from collections.abc import Awaitable
 from dataclasses import dataclass, field
 from typing import Any
@@ -50,6 +51,8 @@ log = logging.getLogger("service.engine")
 WATCHDOG_GRACE_S = 5.0
 #: starts of one computation (worker deaths under it) before its job is failed
 MAX_ATTEMPTS = 3
+#: bound on the warm-up tasks of the workers at start [s]
+WARM_UP_TIMEOUT_S = 60.0
 
 
 class QueueFull(Exception):
@@ -166,10 +169,35 @@ class Runner:
         task.add_done_callback(self._background.discard)
 
     async def _warm_up(self) -> None:
-        """Ready once a worker is connected (the embedded cluster: all of them)."""
+        """Ready once a worker is connected (the embedded cluster: all of them) and each
+        connected worker ran :func:`service.engine.worker.warm_task` (a failure there is
+        logged: the first job then pays for it)."""
         wanted = 1 if self.settings.scheduler_address else self.settings.workers
         await self.client.wait_for_workers(wanted)
+        try:
+            await asyncio.wait_for(self._warm_workers(), WARM_UP_TIMEOUT_S)
+        except Exception as exc:
+            log.warning("worker warm-up task failed: %s: %s", type(exc).__name__, exc)
         self.ready = True
+
+    async def _warm_workers(self) -> None:
+        from service.engine.worker import warm_task
+
+        cfg = self._config()
+        identity = await self.client.scheduler.identity()  # not the client's cached copy
+        workers = list(identity.get("workers", {}))
+        futures = [
+            self.client.submit(
+                warm_task,
+                cfg,
+                workers=[address],
+                allow_other_workers=False,
+                pure=False,
+                key=f"warm-up-{uuid.uuid4().hex}",
+            )
+            for address in workers
+        ]
+        await self.client.gather(futures)
 
     @property
     def workers(self) -> int:
