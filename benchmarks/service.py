@@ -18,9 +18,13 @@ each row against a reference measured in the same run:
   ``simulate()`` of the same spec (what the worker runs: solve, error estimate, frozen
   spectrum; the difference is the service's own cost);
 - cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec;
-- the first cold request after start (a fresh worker) vs the later ones;
+- each worker's first cold request after start (told by the worker pid of the
+  computation's log line) vs the later ones;
 - mixed load of 32 Python clients (90% hits, 10% misses): errors and the RSS of the server
-  and its workers at 10% and at 100% of the run.
+  and its workers at 10% and at 100% of the run (also split: server process, workers).
+
+The cold rows also give the computation's own time in the worker (``duration_ms`` of its
+``computation finished`` log line): the rest is the service's (HTTP, store, Dask dispatch).
 
 Prints the table and writes it, with the machine and the settings, as a section of
 ``benchmarks/RESULTS.md`` (``--out``), replacing a section of the same label.
@@ -152,6 +156,11 @@ def server(data_dir: Path, log: Path, env: dict[str, str]) -> Iterator[tuple[str
 
 def rss_bytes(pid: int) -> int:
     """Resident memory of ``pid`` and all its descendants [bytes] (from /proc)."""
+    return sum(_tree_rss(pid).values())
+
+
+def _tree_rss(pid: int) -> dict[int, int]:
+    """pid -> resident memory [bytes] of ``pid`` and all its descendants (from /proc)."""
     children: dict[int, list[int]] = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
@@ -162,7 +171,7 @@ def rss_bytes(pid: int) -> int:
             continue
         ppid = int(stat.rsplit(")", 1)[1].split()[1])
         children.setdefault(ppid, []).append(int(entry.name))
-    total, todo = 0, [pid]
+    out, todo = {}, [pid]
     while todo:
         p = todo.pop()
         todo.extend(children.get(p, []))
@@ -172,8 +181,8 @@ def rss_bytes(pid: int) -> int:
             continue
         m = re.search(r"VmRSS:\s+(\d+) kB", status)
         if m:
-            total += int(m.group(1)) * 1024
-    return total
+            out[p] = int(m.group(1)) * 1024
+    return out
 
 
 # -- measurements ----------------------------------------------------------------------------
@@ -192,14 +201,52 @@ def timed_post(
 
 def cold_requests(
     client: httpx.Client, url: str, spec: dict[str, Any], n: int, offset: int
-) -> list[float]:
-    times = []
+) -> tuple[list[float], list[str]]:
+    """``n`` cold requests one after the other: their times [s] and keys."""
+    times, keys = [], []
     for i in range(n):
         dt, r = timed_post(client, url + "/v1/simulations", variant(spec, offset + i))
         if r.headers.get("X-Cache") != "MISS":
             raise RuntimeError("a cold request was answered from the cache")
         times.append(dt)
-    return times
+        keys.append(r.json()["key"])
+    return times, keys
+
+
+def log_records(log: Path) -> list[dict[str, Any]]:
+    """The JSON lines of the server's log (its workers' included)."""
+    out = []
+    for line in log.read_text().splitlines():
+        if line.startswith("{"):
+            try:
+                out.append(json.loads(line))
+            except ValueError:
+                continue
+    return out
+
+
+def computations(records: list[dict[str, Any]]) -> dict[str, tuple[int, float]]:
+    """key -> (worker pid, duration [s]) of each computation the workers logged."""
+    return {
+        r["key"]: (r["pid"], r["duration_ms"] / 1e3)
+        for r in records
+        if r.get("message") == "computation finished" and "key" in r
+    }
+
+
+def process_rss(pid: int) -> dict[str, int]:
+    """RSS [bytes] of the server process (``server``) and of each Dask worker process."""
+    out = {"server": 0, "workers": 0}
+    for p, rss in _tree_rss(pid).items():
+        try:
+            cmd = Path(f"/proc/{p}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if p == pid:
+            out["server"] = rss
+        elif b"spawn_main" in cmd:
+            out["workers"] += rss
+    return out
 
 
 def local_lsim(spec: dict[str, Any], repeats: int) -> float:
@@ -309,6 +356,7 @@ async def mixed_load(
         for spec in stored:
             await client.post("/v1/simulations", json=spec)
         rss["start"] = rss_bytes(pid)
+        parts: dict[str, dict[str, int]] = {"start": process_rss(pid)}
         rng = random.Random(12)
         end = time.monotonic() + seconds
 
@@ -338,10 +386,12 @@ async def mixed_load(
         async def sample_rss() -> None:
             await asyncio.sleep(0.1 * seconds)
             rss["at_10pct"] = rss_bytes(pid)
+            parts["at_10pct"] = process_rss(pid)
 
         await asyncio.gather(sample_rss(), *(one() for _ in range(clients)))
         rss["end"] = rss_bytes(pid)
-    return stats | {"rss": rss, "error_reasons": reasons}
+        parts["end"] = process_rss(pid)
+    return stats | {"rss": rss, "rss_by_process": parts, "error_reasons": reasons}
 
 
 # -- the run ---------------------------------------------------------------------------------
@@ -378,18 +428,33 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             httpx.Client(timeout=120) as client,
         ):
             # first: cold requests on fresh workers (the server only answered /readyz)
-            cold = cold_requests(client, url, LTI, plan.cold + 2, 0)
-            first, later = cold[:2], cold[2:]
+            cold, keys = cold_requests(client, url, LTI, plan.cold + 2, 0)
+            # each worker's first computation, told by the pid in its log line (the log
+            # handlers flush every record)
+            done = computations(log_records(work / "server.log"))
+            seen: set[int] = set()
+            first_idx = []
+            for i, key in enumerate(keys):
+                if key in done and done[key][0] not in seen:
+                    seen.add(done[key][0])
+                    first_idx.append(i)
+            if not first_idx:  # no worker log lines: the first two
+                first_idx = [0, 1]
+            first = [cold[i] for i in first_idx]
+            later = [t for i, t in enumerate(cold) if i not in first_idx]
+            in_worker = [done[k][1] for i, k in enumerate(keys) if k in done and i not in first_idx]
             lsim = local_lsim(LTI, max(5, plan.cold))
             lti_lib = local_simulate(LTI, max(3, plan.cold // 3))
             lti_p50 = pct(later, 50)
+            worker_p50 = pct(in_worker, 50)
             rows.append(
                 [
                     "cold LTI request (v = 0.4, 10 modes, 2001 samples), p50",
                     TODAY["lti"],
                     ms(lti_p50),
                     f"{lti_p50 / lsim:.1f}x lsim ({ms(lsim)}); {lti_p50 / lti_lib:.2f}x "
-                    f"simulate() ({ms(lti_lib)})",
+                    f"simulate() ({ms(lti_lib)}); the computation in the worker "
+                    f"(execute + encode) {ms(worker_p50)}",
                     "<= 15 ms, <= 3x lsim",
                     verdict(lti_p50 <= 0.015 and lti_p50 <= 3 * lsim),
                 ]
@@ -397,7 +462,7 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             first_max = max(first)
             rows.append(
                 [
-                    "first request on a fresh worker (first 2 cold, max)",
+                    f"first request on a fresh worker ({len(first)} workers' first, max)",
                     TODAY["first"],
                     ms(first_max),
                     f"{first_max / lti_p50:.2f}x the later cold p50",
@@ -406,15 +471,18 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
                     verdict(first_max <= 1.5 * lti_p50),
                 ]
             )
-            paper = cold_requests(client, url, PAPER, plan.paper, 0)
+            paper, paper_keys = cold_requests(client, url, PAPER, plan.paper, 0)
             lib = local_simulate(PAPER, max(2, plan.paper))
             paper_p50 = pct(paper, 50)
+            done = computations(log_records(work / "server.log"))
+            paper_worker = pct([done[k][1] for k in paper_keys if k in done], 50)
             rows.append(
                 [
                     "cold paper example (v = 0.4 t), p50",
                     TODAY["paper"],
                     ms(paper_p50),
-                    f"{paper_p50 / lib:.2f}x simulate() ({ms(lib)})",
+                    f"{paper_p50 / lib:.2f}x simulate() ({ms(lib)}); the computation in "
+                    f"the worker {ms(paper_worker)}",
                     "<= 1.3x simulate()",
                     verdict(paper_p50 <= 1.3 * lib),
                 ]
@@ -478,6 +546,7 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             )
             raw = {
                 "cold": cold,
+                "first": first_idx,
                 "paper": paper,
                 "wrk_hits": hits["raw"],
                 "wrk_hits_gzip": hits_gz["raw"],
@@ -535,7 +604,11 @@ def main(argv: list[str] | None = None) -> int:
             "",
             table(rows),
             "",
-            "cold LTI requests [ms]: " + ", ".join(f"{x * 1e3:.1f}" for x in raw["cold"]),
+            "cold LTI requests [ms] (* a worker's first): "
+            + ", ".join(
+                f"{x * 1e3:.1f}" + ("*" if i in raw["first"] else "")
+                for i, x in enumerate(raw["cold"])
+            ),
             "",
             "paper example requests [ms]: " + ", ".join(f"{x * 1e3:.0f}" for x in raw["paper"]),
             "",

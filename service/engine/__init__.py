@@ -471,7 +471,11 @@ class Runner:
 
     async def _outcome(self, job: Job) -> bytes:
         if job.status == "succeeded":
-            body = await asyncio.to_thread(self.store.get_result, job.key)
+            # sent once to the requests waiting for it, not kept in the store's memory
+            # front: a 60 s mixed load filled that to its 64 MB bound with fresh results
+            body = await asyncio.to_thread(
+                functools.partial(self.store.get_result, job.key, remember=False)
+            )
             if body is None:
                 raise ComputationFailed(_internal(f"the result of job {job.key} was evicted"))
             return body

@@ -228,7 +228,10 @@ class Store:
         for key, t in touched.items():
             conn.execute(update(results).where(results.c.key == key).values(accessed=t))
 
-    def get_result(self, key: str) -> bytes | None:
+    def get_result(self, key: str, *, remember: bool = True) -> bytes | None:
+        """The result body stored under ``key`` (None if absent).  ``remember=False``
+        leaves the in-memory front as it is (a body read once, e.g. a fresh result sent to
+        the request that computed it: its hits are answered from the app's hit cache)."""
         with self._lock:
             body = self._memory.get(key)
             if body is not None:
@@ -243,7 +246,8 @@ class Store:
             body = _decode(bytes(row.body), row.codec)
         with self._lock:
             self._touched[key] = time.time()
-            self._memory.put(key, body)
+            if remember:
+                self._memory.put(key, body)
         return body
 
     def has_result(self, key: str) -> bool:
