@@ -16,8 +16,10 @@ each row against a reference measured in the same run:
   each request a distinct key by a 1e-9 relative change of u0), vs ``scipy.signal.lsim`` of
   the same state matrix and initial state called locally, and vs the library call
   ``simulate()`` of the same spec (what the worker runs: solve, error estimate, frozen
-  spectrum; the difference is the service's own cost);
-- cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec;
+  spectrum; the difference is the service's own cost), each local call made right after
+  a request (interleaved: the shared machine's load drifts over both alike);
+- cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec
+  (interleaved the same way);
 - each worker's first cold request after start (told by the worker pid of the
   computation's log line) vs the later ones;
 - mixed load of 32 Python clients (90% hits, 10% misses): errors and the RSS of the server
@@ -34,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import importlib.util
 import json
 import os
 import platform
@@ -41,12 +44,11 @@ import random
 import re
 import shutil
 import socket
-import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -249,8 +251,8 @@ def process_rss(pid: int) -> dict[str, int]:
     return out
 
 
-def local_lsim(spec: dict[str, Any], repeats: int) -> float:
-    """Median time of ``scipy.signal.lsim`` of the spec's (constant) state equation [s]."""
+def lsim_timer(spec: dict[str, Any]) -> Callable[[], float]:
+    """One timed ``scipy.signal.lsim`` of the spec's (constant) state equation [s]."""
     sim = SimulationSpec.model_validate(spec).to_simulation()
     model = build_model(sim.pipe, sim.modes, sim.quadrature_order)
     S = model.state_matrix(Loading(sim.flow, sim.spin).coefficients(np.zeros(1)))[0]
@@ -259,23 +261,47 @@ def local_lsim(spec: dict[str, Any], repeats: int) -> float:
     t = np.linspace(0.0, sim.t_end, sim.samples)
     n = S.shape[0]
     system = signal.StateSpace(S, np.zeros((n, 1)), np.eye(n), np.zeros((n, 1)))
-    times = []
-    for _ in range(repeats):
+
+    def once() -> float:
         t0 = time.perf_counter()
         signal.lsim(system, np.zeros(t.size), t, X0=z0)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        return time.perf_counter() - t0
+
+    return once
 
 
-def local_simulate(spec: dict[str, Any], repeats: int) -> float:
-    """Median time of the library call ``simulate()`` of the spec [s]."""
+def simulate_timer(spec: dict[str, Any]) -> Callable[[], float]:
+    """One timed library call ``simulate()`` of the spec [s]."""
     sim = SimulationSpec.model_validate(spec).to_simulation()
-    times = []
-    for _ in range(repeats):
+
+    def once() -> float:
         t0 = time.perf_counter()
         simulate(sim)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        return time.perf_counter() - t0
+
+    return once
+
+
+def interleaved(
+    client: httpx.Client,
+    url: str,
+    spec: dict[str, Any],
+    n: int,
+    offset: int,
+    locals_: dict[str, Callable[[], float]],
+) -> tuple[list[float], list[str], dict[str, list[float]]]:
+    """``n`` cold requests, each followed by one call of every local reference, so the
+    load of the shared machine drifts over both alike: (request times, keys, local times)."""
+    times: list[float] = []
+    keys: list[str] = []
+    local: dict[str, list[float]] = {name: [] for name in locals_}
+    for i in range(n):
+        t, k = cold_requests(client, url, spec, 1, offset + i)
+        times += t
+        keys += k
+        for name, once in locals_.items():
+            local[name].append(once())
+    return times, keys, local
 
 
 def one_client_hits(client: httpx.Client, url: str, spec: dict[str, Any], n: int) -> dict[str, Any]:
@@ -428,7 +454,14 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             httpx.Client(timeout=120) as client,
         ):
             # first: cold requests on fresh workers (the server only answered /readyz)
-            cold, keys = cold_requests(client, url, LTI, plan.cold + 2, 0)
+            cold, keys, local = interleaved(
+                client,
+                url,
+                LTI,
+                plan.cold + 2,
+                0,
+                {"lsim": lsim_timer(LTI), "simulate": simulate_timer(LTI)},
+            )
             # each worker's first computation, told by the pid in its log line (the log
             # handlers flush every record)
             done = computations(log_records(work / "server.log"))
@@ -443,8 +476,8 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             first = [cold[i] for i in first_idx]
             later = [t for i, t in enumerate(cold) if i not in first_idx]
             in_worker = [done[k][1] for i, k in enumerate(keys) if k in done and i not in first_idx]
-            lsim = local_lsim(LTI, max(5, plan.cold))
-            lti_lib = local_simulate(LTI, max(3, plan.cold // 3))
+            lsim = pct(local["lsim"], 50)
+            lti_lib = pct(local["simulate"], 50)
             lti_p50 = pct(later, 50)
             worker_p50 = pct(in_worker, 50)
             rows.append(
@@ -471,8 +504,10 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
                     verdict(first_max <= 1.5 * lti_p50),
                 ]
             )
-            paper, paper_keys = cold_requests(client, url, PAPER, plan.paper, 0)
-            lib = local_simulate(PAPER, max(2, plan.paper))
+            paper, paper_keys, paper_local = interleaved(
+                client, url, PAPER, plan.paper, 0, {"simulate": simulate_timer(PAPER)}
+            )
+            lib = pct(paper_local["simulate"], 50)
             paper_p50 = pct(paper, 50)
             done = computations(log_records(work / "server.log"))
             paper_worker = pct([done[k][1] for k in paper_keys if k in done], 50)
@@ -600,7 +635,9 @@ def main(argv: list[str] | None = None) -> int:
             f"`python benchmarks/service.py{' --smoke' if args.smoke else ''}` "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"{time.monotonic() - started:.0f} s): {desc}. Server: `uvicorn service.main:app` "
-            "with the default settings (2 workers, JSON request logs at INFO).",
+            "with the default settings (2 workers, JSON request logs at INFO; HTTP "
+            f"{'httptools' if importlib.util.find_spec('httptools') else 'h11'}, loop "
+            f"{'uvloop' if importlib.util.find_spec('uvloop') else 'asyncio'}).",
             "",
             table(rows),
             "",
