@@ -16,10 +16,8 @@ each row against a reference measured in the same run:
   each request a distinct key by a 1e-9 relative change of u0), vs ``scipy.signal.lsim`` of
   the same state matrix and initial state called locally, and vs the library call
   ``simulate()`` of the same spec (what the worker runs: solve, error estimate, frozen
-  spectrum; the difference is the service's own cost), each local call made right after
-  a request (interleaved: the shared machine's load drifts over both alike);
-- cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec
-  (interleaved the same way);
+  spectrum; the difference is the service's own cost), called after the requests;
+- cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec;
 - each worker's first cold request after start (told by the worker pid of the
   computation's log line) vs the later ones;
 - mixed load of 32 Python clients (90% hits, 10% misses): errors and the RSS of the server
@@ -282,26 +280,9 @@ def simulate_timer(spec: dict[str, Any]) -> Callable[[], float]:
     return once
 
 
-def interleaved(
-    client: httpx.Client,
-    url: str,
-    spec: dict[str, Any],
-    n: int,
-    offset: int,
-    locals_: dict[str, Callable[[], float]],
-) -> tuple[list[float], list[str], dict[str, list[float]]]:
-    """``n`` cold requests, each followed by one call of every local reference, so the
-    load of the shared machine drifts over both alike: (request times, keys, local times)."""
-    times: list[float] = []
-    keys: list[str] = []
-    local: dict[str, list[float]] = {name: [] for name in locals_}
-    for i in range(n):
-        t, k = cold_requests(client, url, spec, 1, offset + i)
-        times += t
-        keys += k
-        for name, once in locals_.items():
-            local[name].append(once())
-    return times, keys, local
+def median_time(once: Callable[[], float], repeats: int) -> float:
+    """Median of ``repeats`` calls of a timer [s]."""
+    return pct([once() for _ in range(repeats)], 50)
 
 
 def one_client_hits(client: httpx.Client, url: str, spec: dict[str, Any], n: int) -> dict[str, Any]:
@@ -454,14 +435,7 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             httpx.Client(timeout=120) as client,
         ):
             # first: cold requests on fresh workers (the server only answered /readyz)
-            cold, keys, local = interleaved(
-                client,
-                url,
-                LTI,
-                plan.cold + 2,
-                0,
-                {"lsim": lsim_timer(LTI), "simulate": simulate_timer(LTI)},
-            )
+            cold, keys = cold_requests(client, url, LTI, plan.cold + 2, 0)
             # each worker's first computation, told by the pid in its log line (the log
             # handlers flush every record)
             done = computations(log_records(work / "server.log"))
@@ -476,8 +450,11 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             first = [cold[i] for i in first_idx]
             later = [t for i, t in enumerate(cold) if i not in first_idx]
             in_worker = [done[k][1] for i, k in enumerate(keys) if k in done and i not in first_idx]
-            lsim = pct(local["lsim"], 50)
-            lti_lib = pct(local["simulate"], 50)
+            # the local references after the requests, not interleaved with them: the
+            # benchmark's BLAS threads spin for a while after each call and slowed the
+            # worker's next request (cold LTI p50 42 -> 66 ms when interleaved)
+            lsim = median_time(lsim_timer(LTI), max(5, plan.cold))
+            lti_lib = median_time(simulate_timer(LTI), max(3, plan.cold // 3))
             lti_p50 = pct(later, 50)
             worker_p50 = pct(in_worker, 50)
             rows.append(
@@ -504,10 +481,8 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
                     verdict(first_max <= 1.5 * lti_p50),
                 ]
             )
-            paper, paper_keys, paper_local = interleaved(
-                client, url, PAPER, plan.paper, 0, {"simulate": simulate_timer(PAPER)}
-            )
-            lib = pct(paper_local["simulate"], 50)
+            paper, paper_keys = cold_requests(client, url, PAPER, plan.paper, 0)
+            lib = median_time(simulate_timer(PAPER), max(2, plan.paper))
             paper_p50 = pct(paper, 50)
             done = computations(log_records(work / "server.log"))
             paper_worker = pct([done[k][1] for k in paper_keys if k in done], 50)
