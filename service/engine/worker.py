@@ -116,5 +116,6 @@ def ping() -> dict[str, Any]:
         "registry_loaded": "pipeflow.schema.registry" in sys.modules,
         "warmed_up": _warmed_up[0],
         "stores": sorted(_open_stores()),
+        "malloc_trim_threshold": os.environ.get("MALLOC_TRIM_THRESHOLD_"),
         "modules": sorted(sys.modules),
     }
