@@ -139,7 +139,8 @@ def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
     count went through the job function and the encoder, a warm-up task opened the
     worker's store, glibc's malloc trims as by default, and a first real job (here a
     simulation, a stability analysis and a failing run answered with a problem) imports no
-    module of the heavy packages that the worker had not imported before it (service.problems, i.e. FastAPI, once cost ~1 s)."""
+    module of the heavy packages that the worker had not imported before it
+    (service.problems, i.e. FastAPI, once cost ~1 s)."""
     stab = {"pipe": SMALL["pipe"], "modes": 4, "velocity_range": [0, 40], "points": 41}
     bad_step = dict(SMALL, method="rk4", options={"step": 0.01})  # unstable: 422 problem
     with make_client(tmp_path, workers=1) as c:
