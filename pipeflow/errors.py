@@ -9,6 +9,8 @@ into library calls, maps that name onto the request field (``field``, a dotted p
 
 from __future__ import annotations
 
+import re
+
 
 class PipeflowError(ValueError):
     """Base class: a request pipeflow refuses, with the parameter it concerns.
@@ -22,6 +24,11 @@ class PipeflowError(ValueError):
         self.message = message
         self.parameter = parameter
         self.field: str | None = None
+
+    @property
+    def slug(self) -> str:
+        """The kind of refusal as a problem type: ``BudgetExceeded`` -> ``budget-exceeded``."""
+        return re.sub(r"(?<!^)(?=[A-Z])", "-", type(self).__name__).lower()
 
     def at(self, field: str | None) -> PipeflowError:
         """Record the request field this error concerns (the schema layer's mapping)."""

@@ -22,11 +22,16 @@ Tables
     When the result carries mode shapes (``output.mode_shapes``): ``x [m]`` then, for each
     time t and branch j, ``real_j(t=<t>) [-]`` and ``imag_j(t=<t>) [-]`` of the normalised
     complex shape (:mod:`pipeflow.modeshapes`).
+``study``
+    A design study's table (:mod:`pipeflow.study`): one row per case, its columns as the
+    result names them, each number's unit in brackets (``pipe.E [Pa]``,
+    ``peak_tip_displacement [m]``); text and flag columns (``key``, ``status``) have none.
 
 Parquet (:func:`to_parquet`, needs the optional ``pyarrow``: ``pip install
 'pipeflow[parquet]'``) writes the same tables with the bare column names (``t``,
 ``tip_displacement``, ...) and each column's unit in its field metadata (``unit``), float64
-throughout, so the values are the identical floats.
+throughout (but for the study's text and flag columns: string, bool), so the values are the
+identical floats.
 """
 
 from __future__ import annotations
@@ -44,7 +49,11 @@ TABLES: dict[str, str] = {
     "eigenvalues": "frozen-time eigenvalues of S(t): sigma [1/s], omega [rad/s] per branch",
     "cma_exponents": "eigenvalues of P(t)/t (the CMA exponents): sigma [1/s], omega [rad/s]",
     "mode_shapes": "complex mode shapes along x [m]: real and imaginary parts [-] per time",
+    "study": "a design study: one row per case, its overrides and summaries (units in the header)",
 }
+
+#: the tables of a simulation's result (all but a study's)
+SIMULATION_TABLES: tuple[str, ...] = tuple(t for t in TABLES if t != "study")
 
 CSV_MEDIA_TYPE = "text/csv"
 PARQUET_MEDIA_TYPE = "application/vnd.apache.parquet"
@@ -69,10 +78,12 @@ def available_tables(result: dict[str, Any]) -> list[str]:
             names.append(name)
     if isinstance(result.get("mode_shapes"), dict) and result["mode_shapes"].get("modes"):
         names.append("mode_shapes")
+    if result.get("kind") == "study" and "rows" in result:
+        names.append("study")
     return names
 
 
-def table(result: dict[str, Any], name: str = "history") -> tuple[list[str], list[list[float]]]:
+def table(result: dict[str, Any], name: str = "history") -> tuple[list[str], list[list[Any]]]:
     """Header (``"name [unit]"`` strings) and columns of table ``name`` of ``result``."""
     if name not in TABLES:
         raise ExportError(f"unknown table {name!r}; choose one of {', '.join(TABLES)}")
@@ -82,11 +93,16 @@ def table(result: dict[str, Any], name: str = "history") -> tuple[list[str], lis
         return _history(result)
     if name == "mode_shapes":
         return _shapes(result["mode_shapes"])
+    if name == "study":
+        return _study(result)
     return _traces(result[name])
 
 
 def split_header(label: str) -> tuple[str, str]:
-    """``"t [s]"`` -> ``("t", "s")``: a column name and its unit."""
+    """``"t [s]"`` -> ``("t", "s")``: a column name and its unit (``""`` for a text column,
+    whose header has none: ``"key"``)."""
+    if not label.endswith("]") or " [" not in label:
+        return label, ""
     name, _, unit = label.rpartition(" [")
     return name, unit.removesuffix("]")
 
@@ -129,11 +145,31 @@ def _shapes(block: dict[str, Any]) -> tuple[list[str], list[list[float]]]:
     return header, columns
 
 
+def _study(result: dict[str, Any]) -> tuple[list[str], list[list[Any]]]:
+    header = [f"{c['name']} [{c['unit']}]" if c["unit"] else c["name"] for c in result["columns"]]
+    rows = result["rows"]
+    return header, [[row[j] for row in rows] for j in range(len(header))]
+
+
 def _num(x: Any) -> str:
     return repr(float(x))
 
 
-def write_csv(header: Sequence[str], columns: Sequence[Sequence[float]]) -> str:
+def _cell(x: Any) -> str:
+    """A CSV cell: numbers round-trip (integers as integers), text as is, flags as
+    true/false, null empty."""
+    if x is None:
+        return ""
+    if isinstance(x, bool):
+        return "true" if x else "false"
+    if isinstance(x, str):
+        return x
+    if isinstance(x, int):
+        return str(x)
+    return _num(x)
+
+
+def write_csv(header: Sequence[str], columns: Sequence[Sequence[Any]]) -> str:
     """CSV text (``\\r\\n`` line ends, RFC 4180) of equal-length ``columns`` under ``header``."""
     lengths = {len(c) for c in columns}
     if len(lengths) > 1:
@@ -141,8 +177,8 @@ def write_csv(header: Sequence[str], columns: Sequence[Sequence[float]]) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\r\n")
     writer.writerow(header)
-    rows: Iterable[tuple[float, ...]] = zip(*columns, strict=True)
-    writer.writerows([_num(x) if x is not None else "" for x in row] for row in rows)
+    rows: Iterable[tuple[Any, ...]] = zip(*columns, strict=True)
+    writer.writerows([_cell(x) for x in row] for row in rows)
     return buf.getvalue()
 
 
@@ -150,6 +186,16 @@ def to_csv(result: dict[str, Any], name: str = "history") -> str:
     """Table ``name`` (see :data:`TABLES`) of a JSON result as CSV text with a unit header."""
     header, columns = table(result, name)
     return write_csv(header, columns)
+
+
+def _arrow_type(pa: Any, values: Sequence[Any]) -> Any:
+    """float64 for numbers (every table but the study's text and flag columns)."""
+    present = [v for v in values if v is not None]
+    if present and all(isinstance(v, str) for v in present):
+        return pa.string()
+    if present and all(isinstance(v, bool) for v in present):
+        return pa.bool_()
+    return pa.float64()
 
 
 def to_parquet(result: dict[str, Any], name: str = "history") -> bytes:
@@ -163,8 +209,9 @@ def to_parquet(result: dict[str, Any], name: str = "history") -> bytes:
     fields, arrays = [], []
     for label, values in zip(header, columns, strict=True):
         col, unit = split_header(label)
-        fields.append(pa.field(col, pa.float64(), metadata={"unit": unit}))
-        arrays.append(pa.array(values, type=pa.float64()))
+        kind = _arrow_type(pa, values)
+        fields.append(pa.field(col, kind, metadata={"unit": unit}))
+        arrays.append(pa.array(values, type=kind))
     meta = {"table": name, "description": TABLES[name]}
     schema = pa.schema(fields, metadata=meta)
     buf = pa.BufferOutputStream()

@@ -33,6 +33,7 @@ skew-symmetric (perfectly conditioned eigenvectors).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
@@ -133,19 +134,9 @@ class Pipe:
         return self.in_plane and not any(getattr(self, n) for n in EXTENSION_FIELDS)
 
     def dimensionless_groups(self) -> dict[str, float]:
-        """The groups of the extended model [-] (Paidoussis 1998, eq. (3.71), for the first
-        two): ``alpha`` = kelvin_voigt sqrt(EI/(M1+M2)) / L^2 (= kelvin_voigt / time_scale),
-        ``sigma`` = viscous L^2 / sqrt(EI (M1+M2)), ``tip_mass_ratio`` = m_t / ((M1+M2) L),
-        ``tip_inertia_ratio`` = J_t / ((M1+M2) L^3), ``hub_ratio`` delta = R / L (Hodges &
-        Rutkowski 1981; Banerjee 2000)."""
-        m, L = self.mass, self.L
-        return {
-            "alpha": self.kelvin_voigt / self.time_scale,
-            "sigma": self.viscous * L**2 / math.sqrt(self.EI * m),
-            "tip_mass_ratio": self.tip_mass / (m * L),
-            "tip_inertia_ratio": self.tip_inertia / (m * L**3),
-            "hub_ratio": self.hub_radius / L,
-        }
+        """The extended model's groups [-], ``{name: value}`` in the order and with the
+        definitions of :data:`DIMENSIONLESS_GROUPS` (each is one field over its scale)."""
+        return {g.name: getattr(self, g.field) / g.scale(self) for g in DIMENSIONLESS_GROUPS}
 
     @property
     def EI(self) -> float:
@@ -184,6 +175,72 @@ class Pipe:
     def spin_from_number(self, gamma: ArrayLike) -> FloatArray:
         """Inverse of :meth:`spin_number`: w0 [rad/s]."""
         return np.asarray(gamma, dtype=float) / (self.L**2 * math.sqrt(self.mass / self.EI))
+
+
+@dataclass(frozen=True)
+class DimensionlessGroup:
+    """One dimensionless group of the extended model: ``name`` = ``pipe.<field>`` / scale.
+
+    ``definition`` is the formula in the :class:`Pipe` field names, ``source`` where the
+    group comes from; :meth:`Pipe.dimensionless_groups` evaluates it, the request and
+    result schemas take their names and descriptions from it, and on the unit pipe of
+    :func:`pipeflow.stability.core.nondimensional_pipe` (E = I = L = M1 + M2 = 1) every
+    scale is 1, so there group and field are equal.
+    """
+
+    name: str
+    field: str
+    definition: str
+    source: str
+    scale: Callable[[Pipe], float]
+
+    @property
+    def description(self) -> str:
+        """``definition [-] (source)``, the text of the schema fields that carry the group."""
+        return f"{self.definition} [-] ({self.source})."
+
+
+#: THE definitions of the groups beyond beta, gamma and u (docs/model.md section 6), m = M1 + M2
+DIMENSIONLESS_GROUPS: tuple[DimensionlessGroup, ...] = (
+    DimensionlessGroup(
+        "alpha",
+        "kelvin_voigt",
+        "Kelvin-Voigt damping kelvin_voigt sqrt(EI/m) / L^2 = kelvin_voigt / time_scale",
+        "Paidoussis 1998, eq. (3.71): alpha = [I/(E(M+m))]^(1/2) E*/L^2, E* = E kelvin_voigt",
+        lambda p: p.time_scale,
+    ),
+    DimensionlessGroup(
+        "viscous_ratio",
+        "viscous",
+        "Viscous damping viscous L^2 / sqrt(EI m)",
+        "Paidoussis 1998, eq. (3.71), where it is called sigma; renamed because sigma is the "
+        "growth rate [1/s] of every result",
+        lambda p: math.sqrt(p.EI * p.mass) / p.L**2,
+    ),
+    DimensionlessGroup(
+        "tip_mass_ratio",
+        "tip_mass",
+        "Tip mass over pipe-and-fluid mass, tip_mass / (m L)",
+        "the mu of the end-mass frequency equation, Blevins 1979",
+        lambda p: p.mass * p.L,
+    ),
+    DimensionlessGroup(
+        "tip_inertia_ratio",
+        "tip_inertia",
+        "Tip rotary inertia tip_inertia / (m L^3)",
+        "the rotary-inertia counterpart of tip_mass_ratio",
+        lambda p: p.mass * p.L**3,
+    ),
+    DimensionlessGroup(
+        "hub_ratio",
+        "hub_radius",
+        "Hub radius over length, delta = hub_radius / L",
+        "Hodges & Rutkowski 1981; Banerjee 2000",
+        lambda p: p.L,
+    ),
+)
+#: the groups by name
+GROUPS = {g.name: g for g in DIMENSIONLESS_GROUPS}
 
 
 #: What every result with reverse flow says (physics notes sec. 4; one text for all analyses).

@@ -104,15 +104,21 @@ def fan_out(fn: Callable[[T], R], items: Sequence[T]) -> Iterator[tuple[int, R]]
     return host.map(fn, items)
 
 
-def split(n: int, pieces_per_worker: int = 4, min_size: int = 1) -> list[range]:
+def split(
+    n: int, pieces_per_worker: int = 4, min_size: int = 1, max_size: int | None = None
+) -> list[range]:
     """``range(n)`` cut into contiguous chunks for the current host: about
     ``pieces_per_worker`` chunks per unit of width (so a slow piece does not leave the
-    other workers idle), none smaller than ``min_size``; one chunk on the serial host."""
+    other workers idle), none smaller than ``min_size``; one chunk on the serial host.
+    With ``max_size``, none larger than that either (more chunks, on any host: e.g. to
+    report progress between them); ``max_size`` wins over ``min_size``."""
     if n <= 0:
         return []
     width = max(1, int(current_host().width))
-    if width == 1:
-        return [range(n)]
-    count = max(1, min(n // max(1, min_size), width * pieces_per_worker))
+    count = 1
+    if width > 1:
+        count = max(1, min(n // max(1, min_size), width * pieces_per_worker))
+    if max_size is not None:
+        count = max(count, math.ceil(n / max(1, max_size)))
     size = math.ceil(n / count)
     return [range(i, min(n, i + size)) for i in range(0, n, size)]

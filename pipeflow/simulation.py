@@ -7,8 +7,10 @@ command line build a :class:`Simulation` from their JSON spec and call it.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -107,7 +109,8 @@ class Result(NotebookViews):
     ddot: FloatArray  # (N, n) [m/s]
     eigen_t: FloatArray  # [s]
     frozen: Traces  # eigenvalues of S(t) [1/s]
-    exponents: Traces  # eigenvalues of P(t)/t [1/s], the paper's CMA exponents
+    #: the paper's CMA exponents (:attr:`exponents`), or how to compute them on first use
+    cma_exponents: Traces | Callable[[], Traces] = field(repr=False)
     dimensionless: dict[str, Any]
     diagnostics: dict[str, Any]
     warnings: list[str]
@@ -118,6 +121,17 @@ class Result(NotebookViews):
     method_reason: str = ""  # one line: why that solver
     first_unstable_time: float | None = None  # [s] first output time with a frozen sigma > 0
     mode_shapes: ModeShapes | None = None  # when ``simulation.mode_shape_times`` asks
+
+    @property
+    def exponents(self) -> Traces:
+        """Eigenvalues of P(t)/t [1/s], the exponents the paper's CMA applies, traced on the
+        branches of :attr:`frozen` (:func:`cma_exponents`).  Nothing in :func:`simulate`
+        needs them (status, diagnostics and growth come from the frozen spectrum), so with
+        time-varying coefficients their decompositions are deferred to the first use here
+        (:meth:`to_dict` uses them); the value is the same either way, and kept."""
+        if callable(self.cma_exponents):
+            self.cma_exponents = self.cma_exponents()
+        return self.cma_exponents
 
     @property
     def fundamental(self) -> Traces:
@@ -292,10 +306,11 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     frozen = select(*spec, n_eig, least_stable=True, damped=sim.pipe.damped)
     # the same branches of P(t)/t (P(t)/t -> S(0) at t = 0: the same first point)
     branches = frozen.xi[0]
+    exponents: Traces | Callable[[], Traces]
     if loading.is_time_invariant:
         exponents = select(*spec, branches)  # P(t)/t = S: the same spectrum
-    else:
-        exponents = cma_exponents(model, loading, eigen_t, branches)
+    else:  # one decomposition per time, only if asked for (Result.exponents)
+        exponents = functools.partial(cma_exponents, model, loading, eigen_t, branches.copy())
     # the whole frozen spectrum decides growth, not only the traced branches
     sigma_max = max_growth_rates(spec[0])  # per eigen_t [1/s]
     unstable = np.flatnonzero(sigma_max > 0)
@@ -352,7 +367,7 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
         ddot=ddot,
         eigen_t=eigen_t,
         frozen=frozen,
-        exponents=exponents,
+        cma_exponents=exponents,
         dimensionless=dimensionless(sim.pipe, loading, eigen_t),
         diagnostics=diagnostics,
         warnings=warnings,

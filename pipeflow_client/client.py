@@ -372,6 +372,35 @@ class _Operations:
         )
 
     @staticmethod
+    def submit_study(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
+        """Submit a design study (``POST /v1/studies``: a base simulation or stability
+        request and its ``cases`` or ``grid`` of overrides) as a job; returns the job."""
+        doc: dict[str, Any] = yield from _json(
+            Call("POST", "/v1/studies", _refresh(refresh), _spec_json(spec))
+        )
+        return doc
+
+    @staticmethod
+    def study(
+        spec: Any,
+        *,
+        refresh: bool = False,
+        progress: Progress | None = None,
+        poll: float = 0.2,
+        timeout: float | None = None,
+    ) -> Steps[dict[str, Any]]:
+        """A design study (dict or :class:`pipeflow.schema.study.StudySpec`): submitted,
+        waited for (``progress(fraction of cases done)``) and returned as the result JSON:
+        ``columns`` (with SI units), one of ``rows`` per case, ``counts``; the same table
+        as CSV: :meth:`result_csv` with ``table="study"``."""
+        job = yield from _Operations.submit_study(spec, refresh=refresh)
+        return (
+            yield from _Operations.wait_raw(
+                job["key"], progress=progress, poll=poll, timeout=timeout
+            )
+        )
+
+    @staticmethod
     def post(path: str, body: Any, **params: Any) -> Steps[Any]:
         """``POST path`` with a JSON body; returns the JSON answer (any endpoint)."""
         return (yield from _json(Call("POST", path, params or None, _spec_json(body))))
@@ -509,6 +538,8 @@ class _Base:
     submit_stability = _operation(_Operations.submit_stability)
     submit_sweep = _operation(_Operations.submit_sweep)
     sweep = _operation(_Operations.sweep)
+    submit_study = _operation(_Operations.submit_study)
+    study = _operation(_Operations.study)
     post = _operation(_Operations.post)
     health = _operation(_Operations.health)
 

@@ -18,7 +18,9 @@ from datetime import UTC, datetime
 from typing import Annotated, Any
 
 from fastapi import Query, Response
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from pydantic import ValidationError
 
 from service.engine import ComputationCancelled, ComputationFailed, QueueFull, Runner
 from service.keys import Keyed
@@ -215,6 +217,22 @@ def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
     )
 
 
+async def check_request(job: Keyed) -> None:
+    """The computation's validation too costly for the event loop
+    (:attr:`~pipeflow.schema.registry.Computation.check`, e.g. every case of a study), in a
+    thread; a failure is answered as the body's own validation errors are (422 naming the
+    field)."""
+    check = job.computation.check
+    if check is None:
+        return
+    try:
+        await asyncio.to_thread(check, job.request)
+    except ValidationError as exc:
+        errors = [{**e, "loc": ("body", *e["loc"])} for e in exc.errors()]
+        body = job.request.model_dump(mode="json", exclude_unset=True)
+        raise RequestValidationError(errors, body=body) from None
+
+
 async def run_sync(
     runner: Runner, store: Store, job: Keyed, refresh: bool, hit: Hit | None = None
 ) -> Response:
@@ -233,6 +251,8 @@ async def run_sync(
             return await hit_response(key, body, hit)
     if cache is not None:
         cache.pop(key)  # a recomputation replaces the stored result
+    if not runner.is_active(key):
+        await check_request(job)
     try:
         task = await runner.submit(job, force=refresh)
         body = await asyncio.shield(task)
@@ -251,6 +271,8 @@ async def submit_job(runner: Runner, store: Store, job: Keyed, refresh: bool) ->
     if not refresh and not runner.is_active(key) and await asyncio.to_thread(store.has_result, key):
         await asyncio.to_thread(store.mark_succeeded, key, job.computation.name, job.canonical)
     else:
+        if not runner.is_active(key):
+            await check_request(job)
         try:
             await runner.submit(job, force=refresh)
         except QueueFull as exc:

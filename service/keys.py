@@ -1,32 +1,22 @@
-"""The cache key: one parameter hash per request, computed once, in the service.
+"""The cache key of a request, computed once per request in the service.
 
-``canonical_key(name, canonical)`` is the SHA-256 of the RFC 8785 canonical JSON of
-``{"pipeflow": version, "kind": name, "spec": canonical}``, where ``canonical`` is the
-request's normalised form (:meth:`pipeflow.schema.simulation.StrictModel.canonical`:
-defaults filled in, options the method ignores dropped).  Equivalent requests (key order,
-``1`` vs ``1.0``, defaults omitted or spelled out) share a key; any change to a number
-that matters, or a new pipeflow version, changes it.  The key is the job id, the cache key
-and the ETag.
+The key itself is :func:`pipeflow.schema.keys.canonical_key` (one definition, shared with
+the library: a study's cases are keyed by it too); here it is memoised per request
+(:func:`keyed`).  The key is the job id, the cache key and the ETag.
 """
 
 from __future__ import annotations
 
-import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
-import rfc8785
 from pydantic import BaseModel
 
-from pipeflow import __version__
+from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.registry import Computation
 
-
-def canonical_key(name: str, canonical: dict[str, Any]) -> str:
-    """SHA-256 hex of the salted RFC 8785 form of ``canonical`` for computation ``name``."""
-    payload: dict[str, Any] = {"pipeflow": __version__, "kind": name, "spec": canonical}
-    return hashlib.sha256(rfc8785.dumps(payload)).hexdigest()
+__all__ = ["KEY_MEMO_SIZE", "Keyed", "canonical_key", "keyed"]
 
 
 @dataclass(frozen=True)

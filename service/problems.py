@@ -140,8 +140,7 @@ def problem(
 def pipeflow_problem(exc: PipeflowError) -> dict[str, Any]:
     """422 problem for a refusal by the library, pointing at the request field (``exc.field``,
     set by the schema layer; the library's ``exc.parameter`` if it set none)."""
-    name = type(exc).__name__
-    slug = re.sub(r"(?<!^)(?=[A-Z])", "-", name).lower()
+    slug = exc.slug
     field = exc.field if exc.field is not None else exc.parameter
     err: dict[str, Any] = {
         "field": field,

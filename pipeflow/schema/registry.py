@@ -20,7 +20,7 @@ from pydantic import BaseModel, Field, TypeAdapter
 
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
-from pipeflow.export import TABLES
+from pipeflow.export import SIMULATION_TABLES
 from pipeflow.plots import available_plots
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
@@ -33,9 +33,11 @@ from pipeflow.schema.simulation import (
 )
 from pipeflow.schema.simulation import run_simulation as simulate_request
 from pipeflow.schema.stability import STABILITY_FIELDS
+from pipeflow.schema.study import MAX_CASES, STABILITY_STUDY_EXAMPLE, STUDY_EXAMPLE, StudySpec
 from pipeflow.simulation import json_safe
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
+from pipeflow.study import run_study
 
 Progress = Callable[[float], None]
 Run = Callable[[Any, Progress | None], dict[str, Any]]
@@ -78,6 +80,9 @@ class Computation:
     examples: Mapping[str, dict[str, Any]] = field(default_factory=dict)
     #: library parameter name -> request field (JSON path); unnamed ones map to themselves
     fields: Mapping[str, str] = field(default_factory=dict)
+    #: validation too costly for model validation (run by :func:`parse`, in a thread by the
+    #: service before it accepts the request; raises ValidationError naming the field)
+    check: Callable[[Any], None] | None = None
 
     @property
     def cost(self) -> str:
@@ -162,8 +167,12 @@ def response_type(endpoint: Endpoint) -> Any:
 
 
 def parse(endpoint: Endpoint, data: Any) -> BaseModel:
-    """Validate a JSON body (already decoded) for ``endpoint`` (raises ValidationError)."""
+    """Validate a JSON body (already decoded) for ``endpoint``, including its computation's
+    :attr:`Computation.check` (raises ValidationError)."""
     model: BaseModel = TypeAdapter(request_type(endpoint)).validate_python(data)
+    check = computation_for(model).check
+    if check is not None:
+        check(model)
     return model
 
 
@@ -215,7 +224,7 @@ SIMULATION = register(
             "displacements",
             "mode_shapes",
         ),
-        tables=tuple(TABLES),  # every table of pipeflow.export is a simulation's
+        tables=SIMULATION_TABLES,
         examples={
             "paper": {
                 "summary": "The paper's section 5: v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s",
@@ -459,3 +468,58 @@ FLOQUET = _sweep(
 
 #: names of the computations asked for by ``kind`` at ``/v1/sweeps`` (the CLI's sweep kinds)
 SWEEP_KINDS: tuple[str, ...] = tuple(c.name for c in computations_at(SWEEPS))
+
+STUDIES = Endpoint(
+    path="studies",
+    tag="studies",
+    summary="Submit a design study (many cases of one simulation or stability analysis)",
+    description="Accept a study and answer at once with its job (202, "
+    "``Location: /v1/jobs/{key}``): a ``base`` simulation or stability request and either "
+    "``cases`` (a list of overrides) or ``grid`` (values per field, every combination), "
+    "overriding numeric fields by dotted path (``pipe.E`` [Pa], ``pipe.L`` [m], ``pipe.M2`` "
+    "[kg/m], ``rotation.omega0.value`` [rad/s], ``flow.velocity.coefficients.1`` [m/s^2], "
+    "...).  Every case is validated by the base request model before any work (a 422 "
+    "names the study field: ``cases.3.pipe.E``, ``grid.pipe.L.2``).  Each case is cached "
+    "under its own key, the key of the same request sent alone: a study overlapping an "
+    "earlier one computes only its new cases.  The job's progress is the fraction of cases "
+    "done.  The result (``GET /v1/results/{key}``) is a table, one row per case: its "
+    "overrides, its key, ok or failed (with the problem's type, field and detail: one "
+    "failing case does not fail the study), and for simulations the peak tip displacement "
+    "[m], the damping sigma [1/s] and frequency omega [rad/s] of the fundamental at t_end "
+    "and the method used, for stability the critical velocity [m/s] and the mode that loses "
+    "stability; ``?format=csv`` gives it as CSV with units in the header.",
+    run_operation=None,
+    job_operation="submitStudy",
+    job_summary="Submit a design study as a job",
+)
+
+
+def run_study_request(spec: StudySpec, progress: Progress | None) -> dict[str, Any]:
+    """:func:`pipeflow.study.run_study` (cases fanned out on the current host)."""
+    return run_study(spec, progress)
+
+
+STUDY = register(
+    Computation(
+        name="study",
+        request=StudySpec,
+        response=r.StudyResponse,
+        run=run_study_request,
+        endpoint=STUDIES,
+        budget=f"at most {MAX_CASES} cases (the list's length or the grid's product), each "
+        f"bounded as its base computation is (simulation: {SIMULATION.cost}; stability: "
+        f"{STABILITY.cost}): at most {MAX_CASES} times the base's bound",
+        tables=("study",),
+        check=StudySpec.check,
+        examples={
+            "simulation_grid": {
+                "summary": "The paper's example (4 modes, 0.2 s) over fluid mass x spin, 6 cases",
+                "value": STUDY_EXAMPLE,
+            },
+            "stability_spins": {
+                "summary": "Critical velocity of the paper's pipe at four spins",
+                "value": STABILITY_STUDY_EXAMPLE,
+            },
+        },
+    )
+)

@@ -14,6 +14,10 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from pipeflow.model import GROUPS
+
+#: the extended model's group names, for descriptions (definitions: pipeflow.model.GROUPS)
+GROUP_NAMES = ", ".join(GROUPS)
 PLOTS_DESCRIPTION = "Figures of this result: GET /v1/results/{key}/plots/{name}.png or .svg."
 
 
@@ -112,7 +116,8 @@ class SimulationResponse(BaseModel):
         description="Eigenvalues of P(t)/t [1/s]: the exponents the complex modal analysis uses."
     )
     dimensionless: dict[str, Any] = Field(
-        description="Paidoussis' groups: beta, flow number u, spin number gamma, time scale [s]."
+        description="Paidoussis' groups: beta, flow number u, spin number gamma, time scale "
+        f"[s]; the extended model's {GROUP_NAMES} [-]."
     )
     diagnostics: dict[str, Any] = Field(description="Solver diagnostics (costs, conditioning).")
     warnings: list[str] = Field(description="What the caller should know about this result.")
@@ -202,11 +207,13 @@ class StabilityDimensionless(BaseModel):
         description="The velocity range as flow numbers [-] (null when M2 = 0)."
     )
     time_scale: float = Field(description="L^2 sqrt((M1+M2)/EI) [s].")
-    alpha: float = Field(description="Kelvin-Voigt damping kelvin_voigt / time_scale [-].")
-    sigma: float = Field(description="Viscous damping c L^2 / sqrt(EI (M1+M2)) [-].")
-    tip_mass_ratio: float = Field(description="m_t / ((M1+M2) L) [-].")
-    tip_inertia_ratio: float = Field(description="J_t / ((M1+M2) L^3) [-].")
-    hub_ratio: float = Field(description="Hub radius over length R/L [-].")
+    alpha: float = Field(description=GROUPS["alpha"].description)
+    viscous_ratio: float = Field(
+        description=GROUPS["viscous_ratio"].description + " Named 'sigma' in earlier versions."
+    )
+    tip_mass_ratio: float = Field(description=GROUPS["tip_mass_ratio"].description)
+    tip_inertia_ratio: float = Field(description=GROUPS["tip_inertia_ratio"].description)
+    hub_ratio: float = Field(description=GROUPS["hub_ratio"].description)
 
 
 class ReverseFlow(BaseModel):
@@ -245,7 +252,7 @@ class StabilityResponse(_Result):
     )
     dimensionless: StabilityDimensionless = Field(
         description="Paidoussis' groups: beta, gamma, u_cr, time scale, and the extended "
-        "model's alpha, sigma, tip_mass_ratio, tip_inertia_ratio, hub_ratio."
+        f"model's {GROUP_NAMES}."
     )
     omega0: float = Field(description="Spin w0 [rad/s].")
     modes: int = Field(description="Galerkin modes used [-].")
@@ -339,7 +346,8 @@ class SweepResponse(_Result):
         description="Where a tracked branch crosses sigma = 0 (Argand: the critical points).",
     )
     dimensionless: dict[str, float] = Field(
-        description="beta [-], time_scale [s], and gamma (argand) or flow_number (campbell) [-]."
+        description="beta [-], time_scale [s], and gamma (argand) or flow_number (campbell) "
+        f"[-]; the extended model's {GROUP_NAMES} [-]."
     )
     diagnostics: dict[str, Any] = Field(
         description="points, inserted_points, min_confidence, galerkin_modes."
@@ -378,7 +386,8 @@ class SpinMapResponse(_Result):
         description="Per spin: every boundary crossing for v >= 0."
     )
     dimensionless: dict[str, Any] = Field(
-        description="beta [-], gamma per spin [-], u_cr per spin [-], time_scale [s]."
+        description="beta [-], gamma per spin [-], u_cr per spin [-], time_scale [s]; the "
+        f"extended model's {GROUP_NAMES} [-]."
     )
     diagnostics: dict[str, Any] = Field(description="galerkin_modes, points.")
 
@@ -395,10 +404,7 @@ class BetaMapResponse(_Result):
 
     kind: Literal["beta_map"] = Field(description="Result kind.")
     gamma: float = Field(description="Spin number [-].")
-    groups: dict[str, float] = Field(
-        description="alpha, sigma, tip_mass_ratio, tip_inertia_ratio, hub_ratio [-] (the same "
-        "at every beta)."
-    )
+    groups: dict[str, float] = Field(description=f"{GROUP_NAMES} [-] (the same at every beta).")
     plane: Literal["in-plane", "out-of-plane"] = Field(description="Plane of the vibration.")
     betas: list[float] = Field(description="Mass ratios M2/(M1+M2) [-].")
     u_range: list[float] = Field(description="[u_min, u_max] flow numbers [-].")
@@ -455,7 +461,7 @@ class ResonanceChartResponse(_Result):
     )
     dimensionless: dict[str, Any] = Field(
         description="beta, u_mean, gamma, frequencies Omega*time_scale, amplitude_ratio a/mean "
-        "[-]; time_scale [s]."
+        f"[-]; time_scale [s]; the extended model's {GROUP_NAMES} [-]."
     )
     diagnostics: dict[str, Any] = Field(
         description="steps_per_period, error_estimate, galerkin_modes."
@@ -492,8 +498,50 @@ class FloquetResponse(_Result):
         description="Eigenvalues at the mean flow and spin: sigma [1/s], omega [rad/s]."
     )
     dimensionless: dict[str, float] = Field(
-        description="beta [-], time_scale [s], period/time_scale [-]."
+        description="beta [-], time_scale [s], period/time_scale [-]; the extended model's "
+        f"{GROUP_NAMES} [-]."
     )
     diagnostics: dict[str, Any] = Field(
         description="steps_per_period, error_estimate, galerkin_modes, propagator."
     )
+
+
+# -- POST /v1/studies ------------------------------------------------------------------------
+
+
+class StudyColumn(BaseModel):
+    name: str = Field(
+        description="Column name: index, key, status, cached, each overridden field's path, "
+        "the base kind's summary (simulation: peak_tip_displacement, final_sigma_1, "
+        "final_omega_1, method_used, result_status; stability: critical_velocity, "
+        "critical_mode, critical_kind, stable_throughout), error_type, error_field, "
+        "error_detail."
+    )
+    unit: str = Field(
+        description="SI unit of the column's numbers ('-': dimensionless; '': text or a flag)."
+    )
+    description: str = Field(description="What the column holds.")
+
+
+class StudyCounts(BaseModel):
+    total: int = Field(description="Cases in the study [-].")
+    ok: int = Field(description="Cases that ran [-].")
+    failed: int = Field(description="Cases that failed (their rows say why) [-].")
+    cached: int = Field(description="Cases whose summary came from the cache [-].")
+    computed: int = Field(
+        description="Case computations run for this study [-] (cases with equal keys share one)."
+    )
+
+
+class StudyResponse(_Result):
+    """A design study: one row of summaries per case (CSV: ``?format=csv&table=study``)."""
+
+    kind: Literal["study"] = Field(description="Result kind.")
+    base_kind: Literal["simulation", "stability"] = Field(description="The cases' computation.")
+    overrides: list[str] = Field(description="The overridden fields (dotted paths), in order.")
+    columns: list[StudyColumn] = Field(description="The table's columns, in row order.")
+    rows: list[list[str | int | float | bool | None]] = Field(
+        description="One row per case, in case order, values in the columns' units; null "
+        "where a case has no value (a field it does not override, a failed case's summary)."
+    )
+    counts: StudyCounts = Field(description="How many cases ran, failed, came from the cache.")

@@ -20,10 +20,10 @@ from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import ConfigDict, Field, Strict, model_validator
+from pydantic import AliasChoices, ConfigDict, Field, Strict, model_validator
 
 from pipeflow.basis import MAX_MODES
-from pipeflow.model import PAPER_PIPE, Pipe
+from pipeflow.model import GROUPS, PAPER_PIPE, Pipe
 from pipeflow.schema.simulation import (
     ConstantProfile,
     HarmonicProfile,
@@ -303,25 +303,23 @@ class BetaMapSweep(StrictModel):
     beta_points: int = Field(50, ge=1, le=400, description="Mass-ratio samples [-].")
     u_points: int = Field(201, ge=3, le=MAX_SWEEP_POINTS, description="Flow-number samples [-].")
     alpha: float = Field(
-        0.0,
-        ge=0,
-        le=1e3,
-        description="Kelvin-Voigt damping kelvin_voigt / time_scale = alpha sqrt(EI/(M1+M2)) / "
-        "L^2 [-] (Paidoussis 1998, eq. 3.71); 0: undamped.",
+        0.0, ge=0, le=1e3, description=GROUPS["alpha"].description + " 0: undamped."
     )
-    sigma: float = Field(
+    viscous_ratio: float = Field(
         0.0,
         ge=0,
         le=1e6,
-        description="Viscous damping c L^2 / sqrt(EI (M1+M2)) [-] (Paidoussis 1998, eq. 3.71).",
+        validation_alias=AliasChoices("viscous_ratio", "sigma"),
+        description=GROUPS["viscous_ratio"].description
+        + " The former name 'sigma' is still accepted.",
     )
     tip_mass_ratio: float = Field(
-        0.0, ge=0, le=1e6, description="Tip mass over pipe-and-fluid mass, m_t/((M1+M2) L) [-]."
+        0.0, ge=0, le=1e6, description=GROUPS["tip_mass_ratio"].description
     )
     tip_inertia_ratio: float = Field(
-        0.0, ge=0, le=1e6, description="Tip rotary inertia J_t/((M1+M2) L^3) [-]."
+        0.0, ge=0, le=1e6, description=GROUPS["tip_inertia_ratio"].description
     )
-    hub_ratio: float = Field(0.0, ge=0, le=1e5, description="Hub radius over length, R/L [-].")
+    hub_ratio: float = Field(0.0, ge=0, le=1e5, description=GROUPS["hub_ratio"].description)
     plane: Plane = "in-plane"
 
     @model_validator(mode="after")
@@ -345,13 +343,7 @@ class BetaMapSweep(StrictModel):
             beta_points=self.beta_points,
             u_points=self.u_points,
             progress=progress,
-            groups={
-                "alpha": self.alpha,
-                "sigma": self.sigma,
-                "tip_mass_ratio": self.tip_mass_ratio,
-                "tip_inertia_ratio": self.tip_inertia_ratio,
-                "hub_ratio": self.hub_ratio,
-            },
+            groups={name: getattr(self, name) for name in GROUPS},
             plane=self.plane,
         ).to_dict()
 

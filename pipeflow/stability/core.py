@@ -31,7 +31,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidInput
-from pipeflow.model import PLANES, Coefficients, Pipe, PipeModel
+from pipeflow.model import DIMENSIONLESS_GROUPS, PLANES, Coefficients, Pipe, PipeModel
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -94,15 +94,9 @@ def damping_ratio(xi: ComplexArray) -> FloatArray:
     return np.asarray(z)
 
 
-#: the :class:`Pipe` field that carries each group of :meth:`Pipe.dimensionless_groups` on
-#: the unit pipe of :func:`nondimensional_pipe`, where group and field are equal
-GROUP_FIELDS = {
-    "alpha": "kelvin_voigt",
-    "sigma": "viscous",
-    "tip_mass_ratio": "tip_mass",
-    "tip_inertia_ratio": "tip_inertia",
-    "hub_ratio": "hub_radius",
-}
+#: the :class:`Pipe` field that carries each group of :data:`pipeflow.model.GROUPS` (on the
+#: unit pipe of :func:`nondimensional_pipe` group and field are equal)
+GROUP_FIELDS = {g.name: g.field for g in DIMENSIONLESS_GROUPS}
 
 
 def nondimensional_pipe(
@@ -111,8 +105,8 @@ def nondimensional_pipe(
     """A pipe with E = I = L = 1, M1 + M2 = 1, M2 = beta: then v = u / sqrt(beta), w0 = gamma
     and time is tau (Paidoussis' non-dimensional groups, physics notes section 1).
 
-    ``groups``: the extended model's groups (keys of :data:`GROUP_FIELDS`: alpha, sigma,
-    tip_mass_ratio, tip_inertia_ratio, hub_ratio; missing ones are 0), ``plane`` its plane.
+    ``groups``: the extended model's groups by name (:data:`pipeflow.model.GROUPS`; missing
+    ones are 0), ``plane`` its plane.
     """
     if not 0 < beta < 1:
         raise InvalidInput(f"beta must be in (0, 1), got {beta}", parameter="beta")

@@ -305,9 +305,9 @@ def beta_map(
 
     Non-dimensional throughout (E = I = L = 1, M1 + M2 = 1: physics notes section 1):
     beta = M2/(M1+M2) in (0, 1), u = v L sqrt(M2/EI) >= 0, gamma = w0 L^2 sqrt((M1+M2)/EI);
-    frequencies are omega sqrt((M1+M2) L^4/EI). ``groups`` (alpha, sigma, tip_mass_ratio,
-    tip_inertia_ratio, hub_ratio: :data:`~pipeflow.stability.core.GROUP_FIELDS`) and
-    ``plane`` extend the pipe beyond the paper's model, the same at every beta.
+    frequencies are omega sqrt((M1+M2) L^4/EI). ``groups`` (by name, as defined in
+    :data:`pipeflow.model.DIMENSIONLESS_GROUPS`) and ``plane`` extend the pipe beyond the
+    paper's model, the same at every beta.
     """
     nondimensional_pipe(0.5, groups, plane)  # refuse bad groups before any work
     check_modes(modes)

@@ -34,10 +34,12 @@ from typing import TYPE_CHECKING, Any
 
 from numpy.linalg import LinAlgError
 
+from pipeflow import parallel
 from pipeflow.errors import Cancelled, PipeflowError
 from service import encoding, observability
 from service.problems import pipeflow_problem, problem
 from service.store import StorageError, Store
+from service.store.memo import StoreMemo
 
 log = logging.getLogger("service.engine.task")
 #: the computation's own lines (started, finished), with the request id
@@ -197,7 +199,9 @@ def _compute(
 
     try:
         beat.deadline = time.monotonic() + cfg.timeout_s  # the limit is on the computation
-        result = computation.execute(request, progress)
+        # pieces computed before (a study's cases) come from the store, new ones go there
+        with parallel.hosting(memo=StoreMemo(beat.store)):
+            result = computation.execute(request, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:
             return ("error", runtime_problem(cfg.timeout_s))

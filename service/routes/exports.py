@@ -16,7 +16,7 @@ from __future__ import annotations
 import asyncio
 import json
 import threading
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Header, Path, Response
 
@@ -46,8 +46,14 @@ IMMUTABLE = "public, max-age=86400, immutable"
 #: the bytes as a file rather than trying to parse them as JSON)
 BINARY = {"type": "string", "format": "binary"}
 
-Table = Literal["history", "eigenvalues", "cma_exponents", "mode_shapes"]
-TABLE_DESCRIPTION = "CSV/Parquet table: " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
+if TYPE_CHECKING:
+    Table = str
+else:  # the names of pipeflow.export.TABLES (one list), for the query's schema
+    Table = Literal[tuple(TABLES)]
+TABLE_DESCRIPTION = (
+    "CSV/Parquet table (default: the result's first, 'history' for a simulation, 'study' "
+    "for a study): " + "; ".join(f"'{k}': {v}" for k, v in TABLES.items())
+)
 #: format name -> media type of the tables (JSON is the result document itself)
 TABLE_MEDIA_TYPES = {"csv": CSV_MEDIA_TYPE, "parquet": PARQUET_MEDIA_TYPE}
 #: OpenAPI content of a 200 that may be a table (binary Parquet, CSV text)
@@ -79,9 +85,12 @@ def wanted_format(fmt: str | None, accept: str | None) -> str:
     return "json"
 
 
-def table_response(key: str, body: bytes, table: str, fmt: str) -> Response:
-    """Table ``table`` of the stored result ``body`` (JSON bytes) as ``fmt`` (csv, parquet)."""
+def table_response(key: str, body: bytes, table: str | None, fmt: str) -> Response:
+    """Table ``table`` (None: the result's first) of the stored result ``body`` (JSON bytes)
+    as ``fmt`` (csv, parquet)."""
     result = json.loads(body)
+    if table is None:
+        table = next(iter(available_tables(result)), "history")
     try:
         content: str | bytes = to_csv(result, table) if fmt == "csv" else to_parquet(result, table)
     except ImportError as exc:  # pyarrow is an optional extra of the server

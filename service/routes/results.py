@@ -65,7 +65,7 @@ async def get_result(
             description="json, csv or parquet; overrides Accept (for clients that cannot set it)."
         ),
     ] = None,
-    table: Annotated[Table, Query(description=TABLE_DESCRIPTION)] = "history",
+    table: Annotated[Table | None, Query(description=TABLE_DESCRIPTION)] = None,
 ) -> Response:
     """The result stored under ``key`` (as POST /v1/simulations or /v1/stability returned
     it, or the result of a job), with

@@ -22,7 +22,7 @@ import logging
 import threading
 import time
 import zlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -259,35 +259,60 @@ class Store:
                 conn.execute(select(results.c.key).where(results.c.key == key)).first() is not None
             )
 
+    def get_results(self, keys: Sequence[str]) -> dict[str, bytes]:
+        """The stored bodies among ``keys`` (one query; missing keys are absent)."""
+        if not keys:
+            return {}
+        with self._read() as conn:
+            rows = conn.execute(
+                select(results.c.key, results.c.body, results.c.codec).where(
+                    results.c.key.in_(list(keys))
+                )
+            ).all()
+        found = {row.key: _decode(bytes(row.body), row.codec) for row in rows}
+        now = time.time()
+        with self._lock:
+            self._touched.update(dict.fromkeys(found, now))
+        return found
+
     def put_result(self, key: str, kind: str, body: bytes) -> None:
         """Store ``body`` compressed; evict least-recently-used results beyond the bound."""
-        stored = zlib.compress(body, ZLIB_LEVEL)
+        self.put_results({key: (kind, body)})
+
+    def put_results(self, items: Mapping[str, tuple[str, bytes]]) -> None:
+        """Store each ``key: (kind, body)`` compressed, in one transaction; then evict
+        least-recently-used results beyond the bound (never those just written)."""
+        if not items:
+            return
         now = time.time()
         with self._write() as conn:
             self._write_touched(conn)
-            values = {
-                "key": key,
-                "kind": kind,
-                "body": stored,
-                "size": len(stored),
-                "created": now,
-                "accessed": now,
-                "codec": "zlib",
-            }
-            ins = self._insert(results).values(**values)
-            conn.execute(
-                ins.on_conflict_do_update(
-                    index_elements=["key"], set_={k: v for k, v in values.items() if k != "key"}
+            for key, (kind, body) in items.items():
+                stored = zlib.compress(body, ZLIB_LEVEL)
+                values = {
+                    "key": key,
+                    "kind": kind,
+                    "body": stored,
+                    "size": len(stored),
+                    "created": now,
+                    "accessed": now,
+                    "codec": "zlib",
+                }
+                ins = self._insert(results).values(**values)
+                conn.execute(
+                    ins.on_conflict_do_update(
+                        index_elements=["key"],
+                        set_={k: v for k, v in values.items() if k != "key"},
+                    )
                 )
-            )
             total = conn.execute(select(func.coalesce(func.sum(results.c.size), 0))).scalar_one()
             excess = int(total) - self.cache_max_bytes
             evicted = []
             if excess > 0:
-                # the newest result is kept even if it alone exceeds the bound
+                # the newest results are kept even if they alone exceed the bound
                 rows = conn.execute(
                     select(results.c.key, results.c.size)
-                    .where(results.c.key != key)
+                    .where(results.c.key.notin_(list(items)))
                     .order_by(results.c.accessed)
                 ).all()
                 for row in rows:
@@ -299,7 +324,8 @@ class Store:
         with self._lock:
             for old in evicted:
                 self._memory.pop(old)
-            self._memory.put(key, body)
+            for key, (_, body) in items.items():
+                self._memory.put(key, body)
 
     def result_bytes(self) -> int:
         with self._read() as conn:

@@ -69,6 +69,10 @@ TINY: dict[str, dict[str, Any]] = {
     | {"flow": {"velocity": {"kind": "harmonic", "mean": 10.0, "amplitude": 5.0}}},
 }
 TINY["floquet"]["flow"]["velocity"]["frequency"] = 1000.0
+TINY["study"] = {
+    "base": {"kind": "simulation", "spec": TINY["simulation"]},
+    "cases": [{}, {"pipe.E": 8e9}],
+}
 
 
 def tiny_request(name: str) -> BaseModel:

@@ -9,7 +9,14 @@ from typing import Any
 
 import pytest
 
-from pipeflow.export import TABLES, ExportError, available_tables, table, to_csv, to_parquet
+from pipeflow.export import (
+    SIMULATION_TABLES,
+    ExportError,
+    available_tables,
+    table,
+    to_csv,
+    to_parquet,
+)
 from pipeflow.model import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
@@ -74,7 +81,7 @@ def test_eigenvalue_tables(result: dict[str, Any], name: str) -> None:
 
 
 def test_available_tables_and_errors(result: dict[str, Any]) -> None:
-    assert available_tables(result) == list(TABLES)
+    assert available_tables(result) == list(SIMULATION_TABLES)
     with pytest.raises(ExportError, match="unknown table 'nope'") as err:
         to_csv(result, "nope")
     assert err.value.field == "table"
@@ -88,7 +95,7 @@ def test_lines_end_with_crlf(result: dict[str, Any]) -> None:
     assert text.count("\r\n") == len(result["eigenvalues"]["t"]) + 1
 
 
-@pytest.mark.parametrize("name", list(TABLES))
+@pytest.mark.parametrize("name", SIMULATION_TABLES)
 def test_parquet_round_trips_every_table_with_units(result: dict[str, Any], name: str) -> None:
     """Parquet holds the CSV table's columns under the bare names, float64, bit-identical to
     the JSON floats, with the unit of the CSV header in each field's metadata."""

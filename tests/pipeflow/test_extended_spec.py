@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from pipeflow.model import PAPER_PIPE, Pipe
+from pipeflow.model import GROUPS, PAPER_PIPE, Pipe
 from pipeflow.schema.registry import STABILITY, computation_for, parse
 from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
+from pipeflow.schema.results import StabilityDimensionless
 from pipeflow.schema.simulation import SimulationSpec
-from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
+from pipeflow.schema.stability import PAPER_PIPE_JSON, BetaMapSweep, StabilitySpec
 from pipeflow.stability.core import nondimensional_pipe
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.maps import beta_map
@@ -157,14 +158,14 @@ def test_stability_spec_reproduces_paidoussis_damped_gravity_case() -> None:
 
 
 def test_beta_map_groups_match_the_dimensional_pipe() -> None:
-    """beta_map's groups (alpha, sigma, tip_mass_ratio, tip_inertia_ratio, hub_ratio) at one
+    """beta_map's groups (alpha, viscous_ratio, tip_mass_ratio, tip_inertia_ratio, hub_ratio) at
     beta give the same u_cr as critical_velocities on a dimensional pipe with those groups
     (the paper's E, I, L; M1, M2 from beta): the definitions of Pipe.dimensionless_groups are
     the ones the map uses. Tolerance 1e-7 in u (both locate the crossing to 1e-10 relative;
     the grids differ)."""
     groups = {
         "alpha": 2e-3,
-        "sigma": 0.1,
+        "viscous_ratio": 0.1,
         "tip_mass_ratio": 0.1,
         "tip_inertia_ratio": 1e-4,
         "hub_ratio": 0.5,
@@ -185,7 +186,7 @@ def test_beta_map_groups_match_the_dimensional_pipe() -> None:
         M1=(1 - beta) * mass,
         M2=beta * mass,
         kelvin_voigt=groups["alpha"] * ts,
-        viscous=groups["sigma"] * math.sqrt(ref.EI * mass) / L**2,
+        viscous=groups["viscous_ratio"] * math.sqrt(ref.EI * mass) / L**2,
         tip_mass=groups["tip_mass_ratio"] * mass * L,
         tip_inertia=groups["tip_inertia_ratio"] * mass * L**3,
         hub_radius=groups["hub_ratio"] * L,
@@ -207,6 +208,24 @@ def test_beta_map_refuses_bad_groups() -> None:
         nondimensional_pipe(0.5, {"alpha": -1.0})
     with pytest.raises(ValidationError):
         parse_sweep({"kind": "beta_map", "hub_ratio": -1.0})
+
+
+def test_group_fields_of_the_schemas_are_the_model_groups() -> None:
+    """One definition: the beta_map request and the stability result carry exactly the groups
+    of pipeflow.model.GROUPS, with their descriptions; the request still takes the former
+    name 'sigma' of viscous_ratio (it clashed with the growth rate sigma [1/s]), but not
+    both names at once (422: the extra 'sigma' is named)."""
+    fields = BetaMapSweep.model_fields
+    result = StabilityDimensionless.model_fields
+    for name, group in GROUPS.items():
+        assert (fields[name].description or "").startswith(group.description)
+        assert (result[name].description or "").startswith(group.description)
+    assert "sigma" not in fields and "sigma" not in result
+    old = parse_sweep({"kind": "beta_map", "sigma": 0.25})
+    assert isinstance(old, BetaMapSweep) and old.viscous_ratio == 0.25
+    assert old.canonical() == parse_sweep({"kind": "beta_map", "viscous_ratio": 0.25}).canonical()
+    with pytest.raises(ValidationError, match="sigma"):
+        parse_sweep({"kind": "beta_map", "sigma": 0.25, "viscous_ratio": 0.25})
 
 
 def test_beta_map_sweep_json_reports_groups_and_plane() -> None:

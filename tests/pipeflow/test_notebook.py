@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from pipeflow.export import TABLES, table
+from pipeflow.export import SIMULATION_TABLES, table
 from pipeflow.model import PAPER_PIPE
 from pipeflow.plots import PLOTS
 from pipeflow.profiles import Constant, polynomial
@@ -81,7 +81,7 @@ def test_dataset_holds_the_result_arrays_with_units(result: Result) -> None:
     assert float(ds["omega"].sel(mode=1).isel(eigen_t=0)) == result.frozen.omega[0, 0]
 
 
-@pytest.mark.parametrize("name", list(TABLES))
+@pytest.mark.parametrize("name", SIMULATION_TABLES)
 def test_dataframes_are_the_export_tables(result: Result, name: str) -> None:
     frame = result.to_dataframe(name)
     header, columns = table(result.to_dict(), name)

@@ -1,5 +1,6 @@
-"""Packaging: the numerical library and its schema need numpy, scipy and pydantic only; the
-service, the client and the plots are extras (pyproject.toml)."""
+"""Packaging: the numerical library and its schema need numpy, scipy, pydantic and rfc8785
+(the cache key, pipeflow.schema.keys) only; the service, the client and the plots are
+extras (pyproject.toml)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 #: modules of the extras, which ``import pipeflow`` and the library must not load
-EXTRAS = ("fastapi", "starlette", "uvicorn", "httpx", "matplotlib", "rfc8785", "pydantic_settings")
+EXTRAS = ("fastapi", "starlette", "uvicorn", "httpx", "matplotlib", "pydantic_settings")
 
 
 def test_library_imports_no_extra() -> None:
@@ -32,7 +33,7 @@ def test_library_imports_no_extra() -> None:
 def test_dependencies_and_extras() -> None:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     base = {d.split(">")[0].split("=")[0] for d in project["dependencies"]}
-    assert base == {"numpy", "scipy", "pydantic"}
+    assert base == {"numpy", "scipy", "pydantic", "rfc8785"}
     extras = project["optional-dependencies"]
     assert {"service", "client", "plots", "dev"} <= set(extras)
     assert any(d.startswith("fastapi") for d in extras["service"])

@@ -50,3 +50,16 @@ def test_split_covers_every_index_once() -> None:
                 assert len(chunks) <= 3 * 4
                 if n >= min_size:
                     assert all(len(c) >= min(min_size, n) or c is chunks[-1] for c in chunks)
+
+
+def test_split_with_max_size_bounds_every_chunk_on_any_host() -> None:
+    """``max_size`` (used by studies to report progress between chunks) cuts the serial
+    host's single chunk too, and never leaves a chunk above it on a wide host."""
+    assert parallel.split(10, max_size=4) == [range(0, 4), range(4, 8), range(8, 10)]
+    assert parallel.split(3, max_size=16) == [range(3)]
+    with parallel.hosting(_Reversed()):
+        for n in (1, 7, 100, 1001):
+            for max_size in (1, 3, 16):
+                chunks = parallel.split(n, max_size=max_size)
+                assert [i for c in chunks for i in c] == list(range(n))
+                assert max(len(c) for c in chunks) <= max_size

@@ -34,7 +34,7 @@ def test_sweep_kinds_are_the_kind_tags_of_the_sweep_models() -> None:
         for c in registry.computations_at(SWEEPS)
     }
     assert tags == set(SWEEP_KINDS)
-    assert len(registry.endpoints()) == 4  # simulations, compare, stability, sweeps
+    assert len(registry.endpoints()) == 5  # simulations, compare, stability, sweeps, studies
 
 
 def test_method_options_are_the_library_options() -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pipeflow.errors import PipeflowError
-from pipeflow.model import PAPER_PIPE
+from pipeflow.model import PAPER_PIPE, Loading, build_model
 from pipeflow.profiles import Constant, polynomial, table
 from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
 from pipeflow.simulation import Simulation, json_safe, simulate
@@ -243,3 +243,31 @@ def test_json_safe_float_lists_fast_path_matches_the_rule(data: Any) -> None:
     assert out == _element_wise_reference(data)
     if isinstance(data, list):
         assert out is not data
+
+
+def test_cma_exponents_are_computed_only_when_asked(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With time-varying coefficients (v = 0.4 t, auto = magnus) simulate() does not
+    decompose P(t)/t: nothing in the run needs the CMA exponents. The first use
+    (Result.exponents, to_dict) computes them once, and they are exactly (bit for bit) what
+    cma_exponents gives on the frozen branches, as before the deferral."""
+    import pipeflow.simulation as simulation
+
+    calls: list[int] = []
+    real = simulation.cma_exponents
+
+    def counted(*args: Any) -> Any:
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(simulation, "cma_exponents", counted)
+    sim = paper_sim(polynomial(0.0, 0.4), "auto", modes=4, t_end=0.2, samples=201)
+    r = simulate(sim)
+    assert r.method_used == "magnus" and calls == []
+    d = r.to_dict()
+    assert len(calls) == 1
+    assert r.to_dict()["cma_exponents"] == d["cma_exponents"] and len(calls) == 1
+    model = build_model(sim.pipe, sim.modes)
+    ref = real(model, Loading(sim.flow, sim.spin), r.eigen_t, r.frozen.xi[0])
+    np.testing.assert_array_equal(r.exponents.xi, ref.xi)
+    np.testing.assert_array_equal(r.exponents.confidence, ref.confidence)
+    assert [m["sigma"] for m in d["cma_exponents"]["modes"]] == ref.sigma.T.tolist()

@@ -29,7 +29,7 @@ def test_simulation_with_every_new_field(client: TestClient) -> None:
     doc = r.json()
     groups = doc["dimensionless"]
     assert groups["tip_mass_ratio"] > 0 and groups["hub_ratio"] == pytest.approx(0.4)
-    assert groups["alpha"] > 0 and groups["sigma"] > 0 and groups["tip_inertia_ratio"] > 0
+    assert groups["alpha"] > 0 and groups["viscous_ratio"] > 0 and groups["tip_inertia_ratio"] > 0
     assert max(doc["fundamental"]["sigma"]) < 0  # damped
     # the fields are part of the key: the paper's pipe is another computation
     plain = client.post("/v1/simulations", json=SMALL).json()

@@ -31,6 +31,7 @@ def test_operations_errors_and_example() -> None:
         "submitSimulationJob",
         "submitCompareJob",
         "submitSweep",
+        "submitStudy",
         "getJob",
         "cancelJob",
         "getResult",

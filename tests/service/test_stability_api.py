@@ -281,6 +281,21 @@ def test_every_sweep_kind_runs_as_a_job_with_plots(api: TestClient, kind: str) -
     assert again.json()["key"] == key
 
 
+def test_beta_map_takes_the_former_name_of_viscous_ratio(api: TestClient) -> None:
+    """The viscous group was 'sigma' before it was renamed viscous_ratio (sigma is the growth
+    rate): a request with the old name is the same computation (same key), and the result
+    reports viscous_ratio only."""
+    new = _sweep("beta_map") | {"viscous_ratio": 0.05}
+    r_old = api.post("/v1/sweeps", json=_sweep("beta_map") | {"sigma": 0.05})
+    r_new = api.post("/v1/sweeps", json=new)
+    assert r_old.status_code == r_new.status_code == 202, (r_old.text, r_new.text)
+    key = r_new.json()["key"]
+    assert r_old.json()["key"] == key
+    assert wait_job(api, key)["status"] == "succeeded"
+    groups = api.get(f"/v1/results/{key}").json()["groups"]
+    assert groups["viscous_ratio"] == 0.05 and "sigma" not in groups
+
+
 def test_sweep_numbers_survive_the_trip(api: TestClient) -> None:
     """Spot checks of the JSON against the library's conventions (SI units)."""
     key = api.post("/v1/sweeps", json=_sweep("campbell")).json()["key"]
@@ -353,6 +368,7 @@ def test_over_budget_map_is_refused_at_submission(api: TestClient) -> None:
         (_sweep("spin_map") | {"spin_points": 500}, "spin_points"),
         (_sweep("beta_map") | {"beta_range": [0.0, 0.5]}, "beta_range"),
         (_sweep("beta_map") | {"u_range": [-1.0, 5.0]}, "u_range"),
+        (_sweep("beta_map") | {"sigma": 0.1, "viscous_ratio": 0.1}, "sigma"),  # not both
         (_sweep("resonance_chart") | {"frequency_range": [0.0, 10.0]}, "frequency_range"),
         (_sweep("floquet") | {"flow": {"velocity": {"kind": "constant"}}}, "flow.velocity"),
         (_sweep("floquet") | {"flow": {"velocity": {"value": 1.0}}}, "flow.velocity"),

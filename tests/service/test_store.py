@@ -203,3 +203,53 @@ def test_a_result_read_without_remember_stays_out_of_memory(tmp_path: Path) -> N
     assert store._memory.get("a") is None
     assert store.get_result("a") == body
     assert store._memory.get("a") == body
+
+
+def test_batched_results_and_the_memo_over_them(tmp_path: Path) -> None:
+    """put_results/get_results: one transaction, one query; StoreMemo keeps piece results
+    (a study's case summaries) as rows of the kind its keys name, which no result key
+    (SHA-256 hex) can reach."""
+    from sqlalchemy import select
+
+    from service.store.memo import StoreMemo
+    from service.store.tables import results
+
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**6, memory_cache_bytes=0)
+    queries: list[str] = []
+
+    @event.listens_for(store.engine, "before_cursor_execute")
+    def _count(conn: object, cursor: object, statement: str, *args: object) -> None:
+        queries.append(statement)
+
+    memo = StoreMemo(store)
+    summaries = {f"study_case:{i:064x}": {"status": "ok", "peak": 1e-3 * i} for i in range(50)}
+    memo.put_many(summaries)
+    assert sum(s.lstrip().upper().startswith("INSERT") for s in queries) == 50
+    queries.clear()
+    keys = [*summaries, "study_case:" + "f" * 64]
+    assert memo.get_many(keys) == summaries  # the missing key is absent
+    selects = [s for s in queries if s.lstrip().upper().startswith("SELECT")]
+    assert len(selects) == 1 and " IN " in selects[0]  # one query for the whole batch
+    with store.engine.connect() as conn:
+        kinds = set(conn.execute(select(results.c.kind)).scalars())
+    assert kinds == {"study_case"}
+    assert store.get_result(f"{0:064x}") is None  # the bare case key holds no summary
+
+
+def test_the_memo_reports_storage_failures_without_failing_the_computation(
+    tmp_path: Path,
+) -> None:
+    from service.store.memo import StoreMemo
+
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**8, memory_cache_bytes=0)
+
+    @event.listens_for(store.engine, "connect")
+    def _cap(dbapi_conn: sqlite3.Connection, _: object) -> None:
+        dbapi_conn.execute("PRAGMA max_page_count = 20")
+
+    store.engine.dispose()
+    memo = StoreMemo(store)
+    big = {"study_case:a": {"blob": random.Random(0).randbytes(200_000).hex()}}
+    memo.put_many(big)  # logged, not raised
+    assert not store.healthy and store.last_full  # the store says why (readiness, 507)
+    assert memo.get_many(["study_case:a"]) == {}

@@ -1,0 +1,399 @@
+"""Request model of a design study: a base simulation or stability request and its cases.
+
+``POST /v1/studies`` takes :class:`StudySpec`: a ``base`` (``{"kind": "simulation" |
+"stability", "spec": <that computation's request>}``) and either ``cases``, a list of
+overrides (``[{"pipe.E": 7e9}, {"pipe.E": 8e9, "pipe.L": 0.03}]``), or ``grid``, a
+cartesian product of values per field (``{"pipe.L": [0.02, 0.025], "pipe.M2": [...]}``;
+JSON objects are unordered, so the cases follow the fields sorted by path, the last
+varying fastest: any order of the fields is the same study, with the same key).  An
+override names a numeric field of the base request by its dotted JSON path, list items by
+their index (``flow.velocity.coefficients.1``, ``velocity_range.1``); its value is a JSON
+number in the field's own unit (SI, as the field's description states).  Nothing is ever
+evaluated: a path is looked up in the base request, a value is a number.
+
+Validation happens before any work, so a bad study is one 422 naming its field:
+
+- a path that is not a field of the base request, or not a numeric one, names the
+  override (``cases.3.pipe.X``, ``grid.pipe.X``);
+- more than :data:`MAX_CASES` cases (list length or grid product) names ``cases`` /
+  ``grid``;
+- every case is validated by the base computation's own model; an invalid value names the
+  case's override (``cases.3.pipe.E``, ``grid.pipe.L.2``: the JSON paths of the offending
+  number in the study body), and the message says which field of the case and why.
+
+Each case is then a standalone request of the base kind (:meth:`StudySpec.expand`); its
+cost is bounded by that model's own bounds, so a study costs at most :data:`MAX_CASES`
+times the base computation's bound.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import math
+import re
+import typing
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PlainValidator,
+    ValidationError,
+    WithJsonSchema,
+    model_validator,
+)
+from pydantic_core import InitErrorDetails, PydanticCustomError
+
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec, StrictModel
+from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
+
+#: bound on the cases of one study (list length or grid product) [-]
+MAX_CASES = 10_000
+#: bound on the fields one case overrides, and on the axes of a grid [-]
+MAX_OVERRIDES = 16
+#: the base computations a study can vary, by their request model
+BASE_MODELS: dict[str, type[StrictModel]] = {
+    "simulation": SimulationSpec,
+    "stability": StabilitySpec,
+}
+
+_PATH = r"^[A-Za-z_][A-Za-z0-9_]*(\.([A-Za-z_][A-Za-z0-9_]*|[0-9]+))*$"
+Path = Annotated[
+    str,
+    Field(
+        pattern=_PATH,
+        max_length=200,
+        description="Dotted JSON path of a numeric field of the base request, list items by "
+        "index: 'pipe.E' [Pa], 'rotation.omega0.value' [rad/s], "
+        "'flow.velocity.coefficients.1' [m/s^2].",
+    ),
+]
+
+
+def _number(value: Any) -> int | float:
+    # JSON numbers only: a string is never evaluated, a boolean is not 1
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError("an override is a JSON number (in the field's SI unit)")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError("an override must be finite")
+    return value
+
+
+Number = Annotated[
+    int | float,
+    PlainValidator(_number),
+    WithJsonSchema({"type": "number", "description": "Value in the field's own SI unit."}),
+]
+
+
+class SimulationBase(StrictModel):
+    kind: Literal["simulation"] = Field(description="The base computation: a simulation.")
+    spec: SimulationSpec = Field(description="The simulation every case starts from.")
+
+
+class StabilityBase(StrictModel):
+    kind: Literal["stability"] = Field(
+        description="The base computation: a critical-velocity analysis."
+    )
+    spec: StabilitySpec = Field(description="The analysis every case starts from.")
+
+
+BaseRequest = Annotated[SimulationBase | StabilityBase, Field(discriminator="kind")]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One case of a study: its position, what it overrides, and its own request."""
+
+    index: int
+    overrides: dict[str, int | float]
+    request: StrictModel
+
+
+def _resolve(tree: Any, path: str) -> tuple[bool, Any]:
+    """``(found, value)`` of ``path`` (dotted, list items by index) in a JSON tree."""
+    node = tree
+    for part in path.split("."):
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            return False, None
+    return True, node
+
+
+def _assign(sparse: dict[str, Any], full: dict[str, Any], path: str, value: Any) -> None:
+    """Set ``path`` in ``sparse`` (the request as given), copying from ``full`` (the request
+    with its defaults) the parts that were left to their defaults, e.g. a profile's kind."""
+    parts = path.split(".")
+    node: Any = sparse
+    ref: Any = full
+    for part in parts[:-1]:
+        key: Any = int(part) if isinstance(ref, list) else part
+        ref = ref[key]
+        if isinstance(node, dict) and key not in node:
+            node[key] = copy.deepcopy(ref)
+        node = node[key]
+    last = parts[-1]
+    node[int(last) if isinstance(node, list) else last] = value
+
+
+def _error(kind: str, loc: tuple[Any, ...], message: str, value: Any) -> InitErrorDetails:
+    return InitErrorDetails(
+        type=PydanticCustomError(kind, message),
+        loc=loc,
+        input=value,
+    )
+
+
+def _case_error(exc: ValidationError) -> tuple[str, str]:
+    """The first error of a case's own validation: ``(field of the case, message)``."""
+    err = exc.errors()[0]
+    loc = [p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS)]
+    return ".".join(str(p) for p in loc), str(err["msg"]).removeprefix("Value error, ")
+
+
+#: discriminator values pydantic inserts into error locations of tagged unions
+_UNION_TAGS = ("constant", "polynomial", "harmonic", "table")
+_UNIT = re.compile(r"\[([^\],]+)\]")
+
+
+class StudySpec(StrictModel):
+    """A design study: a base request and a list (``cases``) or cartesian grid (``grid``) of
+    overrides of its numeric fields; every case runs as the base computation would."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "base": {
+                        "kind": "simulation",
+                        "spec": {
+                            **PAPER_EXAMPLE,
+                            "modes": 4,
+                            "time": {"t_end": 0.2, "samples": 101},
+                        },
+                    },
+                    "grid": {
+                        "pipe.M2": [1.0e-5, 1.6485e-5],
+                        "rotation.omega0.value": [50.0, 100.0, 150.0],
+                    },
+                }
+            ]
+        },
+    )
+
+    base: BaseRequest = Field(description="The request every case starts from, with its kind.")
+    cases: list[Annotated[dict[Path, Number], Field(max_length=MAX_OVERRIDES)]] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_CASES,
+        description="List mode: one object per case, field path -> value in that field's SI "
+        f"unit (e.g. {{'pipe.E': 7e9}} [Pa]); an empty object is the base itself. At most "
+        f"{MAX_CASES} cases.",
+    )
+    grid: dict[Path, Annotated[list[Number], Field(min_length=1, max_length=MAX_CASES)]] | None = (
+        Field(
+            None,
+            min_length=1,
+            max_length=MAX_OVERRIDES,
+            description="Grid mode: field path -> the values it takes, each in that field's SI "
+            "unit (e.g. {'pipe.L': [0.02, 0.025]} [m]); the cases are every combination, "
+            "in the order of the fields sorted by path, the last varying fastest. The "
+            f"product of the lengths is at most {MAX_CASES}.",
+        )
+    )
+
+    @property
+    def base_kind(self) -> str:
+        """The base computation's name (``simulation`` or ``stability``)."""
+        return self.base.kind
+
+    def paths(self) -> list[str]:
+        """The overridden fields, in order of first appearance (the table's columns)."""
+        if self.grid is not None:
+            return sorted(self.grid)
+        return list(dict.fromkeys(p for case in self.cases or [] for p in case))
+
+    def count(self) -> int:
+        """Number of cases [-]."""
+        if self.grid is not None:
+            return math.prod(len(v) for v in self.grid.values())
+        return len(self.cases or [])
+
+    def overrides(self) -> Iterator[dict[str, int | float]]:
+        """Each case's overrides, in case order."""
+        if self.grid is not None:
+            axes = sorted(self.grid.items())
+            for values in itertools.product(*(v for _, v in axes)):
+                yield {path: value for (path, _), value in zip(axes, values, strict=True)}
+        else:
+            yield from (dict(c) for c in self.cases or [])
+
+    def expand(self) -> list[Case]:
+        """Every case as a validated request of the base kind (raises ValidationError naming
+        the study's field, as :class:`StudySpec` validation does)."""
+        model = BASE_MODELS[self.base_kind]
+        sparse = self.base.spec.model_dump(mode="json", exclude_unset=True)
+        full = self.base.spec.model_dump(mode="json")
+        out = []
+        for i, overrides in enumerate(self.overrides()):
+            data = copy.deepcopy(sparse)
+            for path, value in overrides.items():
+                _assign(data, full, path, value)
+            try:
+                request = model.model_validate(data)
+            except ValidationError as exc:
+                raise self._invalid_case(i, overrides, exc) from None
+            out.append(Case(i, overrides, request))
+        return out
+
+    def _invalid_case(
+        self, i: int, overrides: dict[str, int | float], exc: ValidationError
+    ) -> ValidationError:
+        field, message = _case_error(exc)
+        where = ", ".join(f"{p} = {v!r}" for p, v in overrides.items()) or "no overrides"
+        text = f"case {i} ({where}): {field or 'the request'}: {message}"
+        loc: tuple[Any, ...]
+        if self.grid is not None:
+            loc = ("grid",)
+            if field in overrides:
+                loc = ("grid", field, self._grid_index(i)[field])
+        else:
+            loc = ("cases", i, field) if field in overrides else ("cases", i)
+        value = overrides.get(field)
+        return ValidationError.from_exception_data(
+            "StudySpec", [_error("case_invalid", loc, text, value)]
+        )
+
+    def _grid_index(self, i: int) -> dict[str, int]:
+        """Case ``i`` of the grid: the index of its value along each field."""
+        out: dict[str, int] = {}
+        for path, values in reversed(sorted((self.grid or {}).items())):
+            i, out[path] = divmod(i, len(values))
+        return out
+
+    @model_validator(mode="after")
+    def _valid(self) -> StudySpec:
+        if (self.cases is None) == (self.grid is None):
+            raise ValueError(
+                "cases: give exactly one of cases (a list of overrides) and grid (values per "
+                "field, combined as a cartesian product)"
+            )
+        if self.grid is not None and self.count() > MAX_CASES:
+            sizes = " x ".join(str(len(v)) for _, v in sorted(self.grid.items()))
+            raise ValueError(f"grid: {sizes} = {self.count()} cases, more than {MAX_CASES}")
+        self._check_paths()
+        return self
+
+    def check(self) -> None:
+        """Validate every case by the base model (raises ValidationError naming the case's
+        field, as :meth:`expand`).  Not part of model validation: at ~80 us per case it
+        costs up to ~0.8 s for 10,000 cases, more than a request's parsing may cost on the
+        service's event loop, so :attr:`~pipeflow.schema.registry.Computation.check` runs it
+        (the service in a thread, before the job is accepted)."""
+        self.expand()
+
+    def _check_paths(self) -> None:
+        full = self.base.spec.model_dump(mode="json")
+        where: dict[str, tuple[Any, ...]] = {}
+        if self.grid is not None:
+            where = {p: ("grid", p) for p in self.grid}
+        else:
+            for i, case in enumerate(self.cases or []):
+                for p in case:
+                    where.setdefault(p, ("cases", i, p))
+        errors = []
+        for path, loc in where.items():
+            found, value = _resolve(full, path)
+            if not found:
+                message = f"{path} is not a field of the base {self.base_kind} request"
+            elif isinstance(value, bool) or not isinstance(value, int | float | None):
+                what = type(value).__name__.replace("dict", "object").replace("list", "array")
+                message = f"{path} is not a numeric field (it is {what} in the base request)"
+            else:
+                continue
+            errors.append(_error("override_path", loc, message, path))
+        if errors:
+            raise ValidationError.from_exception_data("StudySpec", errors)
+
+    def canonical(self) -> dict[str, Any]:
+        """Normalised form for the study's key (and a valid request again: a job is
+        recovered from it): the base's own normal form, then the cases or the grid."""
+        out: dict[str, Any] = {
+            "base": {"kind": self.base_kind, "spec": self.base.spec.canonical()},
+        }
+        if self.grid is not None:
+            out["grid"] = {path: list(values) for path, values in self.grid.items()}
+        else:
+            out["cases"] = [dict(c) for c in self.cases or []]
+        return out
+
+
+def field_unit(model: type[BaseModel], path: str) -> str:
+    """The SI unit of the numeric field ``path`` of ``model``, read from the descriptions:
+    the field's own ``[unit]``; for a profile's value, mean, amplitude or table values the
+    profile's (the quantity's) unit; ``(unit) s^-k`` for a polynomial's coefficient k;
+    ``-`` when the field states none (counts)."""
+    chain = _descriptions(model, path.split("."))
+    leaf = path.split(".")
+    own = _UNIT.findall(chain[-1]) if chain else []
+    if own:
+        return own[0]
+    if len(leaf) >= 2 and leaf[-2] == "coefficients" and leaf[-1].isdigit():
+        unit = _quantity_unit(chain[:-1])
+        k = int(leaf[-1])
+        return unit if k == 0 or unit == "-" else f"({unit}) s^-{k}"
+    if leaf[-1] in ("value", "mean", "amplitude") or (len(leaf) >= 2 and leaf[-2] == "values"):
+        return _quantity_unit(chain[:-1])
+    return "-"
+
+
+def _quantity_unit(chain: Sequence[str]) -> str:
+    for text in reversed(chain):
+        found = _UNIT.findall(text)
+        if found:
+            return found[0]
+    return "-"
+
+
+def _descriptions(model: type[BaseModel], parts: list[str]) -> list[str]:
+    """The descriptions of the fields along ``parts`` (profiles: their variants' fields)."""
+    out: list[str] = []
+    models: list[type[BaseModel]] = [model]
+    for part in parts:
+        if part.isdigit():
+            continue
+        info = next((m.model_fields[part] for m in models if part in m.model_fields), None)
+        if info is None:
+            break
+        out.append(info.description or "")
+        models = _model_types(info.annotation)
+    return out
+
+
+def _model_types(annotation: Any) -> list[type[BaseModel]]:
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    found: list[type[BaseModel]] = []
+    for arg in typing.get_args(annotation):
+        found += _model_types(arg)
+    return found
+
+
+#: a small study of the paper's example (6 cases, 4 modes, 0.2 s each)
+STUDY_EXAMPLE: dict[str, Any] = StudySpec.model_json_schema()["examples"][0]
+
+#: a stability study: critical velocity of the paper's pipe at four spins
+STABILITY_STUDY_EXAMPLE: dict[str, Any] = {
+    "base": {
+        "kind": "stability",
+        "spec": {"pipe": PAPER_PIPE_JSON, "modes": 6, "velocity_range": [0.0, 60.0]},
+    },
+    "grid": {"rotation.omega0.value": [0.0, 100.0, 200.0, 400.0]},
+}

@@ -1,0 +1,293 @@
+"""Design studies: many cases of one simulation or stability analysis, as one table.
+
+:func:`run_study` takes a validated :class:`~pipeflow.schema.study.StudySpec`, expands it
+into its cases (each a standalone request of the base kind, keyed by
+:func:`~pipeflow.schema.keys.canonical_key` exactly as that request would be on its own),
+and runs the cases the current memo (:func:`pipeflow.parallel.current_memo`) does not
+already hold, in chunks of at most :data:`CHUNK_CASES` cases fanned out on the current
+host (:func:`pipeflow.parallel.fan_out`); cases with the same key are computed once.
+Each case is run by its base computation's ``execute`` (the registry's, the same call as
+a standalone request) and reduced on the spot to a summary (a few numbers, not its time
+histories), which is what the memo stores.  One failing case does not fail the study: its
+row says ``failed`` with the problem's type, field and detail.
+
+Progress is exact: the fraction of cases done (served by the memo or computed), reported
+after the memo look-up and after each chunk.
+
+The result is a table (``columns`` with their units, one ``row`` per case in case order)
+and ``counts``; :mod:`pipeflow.export` writes it as the ``study`` CSV table.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from numpy.linalg import LinAlgError
+from pydantic import BaseModel
+
+from pipeflow import parallel
+from pipeflow.errors import PipeflowError
+from pipeflow.schema.keys import canonical_key
+from pipeflow.schema.study import BASE_MODELS, StudySpec, field_unit
+
+Progress = Callable[[float], None]
+
+#: most cases in one fanned-out piece (amortises a dispatch of ~10 ms over several cases,
+#: and bounds the cases between two progress reports) [-]
+CHUNK_CASES = 16
+#: most keys in one memo look-up [-]
+MEMO_BATCH = 500
+#: the memo's name for per-case summaries: memo key = "study_case:<case key>"
+MEMO_KIND = "study_case"
+
+
+def memo_key(case_key: str) -> str:
+    """The memo key of a case's summary (not the case's own key: the full result of the
+    standalone request lives under that one)."""
+    return f"{MEMO_KIND}:{case_key}"
+
+
+@dataclass(frozen=True)
+class Column:
+    """A column of the study table: name, SI unit (``-``: a count or ratio; ``""``: text
+    or a flag) and what it holds."""
+
+    name: str
+    unit: str
+    description: str
+
+    def to_dict(self) -> dict[str, str]:
+        return {"name": self.name, "unit": self.unit, "description": self.description}
+
+
+LEADING = (
+    Column(
+        "index",
+        "-",
+        "Position of the case in the study (list order; grid: the fields sorted by "
+        "path, the last varying fastest).",
+    ),
+    Column("key", "", "The case's own cache key: the key of the standalone request."),
+    Column("status", "", "ok, or failed (the error_* columns say why)."),
+    Column("cached", "", "True when the summary came from the cache, not computed now."),
+)
+TRAILING = (
+    Column(
+        "error_type",
+        "",
+        "Failed cases: the problem type (e.g. budget-exceeded, invalid-input, numerical-range).",
+    ),
+    Column("error_field", "", "Failed cases: the field of the case's own request at fault."),
+    Column("error_detail", "", "Failed cases: what went wrong."),
+)
+#: the summary columns of each base computation
+SUMMARY_COLUMNS: dict[str, tuple[Column, ...]] = {
+    "simulation": (
+        Column("peak_tip_displacement", "m", "max |u(L, t)| over the output times."),
+        Column(
+            "final_sigma_1",
+            "1/s",
+            "Damping sigma of the fundamental (branch 1 of the "
+            "frozen spectrum) at the last output time t_end; > 0: growing.",
+        ),
+        Column("final_omega_1", "rad/s", "Frequency omega of the fundamental at t_end."),
+        Column("method_used", "", "The solver that ran (what 'auto' chose)."),
+        Column("result_status", "", "The simulation's status: ok, diverging or overflow."),
+    ),
+    "stability": (
+        Column("critical_velocity", "m/s", "First loss of stability in the range (null: none)."),
+        Column("critical_mode", "-", "The mode that loses stability there."),
+        Column("critical_kind", "", "flutter or divergence."),
+        Column("stable_throughout", "", "Stable over the whole v >= 0 part of the range."),
+    ),
+}
+
+
+def _computation(kind: str) -> Any:
+    # deferred: the registry registers the study computation, which runs this module
+    from pipeflow.schema.registry import COMPUTATIONS
+
+    return COMPUTATIONS[kind]
+
+
+def _peak(values: Sequence[float | None]) -> float | None:
+    finite = [abs(v) for v in values if v is not None]
+    return max(finite) if finite else None
+
+
+def _last(values: Sequence[float | None]) -> float | None:
+    return values[-1] if values else None
+
+
+def summarise(kind: str, result: dict[str, Any]) -> dict[str, Any]:
+    """The summary of a case's result (the JSON of its ``execute``), by column name."""
+    if kind == "simulation":
+        fundamental = result["fundamental"]
+        return {
+            "peak_tip_displacement": _peak(result["tip_displacement"]),
+            "final_sigma_1": _last(fundamental["sigma"]),
+            "final_omega_1": _last(fundamental["omega"]),
+            "method_used": result["method_used"],
+            "result_status": result["status"],
+        }
+    critical = result["critical_velocity"]
+    first = next(
+        (c for c in result["crossings"] if c["direction"] == "loss" and c["velocity"] == critical),
+        None,
+    )
+    return {
+        "critical_velocity": critical,
+        "critical_mode": first["mode"] if first else None,
+        "critical_kind": first["kind"] if first else None,
+        "stable_throughout": result["stable_throughout"],
+    }
+
+
+def _failure(error_type: str, field: str | None, detail: str) -> dict[str, Any]:
+    return {"error_type": error_type, "error_field": field, "error_detail": detail}
+
+
+def run_case(kind: str, request: BaseModel) -> dict[str, Any]:
+    """Run one case through its base computation and summarise it: ``{"status": "ok",
+    **summary}`` or ``{"status": "failed", error_type, error_field, error_detail}``."""
+    try:
+        result = _computation(kind).execute(request)
+    except PipeflowError as exc:
+        return {"status": "failed", **_failure(exc.slug, exc.field, exc.message)}
+    except (ArithmeticError, LinAlgError) as exc:
+        return {
+            "status": "failed",
+            **_failure(
+                "numerical-range",
+                None,
+                f"the inputs take the computation out of the range of double precision "
+                f"({type(exc).__name__}: {exc})",
+            ),
+        }
+    except Exception as exc:  # a bug: reported in the row, not memoised (see run_study)
+        return {
+            "status": "failed",
+            **_failure("internal", None, f"internal error: {type(exc).__name__}: {exc}"),
+        }
+    return {"status": "ok", **summarise(kind, result)}
+
+
+def run_cases(piece: tuple[str, Sequence[BaseModel]]) -> list[dict[str, Any]]:
+    """The fanned-out piece: ``(kind, requests)`` -> their summaries (:func:`run_case`)."""
+    kind, requests = piece
+    return [run_case(kind, r) for r in requests]
+
+
+def _memoised(memo: parallel.Memo | None, keys: Sequence[str]) -> dict[str, dict[str, Any]]:
+    if memo is None:
+        return {}
+    found: dict[str, dict[str, Any]] = {}
+    for start in range(0, len(keys), MEMO_BATCH):
+        batch = keys[start : start + MEMO_BATCH]
+        stored = memo.get_many([memo_key(k) for k in batch])
+        found.update({k: stored[memo_key(k)] for k in batch if memo_key(k) in stored})
+    return found
+
+
+def _closing(it: Iterator[Any]) -> Iterator[Any]:
+    try:
+        yield from it
+    finally:
+        close = getattr(it, "close", None)
+        if callable(close):
+            close()  # abandon the pieces not yet finished (cancel, runtime limit)
+
+
+def run_study(spec: StudySpec, progress: Progress | None = None) -> dict[str, Any]:
+    """Every case of ``spec`` summarised, as a table (see the module docstring)."""
+    kind = spec.base_kind
+    cases = spec.expand()
+    total = len(cases)
+    keys = [canonical_key(kind, case.request.canonical()) for case in cases]
+    # one computation per distinct key (cases that normalise alike share it)
+    first: dict[str, int] = {}
+    multiplicity: dict[str, int] = {}
+    for i, key in enumerate(keys):
+        first.setdefault(key, i)
+        multiplicity[key] = multiplicity.get(key, 0) + 1
+
+    memo = parallel.current_memo()
+    summaries = _memoised(memo, list(first))
+    cached = set(summaries)
+    done = sum(multiplicity[k] for k in cached)
+    if progress is not None:
+        progress(done / total)
+
+    todo = [k for k in first if k not in cached]
+    chunks = parallel.split(len(todo), max_size=CHUNK_CASES)
+    pieces = [(kind, [cases[first[todo[j]]].request for j in chunk]) for chunk in chunks]
+    for c, results in _closing(parallel.fan_out(run_cases, pieces)):
+        chunk_keys = [todo[j] for j in chunks[c]]
+        summaries.update(zip(chunk_keys, results, strict=True))
+        if memo is not None:
+            keep = {
+                memo_key(k): s
+                for k, s in zip(chunk_keys, results, strict=True)
+                if s.get("error_type") != "internal"
+            }
+            if keep:
+                memo.put_many(keep)
+        done += sum(multiplicity[k] for k in chunk_keys)
+        if progress is not None:
+            progress(done / total)
+    return _table(spec, cases, keys, summaries, cached, computed=len(todo))
+
+
+def columns(spec: StudySpec) -> list[Column]:
+    """The columns of ``spec``'s table: leading, one per overridden field, the summary of
+    the base kind, then the error columns."""
+    model = BASE_MODELS[spec.base_kind]
+    overrides = [
+        Column(path, field_unit(model, path), f"The case's {path} (null: the base's).")
+        for path in spec.paths()
+    ]
+    return [*LEADING, *overrides, *SUMMARY_COLUMNS[spec.base_kind], *TRAILING]
+
+
+def _table(
+    spec: StudySpec,
+    cases: Sequence[Any],
+    keys: Sequence[str],
+    summaries: dict[str, dict[str, Any]],
+    cached: set[str],
+    computed: int,
+) -> dict[str, Any]:
+    cols = columns(spec)
+    paths = spec.paths()
+    metrics = [c.name for c in (*SUMMARY_COLUMNS[spec.base_kind], *TRAILING)]
+    rows = []
+    for case, key in zip(cases, keys, strict=True):
+        s = summaries[key]
+        rows.append(
+            [
+                case.index,
+                key,
+                s["status"],
+                key in cached,
+                *(case.overrides.get(p) for p in paths),
+                *(s.get(m) for m in metrics),
+            ]
+        )
+    failed = sum(1 for r in rows if r[2] == "failed")
+    warnings = [f"{failed} of {len(rows)} cases failed (see error_detail)"] if failed else []
+    return {
+        "base_kind": spec.base_kind,
+        "overrides": paths,
+        "columns": [c.to_dict() for c in cols],
+        "rows": rows,
+        "counts": {
+            "total": len(rows),
+            "ok": len(rows) - failed,
+            "failed": failed,
+            "cached": sum(1 for k in keys if k in cached),
+            "computed": computed,
+        },
+        "warnings": warnings,
+    }
