@@ -189,7 +189,7 @@ class HitFastPath:
         ):
             await self.app(scope, receive, send)
             return
-        headers = dict(scope["headers"])
+        headers = dict(reversed(scope["headers"]))  # the first of repeated headers, as Starlette
         declared = headers.get(b"content-length")
         ctype = headers.get(b"content-type")
         accept = headers.get(b"accept")
