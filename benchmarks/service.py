@@ -16,11 +16,16 @@ each row against a reference measured in the same run:
   each request a distinct key by a 1e-9 relative change of u0), vs ``scipy.signal.lsim`` of
   the same state matrix and initial state called locally, and vs the library call
   ``simulate()`` of the same spec (what the worker runs: solve, error estimate, frozen
-  spectrum; the difference is the service's own cost);
-- cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec;
-- the first cold request after start (a fresh worker) vs the later ones;
+  spectrum; the difference is the service's own cost), called after the requests;
+- cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec
+  (the target), and vs ``simulate().to_dict()``, the same document the service sends;
+- each worker's first cold request after start (told by the worker pid of the
+  computation's log line) vs the later ones;
 - mixed load of 32 Python clients (90% hits, 10% misses): errors and the RSS of the server
-  and its workers at 10% and at 100% of the run.
+  and its workers at 10% and at 100% of the run (also split: server process, workers).
+
+The cold rows also give the computation's own time in the worker (``duration_ms`` of its
+``computation finished`` log line): the rest is the service's (HTTP, store, Dask dispatch).
 
 Prints the table and writes it, with the machine and the settings, as a section of
 ``benchmarks/RESULTS.md`` (``--out``), replacing a section of the same label.
@@ -30,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import importlib.util
 import json
 import os
 import platform
@@ -37,12 +43,11 @@ import random
 import re
 import shutil
 import socket
-import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -152,6 +157,11 @@ def server(data_dir: Path, log: Path, env: dict[str, str]) -> Iterator[tuple[str
 
 def rss_bytes(pid: int) -> int:
     """Resident memory of ``pid`` and all its descendants [bytes] (from /proc)."""
+    return sum(_tree_rss(pid).values())
+
+
+def _tree_rss(pid: int) -> dict[int, int]:
+    """pid -> resident memory [bytes] of ``pid`` and all its descendants (from /proc)."""
     children: dict[int, list[int]] = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
@@ -162,7 +172,7 @@ def rss_bytes(pid: int) -> int:
             continue
         ppid = int(stat.rsplit(")", 1)[1].split()[1])
         children.setdefault(ppid, []).append(int(entry.name))
-    total, todo = 0, [pid]
+    out, todo = {}, [pid]
     while todo:
         p = todo.pop()
         todo.extend(children.get(p, []))
@@ -172,8 +182,8 @@ def rss_bytes(pid: int) -> int:
             continue
         m = re.search(r"VmRSS:\s+(\d+) kB", status)
         if m:
-            total += int(m.group(1)) * 1024
-    return total
+            out[p] = int(m.group(1)) * 1024
+    return out
 
 
 # -- measurements ----------------------------------------------------------------------------
@@ -192,18 +202,56 @@ def timed_post(
 
 def cold_requests(
     client: httpx.Client, url: str, spec: dict[str, Any], n: int, offset: int
-) -> list[float]:
-    times = []
+) -> tuple[list[float], list[str]]:
+    """``n`` cold requests one after the other: their times [s] and keys."""
+    times, keys = [], []
     for i in range(n):
         dt, r = timed_post(client, url + "/v1/simulations", variant(spec, offset + i))
         if r.headers.get("X-Cache") != "MISS":
             raise RuntimeError("a cold request was answered from the cache")
         times.append(dt)
-    return times
+        keys.append(r.json()["key"])
+    return times, keys
 
 
-def local_lsim(spec: dict[str, Any], repeats: int) -> float:
-    """Median time of ``scipy.signal.lsim`` of the spec's (constant) state equation [s]."""
+def log_records(log: Path) -> list[dict[str, Any]]:
+    """The JSON lines of the server's log (its workers' included)."""
+    out = []
+    for line in log.read_text().splitlines():
+        if line.startswith("{"):
+            try:
+                out.append(json.loads(line))
+            except ValueError:
+                continue
+    return out
+
+
+def computations(records: list[dict[str, Any]]) -> dict[str, tuple[int, float]]:
+    """key -> (worker pid, duration [s]) of each computation the workers logged."""
+    return {
+        r["key"]: (r["pid"], r["duration_ms"] / 1e3)
+        for r in records
+        if r.get("message") == "computation finished" and "key" in r
+    }
+
+
+def process_rss(pid: int) -> dict[str, int]:
+    """RSS [bytes] of the server process (``server``) and of each Dask worker process."""
+    out = {"server": 0, "workers": 0}
+    for p, rss in _tree_rss(pid).items():
+        try:
+            cmd = Path(f"/proc/{p}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if p == pid:
+            out["server"] = rss
+        elif b"spawn_main" in cmd:
+            out["workers"] += rss
+    return out
+
+
+def lsim_timer(spec: dict[str, Any]) -> Callable[[], float]:
+    """One timed ``scipy.signal.lsim`` of the spec's (constant) state equation [s]."""
     sim = SimulationSpec.model_validate(spec).to_simulation()
     model = build_model(sim.pipe, sim.modes, sim.quadrature_order)
     S = model.state_matrix(Loading(sim.flow, sim.spin).coefficients(np.zeros(1)))[0]
@@ -212,23 +260,34 @@ def local_lsim(spec: dict[str, Any], repeats: int) -> float:
     t = np.linspace(0.0, sim.t_end, sim.samples)
     n = S.shape[0]
     system = signal.StateSpace(S, np.zeros((n, 1)), np.eye(n), np.zeros((n, 1)))
-    times = []
-    for _ in range(repeats):
+
+    def once() -> float:
         t0 = time.perf_counter()
         signal.lsim(system, np.zeros(t.size), t, X0=z0)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        return time.perf_counter() - t0
+
+    return once
 
 
-def local_simulate(spec: dict[str, Any], repeats: int) -> float:
-    """Median time of the library call ``simulate()`` of the spec [s]."""
+def simulate_timer(spec: dict[str, Any], document: bool = False) -> Callable[[], float]:
+    """One timed library call ``simulate()`` of the spec [s]; with ``document``,
+    ``simulate().to_dict()``: the same result document the service sends (simulate()
+    defers the CMA exponents to their first use, which to_dict() is)."""
     sim = SimulationSpec.model_validate(spec).to_simulation()
-    times = []
-    for _ in range(repeats):
+
+    def once() -> float:
         t0 = time.perf_counter()
-        simulate(sim)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        result = simulate(sim)
+        if document:
+            result.to_dict()
+        return time.perf_counter() - t0
+
+    return once
+
+
+def median_time(once: Callable[[], float], repeats: int) -> float:
+    """Median of ``repeats`` calls of a timer [s]."""
+    return pct([once() for _ in range(repeats)], 50)
 
 
 def one_client_hits(client: httpx.Client, url: str, spec: dict[str, Any], n: int) -> dict[str, Any]:
@@ -309,6 +368,7 @@ async def mixed_load(
         for spec in stored:
             await client.post("/v1/simulations", json=spec)
         rss["start"] = rss_bytes(pid)
+        parts: dict[str, dict[str, int]] = {"start": process_rss(pid)}
         rng = random.Random(12)
         end = time.monotonic() + seconds
 
@@ -338,10 +398,12 @@ async def mixed_load(
         async def sample_rss() -> None:
             await asyncio.sleep(0.1 * seconds)
             rss["at_10pct"] = rss_bytes(pid)
+            parts["at_10pct"] = process_rss(pid)
 
         await asyncio.gather(sample_rss(), *(one() for _ in range(clients)))
         rss["end"] = rss_bytes(pid)
-    return stats | {"rss": rss, "error_reasons": reasons}
+        parts["end"] = process_rss(pid)
+    return stats | {"rss": rss, "rss_by_process": parts, "error_reasons": reasons}
 
 
 # -- the run ---------------------------------------------------------------------------------
@@ -378,18 +440,36 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             httpx.Client(timeout=120) as client,
         ):
             # first: cold requests on fresh workers (the server only answered /readyz)
-            cold = cold_requests(client, url, LTI, plan.cold + 2, 0)
-            first, later = cold[:2], cold[2:]
-            lsim = local_lsim(LTI, max(5, plan.cold))
-            lti_lib = local_simulate(LTI, max(3, plan.cold // 3))
+            cold, keys = cold_requests(client, url, LTI, plan.cold + 2, 0)
+            # each worker's first computation, told by the pid in its log line (the log
+            # handlers flush every record)
+            done = computations(log_records(work / "server.log"))
+            seen: set[int] = set()
+            first_idx = []
+            for i, key in enumerate(keys):
+                if key in done and done[key][0] not in seen:
+                    seen.add(done[key][0])
+                    first_idx.append(i)
+            if not first_idx:  # no worker log lines: the first two
+                first_idx = [0, 1]
+            first = [cold[i] for i in first_idx]
+            later = [t for i, t in enumerate(cold) if i not in first_idx]
+            in_worker = [done[k][1] for i, k in enumerate(keys) if k in done and i not in first_idx]
+            # the local references after the requests, not interleaved with them: the
+            # benchmark's BLAS threads spin for a while after each call and slowed the
+            # worker's next request (cold LTI p50 42 -> 66 ms when interleaved)
+            lsim = median_time(lsim_timer(LTI), max(5, plan.cold))
+            lti_lib = median_time(simulate_timer(LTI), max(3, plan.cold // 3))
             lti_p50 = pct(later, 50)
+            worker_p50 = pct(in_worker, 50)
             rows.append(
                 [
                     "cold LTI request (v = 0.4, 10 modes, 2001 samples), p50",
                     TODAY["lti"],
                     ms(lti_p50),
                     f"{lti_p50 / lsim:.1f}x lsim ({ms(lsim)}); {lti_p50 / lti_lib:.2f}x "
-                    f"simulate() ({ms(lti_lib)})",
+                    f"simulate() ({ms(lti_lib)}); the computation in the worker "
+                    f"(execute + encode) {ms(worker_p50)}",
                     "<= 15 ms, <= 3x lsim",
                     verdict(lti_p50 <= 0.015 and lti_p50 <= 3 * lsim),
                 ]
@@ -397,7 +477,7 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             first_max = max(first)
             rows.append(
                 [
-                    "first request on a fresh worker (first 2 cold, max)",
+                    f"first request on a fresh worker ({len(first)} workers' first, max)",
                     TODAY["first"],
                     ms(first_max),
                     f"{first_max / lti_p50:.2f}x the later cold p50",
@@ -406,15 +486,20 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
                     verdict(first_max <= 1.5 * lti_p50),
                 ]
             )
-            paper = cold_requests(client, url, PAPER, plan.paper, 0)
-            lib = local_simulate(PAPER, max(2, plan.paper))
+            paper, paper_keys = cold_requests(client, url, PAPER, plan.paper, 0)
+            lib = median_time(simulate_timer(PAPER), max(2, plan.paper))
+            lib_doc = median_time(simulate_timer(PAPER, document=True), max(2, plan.paper))
             paper_p50 = pct(paper, 50)
+            done = computations(log_records(work / "server.log"))
+            paper_worker = pct([done[k][1] for k in paper_keys if k in done], 50)
             rows.append(
                 [
                     "cold paper example (v = 0.4 t), p50",
                     TODAY["paper"],
                     ms(paper_p50),
-                    f"{paper_p50 / lib:.2f}x simulate() ({ms(lib)})",
+                    f"{paper_p50 / lib:.2f}x simulate() ({ms(lib)}); "
+                    f"{paper_p50 / lib_doc:.2f}x simulate().to_dict() ({ms(lib_doc)}); the "
+                    f"computation in the worker {ms(paper_worker)}",
                     "<= 1.3x simulate()",
                     verdict(paper_p50 <= 1.3 * lib),
                 ]
@@ -478,6 +563,7 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
             )
             raw = {
                 "cold": cold,
+                "first": first_idx,
                 "paper": paper,
                 "wrk_hits": hits["raw"],
                 "wrk_hits_gzip": hits_gz["raw"],
@@ -531,11 +617,17 @@ def main(argv: list[str] | None = None) -> int:
             f"`python benchmarks/service.py{' --smoke' if args.smoke else ''}` "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"{time.monotonic() - started:.0f} s): {desc}. Server: `uvicorn service.main:app` "
-            "with the default settings (2 workers, JSON request logs at INFO).",
+            "with the default settings (2 workers, JSON request logs at INFO; HTTP "
+            f"{'httptools' if importlib.util.find_spec('httptools') else 'h11'}, loop "
+            f"{'uvloop' if importlib.util.find_spec('uvloop') else 'asyncio'}).",
             "",
             table(rows),
             "",
-            "cold LTI requests [ms]: " + ", ".join(f"{x * 1e3:.1f}" for x in raw["cold"]),
+            "cold LTI requests [ms] (* a worker's first): "
+            + ", ".join(
+                f"{x * 1e3:.1f}" + ("*" if i in raw["first"] else "")
+                for i, x in enumerate(raw["cold"])
+            ),
             "",
             "paper example requests [ms]: " + ", ".join(f"{x * 1e3:.0f}" for x in raw["paper"]),
             "",

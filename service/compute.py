@@ -38,7 +38,11 @@ CACHE_HEADERS: dict[str, Any] = {
         "description": "HIT when served from the cache, MISS when computed for this request.",
         "schema": {"type": "string", "enum": ["HIT", "MISS"]},
     },
-    "ETag": {"description": "Strong validator: the key in quotes.", "schema": {"type": "string"}},
+    "ETag": {
+        "description": 'Strong validator of the representation sent: the key in quotes, `"<key>"`, '
+        'for the JSON bytes, `"<key>-gzip"` for their gzip (Content-Encoding: gzip).',
+        "schema": {"type": "string"},
+    },
 }
 
 #: OpenAPI entry of the 202 answered by :func:`accept_job`
@@ -153,33 +157,55 @@ class Hit:
     gzip: bool = False
 
 
+def entity_tag(key: str, gzip: bool = False) -> str:
+    """The strong ETag of a result answer: ``"<key>"`` for its JSON bytes, a distinct
+    ``"<key>-gzip"`` for their gzip (another representation, other bytes: RFC 9110 section
+    8.8.3 says the two must not share a strong tag).  The gzip bytes are a function of the
+    JSON bytes (fixed level, mtime 0)."""
+    return f'"{key}-gzip"' if gzip else f'"{key}"'
+
+
+def sends_gzip(encoded: Encoded, gzip_ok: bool) -> bool:
+    """Whether the answer of ``encoded`` is its gzip: accepted and worth compressing."""
+    return gzip_ok and encoded.gzip is not None
+
+
 def result_response(
     key: str, cached: bool, body: bytes | Encoded, gzip_ok: bool = False
 ) -> Response:
     """A result answer: the envelope (or ``Encoded`` envelope), gzip when accepted and
-    available, with X-Cache, the key as strong ETag, Content-Location and Vary."""
+    available, with X-Cache, the ETag of the representation sent (:func:`entity_tag`),
+    Content-Location and ``Vary: Accept-Encoding``."""
     encoded = body if isinstance(body, Encoded) else Encoded(envelope(key, cached, body))
+    packed = sends_gzip(encoded, gzip_ok)
     headers = {
         "X-Cache": "HIT" if cached else "MISS",
-        "ETag": f'"{key}"',
+        "ETag": entity_tag(key, packed),
         "Content-Location": f"/v1/results/{key}",
         "Vary": "Accept-Encoding",
     }
     content = encoded.identity
-    if gzip_ok and encoded.gzip is not None:
+    if packed:
+        assert encoded.gzip is not None
         content = encoded.gzip
         headers["Content-Encoding"] = "gzip"
     return Response(content, media_type="application/json", headers=headers)
 
 
-async def hit_response(key: str, body: bytes, hit: Hit | None) -> Response:
-    """The HIT answer for the stored ``body``: encoded (and compressed, off the event loop)
+async def encoded_hit(key: str, body: bytes, hit: Hit | None) -> Encoded:
+    """The HIT answer for the stored ``body``, encoded (and compressed, off the event loop)
     once, then kept in the hit cache."""
     if hit is None or hit.cache is None:
-        return result_response(key, True, body)
+        return Encoded(envelope(key, True, body))
     encoded = await asyncio.to_thread(encode, envelope(key, True, body))
     hit.cache.put(key, encoded)
-    return result_response(key, True, encoded, hit.gzip)
+    return encoded
+
+
+async def hit_response(key: str, body: bytes, hit: Hit | None) -> Response:
+    """The HIT answer for the stored ``body`` (see :func:`encoded_hit`)."""
+    encoded = await encoded_hit(key, body, hit)
+    return result_response(key, True, encoded, hit is not None and hit.gzip)
 
 
 def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:

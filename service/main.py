@@ -20,7 +20,7 @@ from pipeflow.schema.registry import endpoints
 from service import observability, problems
 from service.compute import HitCache
 from service.engine import Runner
-from service.middleware import BodyLimit, RequestContext
+from service.middleware import BodyLimit, HitFastPath, RequestContext
 from service.routes import computations, docs, exports, health, jobs, metrics, results, viewer
 from service.settings import Settings, get_settings
 from service.store import Store, StoreRefused
@@ -73,6 +73,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.hits = HitCache(settings.hit_cache_bytes)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    # repeated hits are answered here, before body parsing and dependency resolution
+    result_paths = frozenset(f"/v1/{e.path}" for e in endpoints() if e.run_operation is not None)
+    app.add_middleware(HitFastPath, hits=app.state.hits, paths=result_paths)
     app.add_middleware(RequestContext)  # outermost: 413s get a request id and a log line too
     problems.install(app)
     for endpoint in endpoints():

@@ -2,18 +2,27 @@
 
 from __future__ import annotations
 
+import hashlib
 import logging
+import re
 import time
+from collections import OrderedDict
 from typing import Any
 
 from fastapi import HTTPException
 from starlette.datastructures import MutableHeaders
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from service import observability
+from service import negotiation, observability
+from service.compute import accepts_gzip, result_response
+from service.negotiation import JSON
 from service.problems import problem, response
 
 access_log = logging.getLogger("service.access")
+#: the key at the start of a result's ETag (``"<key>"``, ``"<key>-gzip"``, ``"<key>-t.csv"``)
+_TAGGED_KEY = re.compile(r'(?:W/)?"([0-9a-f]{64})')
+#: Content-Location of a result answer
+_RESULT_LOCATION = re.compile(r"/v1/results/([0-9a-f]{64})")
 
 
 class BodyLimit:
@@ -117,7 +126,8 @@ class RequestContext:
             route = scope.get("route")
             template = getattr(route, "path", None) or "<unmatched>"
             etag = seen["etag"]
-            key = etag.strip('"') if etag else (scope.get("path_params") or {}).get("key")
+            tagged = _TAGGED_KEY.match(etag) if etag else None
+            key = tagged.group(1) if tagged else (scope.get("path_params") or {}).get("key")
             observability.record_request(
                 template, scope["method"], seen["status"], seconds, seen["cache"]
             )
@@ -134,3 +144,104 @@ class RequestContext:
                 },
             )
             observability.REQUEST_ID.reset(token)
+
+
+#: request bodies the hit fast path reads and remembers [bytes]; larger ones take the route
+FAST_BODY_MAX = 64 * 1024
+#: bound on the fast path's memo of body digests [entries]
+FAST_MEMO_SIZE = 16384
+
+
+class HitFastPath:
+    """Answer a repeated cache hit of a computing route before FastAPI runs.
+
+    A ``POST`` to one of ``paths`` (the registry's result routes) without a query string
+    (so no ``refresh``), with a JSON body (:func:`service.negotiation.json_declared`), an
+    ``Accept`` that admits JSON and a declared Content-Length of at most
+    :data:`FAST_BODY_MAX` bytes is read whole.  The SHA-256 of its bytes (with the path)
+    looks up the key that the route computed for the same bytes before; if the app's
+    :class:`~service.compute.HitCache` holds that key's answer, it is sent as the route
+    would send it (:func:`service.compute.result_response`), without parsing, validating
+    or keying the body again.  Anything else (first sight of a body, a miss, an error,
+    another route) goes to the app with the body replayed, and a 200 result answer
+    teaches the memo its key (``Content-Location: /v1/results/<key>``).
+
+    Sound because the key is a function of the body's bytes alone (the route parses and
+    validates them, then hashes the normal form with the version; the same bytes always
+    give the same key in one process), and the hit cache holds only answers of stored,
+    immutable results.  Inside :class:`RequestContext`, so the request id, the log line
+    and the metrics (under the route's template) are the same for both paths.
+    """
+
+    def __init__(self, app: ASGIApp, hits: Any, paths: frozenset[str]) -> None:
+        self.app = app
+        self.hits = hits
+        self.paths = paths
+        self._memo: OrderedDict[bytes, str] = OrderedDict()
+        self._routes: dict[str, Any] = {}
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if (
+            scope["type"] != "http"
+            or scope["method"] != "POST"
+            or scope["path"] not in self.paths
+            or scope.get("query_string")
+        ):
+            await self.app(scope, receive, send)
+            return
+        headers = dict(reversed(scope["headers"]))  # the first of repeated headers, as Starlette
+        declared = headers.get(b"content-length")
+        ctype = headers.get(b"content-type")
+        accept = headers.get(b"accept")
+        if (
+            declared is None
+            or not declared.isdigit()
+            or int(declared) > FAST_BODY_MAX
+            or not negotiation.json_declared(ctype.decode("latin-1") if ctype else None)
+            or not negotiation.acceptable(accept.decode("latin-1") if accept else None, (JSON,))
+        ):
+            await self.app(scope, receive, send)
+            return
+        chunks: list[bytes] = []
+        messages: list[Message] = []
+        while True:
+            message = await receive()
+            messages.append(message)
+            if message["type"] != "http.request":
+                break  # a disconnect: the app sees it
+            chunks.append(message.get("body", b""))
+            if not message.get("more_body", False):
+                break
+        body = b"".join(chunks)
+        digest = hashlib.sha256(scope["path"].encode() + b"\0" + body).digest()
+        key = self._memo.get(digest)
+        encoded = self.hits.get(key) if key is not None else None
+        complete = messages[-1]["type"] == "http.request"  # not a disconnect
+        if key is not None and encoded is not None and complete:
+            self._memo.move_to_end(digest)
+            scope["route"] = self._routes.get(scope["path"])  # for the route template
+            coding = headers.get(b"accept-encoding")
+            gzip_ok = accepts_gzip(coding.decode("latin-1") if coding else None)
+            await result_response(key, True, encoded, gzip_ok)(scope, receive, send)
+            return
+
+        replay = iter(messages)
+
+        async def replayed() -> Message:
+            return next(replay, None) or await receive()
+
+        async def learn(message: Message) -> None:
+            if message["type"] == "http.response.start" and message["status"] == 200:
+                location = MutableHeaders(scope=message).get("content-location", "")
+                learned = _RESULT_LOCATION.fullmatch(location)
+                if learned is not None:
+                    self._memo[digest] = learned.group(1)
+                    self._memo.move_to_end(digest)
+                    if len(self._memo) > FAST_MEMO_SIZE:
+                        self._memo.popitem(last=False)
+            await send(message)
+
+        await self.app(scope, replayed, learn)
+        route = scope.get("route")
+        if route is not None:
+            self._routes[scope["path"]] = route  # the route that answered (metrics label)

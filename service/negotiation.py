@@ -69,14 +69,20 @@ def accepts(*offered: str) -> Callable[[Request], Coroutine[Any, Any, None]]:
     return check
 
 
+def json_declared(ctype: str | None) -> bool:
+    """Whether a body with Content-Type ``ctype`` is read as JSON: ``application/json``,
+    any ``application/*+json``, or no Content-Type at all."""
+    if ctype is None:
+        return True
+    media = ctype.split(";")[0].strip().lower()
+    main, _, sub = media.partition("/")
+    return main == "application" and (sub == "json" or sub.endswith("+json"))
+
+
 async def json_body(request: Request) -> None:
     """A dependency answering 415 unless the body is declared JSON (or not declared)."""
     ctype = request.headers.get("content-type")
-    if ctype is None:
-        return
-    media = ctype.split(";")[0].strip().lower()
-    main, _, sub = media.partition("/")
-    if not (main == "application" and (sub == "json" or sub.endswith("+json"))):
+    if not json_declared(ctype):
         raise ProblemError(
             415,
             f"the body must be application/json, not {ctype!r}",

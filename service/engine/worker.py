@@ -48,7 +48,8 @@ def dask_setup(worker: Any) -> None:
     warm_up()
 
 
-#: the warm-up case: the paper's pipe, 2 modes, 11 samples (milliseconds per method)
+#: the warm-up case: the paper's pipe, 2 modes, 11 samples (milliseconds per method), then
+#: the default request's mode count with the default method
 _WARM_UP_METHODS = ("cma", "magnus", "rk4")
 _warmed_up = [False]
 
@@ -70,9 +71,15 @@ def warm_up() -> None:
         out_of_range_problem("warm-up")
         small = dict(PAPER_EXAMPLE, modes=2, time={"t_end": 0.01, "samples": 11})
         simulation = COMPUTATIONS["simulation"]
-        for method in _WARM_UP_METHODS:
-            spec = simulation.request.model_validate(dict(small, method=method))
-            encoding.dumps(simulation.execute(spec, lambda fraction: None))
+        specs = [dict(small, method=method) for method in _WARM_UP_METHODS]
+        # the default request's model (mode integrals cached per mode count) and solver
+        # paths, time-variant and constant flow: a first such job cost 2-3x the later ones
+        modes = simulation.request.model_fields["modes"].default
+        default = {k: v for k, v in small.items() if k != "method"} | {"modes": modes}
+        specs += [default, default | {"flow": {"velocity": {"kind": "constant", "value": 0.4}}}]
+        for spec in specs:
+            request = simulation.request.model_validate(spec)
+            encoding.dumps(simulation.execute(request, lambda fraction: None))
     except Exception:
         log.exception("worker warm-up failed")
         return
@@ -83,6 +90,23 @@ def warm_up() -> None:
     )
 
 
+def warm_task(cfg: Any) -> int:
+    """The first task of a worker (the runner sends one to each worker before it is
+    ready): it opens the worker's store (engine, first connection, pragmas) for the
+    service's database, and its answer opens the client's connection to the worker, so
+    the first job pays for neither.  Returns the worker's pid."""
+    from service.engine.task import _store
+
+    _store(cfg).has_result("0" * 64)
+    return os.getpid()
+
+
+def _open_stores() -> list[str]:
+    """The database URLs this worker has a store open for (none before its first task)."""
+    task = sys.modules.get("service.engine.task")
+    return list(getattr(task, "_STORES", {}))
+
+
 def ping() -> dict[str, Any]:
     """The worker's pid, BLAS thread settings and whether numpy is loaded (tests)."""
     return {
@@ -91,5 +115,7 @@ def ping() -> dict[str, Any]:
         "numpy_loaded": "numpy" in sys.modules,
         "registry_loaded": "pipeflow.schema.registry" in sys.modules,
         "warmed_up": _warmed_up[0],
+        "stores": sorted(_open_stores()),
+        "malloc_trim_threshold": os.environ.get("MALLOC_TRIM_THRESHOLD_"),
         "modules": sorted(sys.modules),
     }

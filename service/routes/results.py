@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal, Union
 from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
 from pipeflow.schema.registry import COMPUTATIONS
-from service.compute import CACHE_HEADERS, hit_response, result_response
+from service.compute import CACHE_HEADERS, encoded_hit, entity_tag, result_response, sends_gzip
 from service.deps import HitDep, RunnerDep, StoreDep
 from service.negotiation import JSON, accepts
 from service.problems import ProblemError, responses
@@ -34,10 +34,11 @@ ResultDocument: Any = Union[  # noqa: UP007
 ]
 
 
-def _matches(if_none_match: str, key: str) -> bool:
-    """RFC 9110 If-None-Match: weak comparison against the entity tag ``"<key>"``."""
+def _matches(if_none_match: str, etag: str) -> bool:
+    """RFC 9110 If-None-Match: weak comparison against ``etag``, the entity tag of the
+    representation this request selects."""
     tags = [t.strip() for t in if_none_match.split(",")]
-    return any(t == "*" or t.removeprefix("W/") == f'"{key}"' for t in tags)
+    return any(t == "*" or t.removeprefix("W/") == etag for t in tags)
 
 
 @router.get(
@@ -68,7 +69,9 @@ async def get_result(
 ) -> Response:
     """The result stored under ``key`` (as POST /v1/simulations or /v1/stability returned
     it, or the result of a job), with
-    ``ETag: "<key>"``; ``If-None-Match`` with that tag is answered 304.  With
+    ``ETag: "<key>"`` (``"<key>-gzip"`` for its gzip, sent when ``Accept-Encoding``
+    allows); ``If-None-Match`` with the tag of the representation the request selects is
+    answered 304 with that tag.  With
     ``Accept: text/csv`` or ``?format=csv``: one CSV ``table`` whose header row names each
     column with its unit, e.g. ``t [s],tip_displacement [m]``.  With
     ``Accept: application/vnd.apache.parquet`` or ``?format=parquet``: the same table as
@@ -81,15 +84,13 @@ async def get_result(
         # parse the stored JSON and write the table off the event loop: results can be MBs
         return await asyncio.to_thread(table_response, key, body, table, fmt)
     encoded = hit.cache.get(key) if hit.cache is not None else None
-    if if_none_match is not None and _matches(if_none_match, key):
-        if encoded is not None or await asyncio.to_thread(store.has_result, key):
-            return Response(
-                status_code=304, headers={"ETag": f'"{key}"', "Vary": "Accept-Encoding"}
-            )
-    if encoded is not None:
-        return result_response(key, True, encoded, hit.gzip)
-    body = await asyncio.to_thread(store.get_result, key)
-    if body is None:
-        pending = " yet; its job is still in progress" if runner.is_active(key) else ""
-        raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
-    return await hit_response(key, body, hit)
+    if encoded is None:
+        body = await asyncio.to_thread(store.get_result, key)
+        if body is None:
+            pending = " yet; its job is still in progress" if runner.is_active(key) else ""
+            raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
+        encoded = await encoded_hit(key, body, hit)
+    etag = entity_tag(key, sends_gzip(encoded, hit.gzip))
+    if if_none_match is not None and _matches(if_none_match, etag):
+        return Response(status_code=304, headers={"ETag": etag, "Vary": "Accept-Encoding"})
+    return result_response(key, True, encoded, hit.gzip)

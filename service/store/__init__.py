@@ -60,6 +60,12 @@ def sqlite_url(path: Path | str) -> str:
     return f"sqlite:///{Path(path)}"
 
 
+#: zlib level of stored results: on a 2001-sample result (125 kB of JSON) level 1 takes
+#: 0.6 ms for 29.7 kB, level 6 7.2 ms for 27.4 kB (8% smaller): the compression is paid on
+#: every cold request, the space only bounds the cache
+ZLIB_LEVEL = 1
+
+
 @dataclass(frozen=True)
 class Job:
     """One job record; times are Unix seconds (UTC)."""
@@ -222,7 +228,10 @@ class Store:
         for key, t in touched.items():
             conn.execute(update(results).where(results.c.key == key).values(accessed=t))
 
-    def get_result(self, key: str) -> bytes | None:
+    def get_result(self, key: str, *, remember: bool = True) -> bytes | None:
+        """The result body stored under ``key`` (None if absent).  ``remember=False``
+        leaves the in-memory front as it is (a body read once, e.g. a fresh result sent to
+        the request that computed it: its hits are answered from the app's hit cache)."""
         with self._lock:
             body = self._memory.get(key)
             if body is not None:
@@ -237,7 +246,8 @@ class Store:
             body = _decode(bytes(row.body), row.codec)
         with self._lock:
             self._touched[key] = time.time()
-            self._memory.put(key, body)
+            if remember:
+                self._memory.put(key, body)
         return body
 
     def has_result(self, key: str) -> bool:
@@ -278,7 +288,7 @@ class Store:
         with self._write() as conn:
             self._write_touched(conn)
             for key, (kind, body) in items.items():
-                stored = zlib.compress(body, 6)
+                stored = zlib.compress(body, ZLIB_LEVEL)
                 values = {
                     "key": key,
                     "kind": kind,

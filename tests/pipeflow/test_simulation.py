@@ -11,7 +11,7 @@ from pipeflow.errors import PipeflowError
 from pipeflow.model import PAPER_PIPE, Loading, build_model
 from pipeflow.profiles import Constant, polynomial, table
 from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
-from pipeflow.simulation import Simulation, simulate
+from pipeflow.simulation import Simulation, json_safe, simulate
 from pipeflow.solvers import Options
 from tests.pipeflow.cases import paper_sim
 
@@ -204,6 +204,45 @@ def test_paper_example_by_default_is_right_to_1e_8() -> None:
     z = model.to_balanced(full.d[:201], full.ddot[:201])
     assert relative_difference(z, model.to_balanced(ref.d, ref.ddot)) < 1e-8
     assert relative_difference(full.tip_displacement[:201], ref.tip_displacement) < 1e-8
+
+
+def _element_wise_reference(data: Any) -> Any:
+    """json_safe's rule written out element by element (the reference for its fast path)."""
+    if isinstance(data, dict):
+        return {k: _element_wise_reference(v) for k, v in data.items()}
+    if isinstance(data, list | tuple):
+        return [_element_wise_reference(v) for v in data]
+    if isinstance(data, np.generic):
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        [0.1, -2.5, 3.0],
+        [],
+        [1.0, math.nan, 2.0],
+        [math.inf, 1.0],
+        [1.0, -math.inf],
+        [math.inf, -math.inf],  # sums to NaN
+        [1e308, 1e308, -1e308],  # finite values whose sum overflows: element-wise path
+        [1.0, np.float64(2.0), np.float64("nan")],  # numpy scalars are not Python floats
+        [1.0, 2, True, None, "x"],
+        ([0.5, math.nan], (1.0, 2.0)),
+        {"a": [[1.0, 2.0], [math.nan, 3.0]], "b": (np.float32(1.5), 4.0)},
+    ],
+)
+def test_json_safe_float_lists_fast_path_matches_the_rule(data: Any) -> None:
+    """The fast path for all-float lists (copied when their sum is finite) gives exactly
+    the element-wise rule: every non-finite float null, finite floats unchanged (==, so no
+    tolerance), numpy scalars as Python numbers, tuples as lists; the input is not shared."""
+    out = json_safe(data)
+    assert out == _element_wise_reference(data)
+    if isinstance(data, list):
+        assert out is not data
 
 
 def test_cma_exponents_are_computed_only_when_asked(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -64,20 +64,40 @@ def test_refresh_recomputes(client: TestClient) -> None:
 
 
 def test_results_etag_and_304(client: TestClient) -> None:
+    """Each representation has its own strong tag: ``"<key>"`` for the JSON bytes,
+    ``"<key>-gzip"`` for their gzip; If-None-Match is compared (weakly) with the tag of the
+    representation the request selects, and the 304 carries that tag."""
     doc = client.post("/v1/simulations", json=_small(initial={"u0": 0.004})).json()
     key = doc["key"]
-    got = client.get(f"/v1/results/{key}")
-    assert got.status_code == 200
-    assert got.headers["etag"] == f'"{key}"'
-    assert got.json()["tip_displacement"] == doc["tip_displacement"]
-    assert got.json()["cached"] is True
-    for tag in (f'"{key}"', f'W/"{key}"', f'"other", "{key}"', "*"):
-        not_modified = client.get(f"/v1/results/{key}", headers={"If-None-Match": tag})
-        assert not_modified.status_code == 304, tag
-        assert not_modified.headers["etag"] == f'"{key}"'
-        assert not_modified.content == b""
-    stale = client.get(f"/v1/results/{key}", headers={"If-None-Match": '"something-else"'})
-    assert stale.status_code == 200
+    for coding, etag in (("identity", f'"{key}"'), ("gzip", f'"{key}-gzip"')):
+        enc = {"Accept-Encoding": coding}
+        got = client.get(f"/v1/results/{key}", headers=enc)
+        assert got.status_code == 200
+        assert got.headers["etag"] == etag, coding
+        assert got.headers.get("content-encoding", "identity") == coding
+        assert got.headers["vary"] == "Accept-Encoding"
+        assert got.json()["tip_displacement"] == doc["tip_displacement"]
+        assert got.json()["cached"] is True
+        for tag in (etag, f"W/{etag}", f'"other", {etag}', "*"):
+            not_modified = client.get(f"/v1/results/{key}", headers={**enc, "If-None-Match": tag})
+            assert not_modified.status_code == 304, (coding, tag)
+            assert not_modified.headers["etag"] == etag
+            assert not_modified.headers["vary"] == "Accept-Encoding"
+            assert not_modified.content == b""
+        stale = client.get(
+            f"/v1/results/{key}", headers={**enc, "If-None-Match": '"something-else"'}
+        )
+        assert stale.status_code == 200
+    # the tag of one representation does not validate the other
+    other = client.get(
+        f"/v1/results/{key}", headers={"Accept-Encoding": "gzip", "If-None-Match": f'"{key}"'}
+    )
+    assert other.status_code == 200 and other.headers["etag"] == f'"{key}-gzip"'
+    other = client.get(
+        f"/v1/results/{key}",
+        headers={"Accept-Encoding": "identity", "If-None-Match": f'"{key}-gzip"'},
+    )
+    assert other.status_code == 200 and other.headers["etag"] == f'"{key}"'
 
 
 def _problem(resp: Any, status: int) -> dict[str, Any]:

@@ -63,12 +63,14 @@ def test_hit_is_the_stored_bytes_and_gzip_decodes_to_them(app_client: TestClient
     )
     assert headers["x-cache"] == "HIT" and "content-encoding" not in headers
     assert plain == envelope(key, True, stored)
-    assert headers["vary"] == "Accept-Encoding"
+    assert headers["vary"] == "Accept-Encoding" and headers["etag"] == f'"{key}"'
+
     # gzip: compressed, and it decompresses to exactly those bytes
     headers, packed = raw(
         app_client, "POST", "/v1/simulations", json=spec, headers={"Accept-Encoding": "gzip"}
     )
     assert headers["content-encoding"] == "gzip" and headers["x-cache"] == "HIT"
+    assert headers["etag"] == f'"{key}-gzip"'  # another representation, another strong tag
     assert gzip.decompress(packed) == plain
     assert len(packed) < len(plain) / 2  # measured ~4x smaller on this 201-sample result
     assert int(headers["content-length"]) == len(packed)
@@ -96,8 +98,9 @@ def test_a_hit_is_answered_from_memory(app_client: TestClient, monkeypatch: Any)
     assert again.content == first.content
     key = again.json()["key"]
     assert app_client.get(f"/v1/results/{key}").content == first.content
-    etag = {"If-None-Match": f'"{key}"'}
-    assert app_client.get(f"/v1/results/{key}", headers=etag).status_code == 304
+    for coding, tag in (("identity", f'"{key}"'), ("gzip", f'"{key}-gzip"')):
+        etag = {"If-None-Match": tag, "Accept-Encoding": coding}
+        assert app_client.get(f"/v1/results/{key}", headers=etag).status_code == 304
 
 
 def test_refresh_drops_the_encoded_hit(app_client: TestClient) -> None:
@@ -132,10 +135,12 @@ HEAVY = ("pipeflow", "service", "fastapi", "starlette", "pydantic", "numpy", "sc
 
 
 def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
-    """Ready means warmed up: a tiny run of each solver went through the job function and
-    the encoder, and a first real job (here a simulation, a stability analysis and a
-    failing run answered with a problem) imports no module of the heavy packages that the
-    worker had not imported before it (service.problems, i.e. FastAPI, once cost ~1 s)."""
+    """Ready means warmed up: a tiny run of each solver and of the default request's mode
+    count went through the job function and the encoder, a warm-up task opened the
+    worker's store, glibc's malloc trims as by default, and a first real job (here a
+    simulation, a stability analysis and a failing run answered with a problem) imports no
+    module of the heavy packages that the worker had not imported before it
+    (service.problems, i.e. FastAPI, once cost ~1 s)."""
     stab = {"pipe": SMALL["pipe"], "modes": 4, "velocity_range": [0, 40], "points": 41}
     bad_step = dict(SMALL, method="rk4", options={"step": 0.01})  # unstable: 422 problem
     with make_client(tmp_path, workers=1) as c:
@@ -143,6 +148,10 @@ def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
         call = c.app.state.runner.call  # type: ignore[attr-defined]
         before = c.portal.call(call, worker.ping)
         assert before["registry_loaded"] and before["warmed_up"]
+        # the warm-up task opened the worker's store of the service's database
+        assert before["stores"] == [c.app.state.settings.db_url]  # type: ignore[attr-defined]
+        # glibc's adaptive trim threshold, not Dask's 65536 (1.3-1.7x slower paper example)
+        assert before["malloc_trim_threshold"] is None
         assert c.post("/v1/simulations", json=SMALL).status_code == 200
         assert c.post("/v1/stability", json=stab).status_code == 200
         assert c.post("/v1/simulations", json=bad_step).status_code == 422
@@ -177,3 +186,86 @@ def test_request_key_memo_equals_the_key() -> None:
             assert keyed(simulation, spec).key == expected
         keys.append(keyed(simulation, spec).key)
     assert len(set(keys)) == len(keys)
+
+
+def test_repeated_hit_bytes_skip_the_route(app_client: TestClient, monkeypatch: Any) -> None:
+    """The same body bytes again are answered by the fast path (the route, which would key
+    the body, is not called) with the route's own answer, byte for byte, in both codings;
+    counted under the route's template with its cache result; a query string, other
+    bytes of the same request, or failed negotiation go to the route as before."""
+    from service.routes import computations
+    from tests.service.test_observability import sample
+
+    spec = dict(SMALL, modes=2, time={"t_end": 0.1, "samples": 61})
+    body = json.dumps(spec).encode()
+    post = {"content": body, "headers": {"Content-Type": "application/json"}}
+    miss = app_client.post("/v1/simulations", **post)
+    assert miss.status_code == 200 and miss.headers["X-Cache"] == "MISS"
+    key = miss.json()["key"]
+    _, route_plain = raw(
+        app_client,
+        "POST",
+        "/v1/simulations",
+        content=body,
+        headers={"Content-Type": "application/json", "Accept-Encoding": "identity"},
+    )
+    calls: list[Any] = []
+    real_keyed = computations.keyed
+
+    def counted(*args: Any) -> Any:
+        calls.append(args)
+        return real_keyed(*args)
+
+    monkeypatch.setattr(computations, "keyed", counted)
+    before = app_client.get("/metrics").text
+    for coding in ("identity", "gzip"):
+        headers, sent = raw(
+            app_client,
+            "POST",
+            "/v1/simulations",
+            content=body,
+            headers={"Content-Type": "application/json", "Accept-Encoding": coding},
+        )
+        assert headers["x-cache"] == "HIT" and headers["vary"] == "Accept-Encoding"
+        assert headers["content-location"] == f"/v1/results/{key}"
+        if coding == "gzip":
+            assert headers["content-encoding"] == "gzip" and headers["etag"] == f'"{key}-gzip"'
+            sent = gzip.decompress(sent)
+        else:
+            assert "content-encoding" not in headers and headers["etag"] == f'"{key}"'
+        assert sent == route_plain
+        assert headers["x-request-id"]
+    assert calls == []  # neither parsed nor keyed again
+    after = app_client.get("/metrics").text
+    label = {"route": "/v1/simulations", "method": "POST", "status": "200"}
+    n = sample(after, "pipeflow_http_requests_total", **label)
+    assert n == sample(before, "pipeflow_http_requests_total", **label) + 2
+    hits = {"route": "/v1/simulations", "result": "hit"}
+    assert sample(after, "pipeflow_cache_lookups_total", **hits) == (
+        sample(before, "pipeflow_cache_lookups_total", **hits) + 2
+    )
+    # the route still runs for: a query string, other bytes of the same request
+    again = app_client.post("/v1/simulations", params={"refresh": "false"}, **post)
+    assert again.headers["X-Cache"] == "HIT" and len(calls) == 1
+    reordered = json.dumps(dict(reversed(list(spec.items())))).encode()
+    same = app_client.post(
+        "/v1/simulations", content=reordered, headers={"Content-Type": "application/json"}
+    )
+    assert same.json()["key"] == key and len(calls) == 2
+    # negotiation is not skipped: the same bytes as text, or asking for CSV, are refused
+    as_text = app_client.post(
+        "/v1/simulations", content=body, headers={"Content-Type": "text/plain"}
+    )
+    assert as_text.status_code == 415
+    as_csv = app_client.post(
+        "/v1/simulations",
+        content=body,
+        headers={"Content-Type": "application/json", "Accept": "text/csv"},
+    )
+    assert as_csv.status_code == 406
+    # a refresh drops the hit answer: the same bytes then take the route (and recompute)
+    fresh = app_client.post("/v1/simulations", params={"refresh": "true"}, **post)
+    assert fresh.headers["X-Cache"] == "MISS"
+    n_calls = len(calls)
+    assert app_client.post("/v1/simulations", **post).headers["X-Cache"] == "HIT"
+    assert len(calls) == n_calls + 1

@@ -192,6 +192,19 @@ def test_full_database_raises_storage_error_and_probe_recovers(tmp_path: Path) -
     store.put_result("big", "simulation", random.Random(0).randbytes(200_000))
 
 
+def test_a_result_read_without_remember_stays_out_of_memory(tmp_path: Path) -> None:
+    """get_result(remember=False) answers the stored bytes and leaves the memory front as
+    it was (the engine reads each fresh result that way); a plain read fills it."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**6, memory_cache_bytes=10**6)
+    writer = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**6, memory_cache_bytes=0)
+    body = b'{"t":[1.0,2.0]}'
+    writer.put_result("a", "simulation", body)  # another process's store (a worker's)
+    assert store.get_result("a", remember=False) == body
+    assert store._memory.get("a") is None
+    assert store.get_result("a") == body
+    assert store._memory.get("a") == body
+
+
 def test_batched_results_and_the_memo_over_them(tmp_path: Path) -> None:
     """put_results/get_results: one transaction, one query; StoreMemo keeps piece results
     (a study's case summaries) as rows of the kind its keys name, which no result key
