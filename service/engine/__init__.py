@@ -134,7 +134,10 @@ class Runner:
                     n_workers=self.settings.workers,
                     threads_per_worker=1,
                     processes=True,
-                    dashboard_address=None,
+                    # the scheduler always serves HTTP (health, metrics); no dashboard, and a free
+                    # localhost port instead of 8787, which a second server on the host would hold
+                    dashboard_address="127.0.0.1:0",
+                    scheduler_kwargs={"dashboard": False},
                     asynchronous=True,
                     env=dict(
                         WORKER_ENV,
