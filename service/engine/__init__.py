@@ -259,6 +259,9 @@ class Runner:
             if self._flights.get(key) is old:  # its done-callback has not run yet
                 del self._flights[key]
         flight = self._flights.get(key)
+        if flight is None and not recover and self.saturated:
+            await self._release_finished()
+            flight = self._flights.get(key)
         if flight is None:
             if not recover and self.saturated:
                 raise QueueFull(f"{self.in_flight} computations in flight")
@@ -278,6 +281,29 @@ class Runner:
             if isinstance(exc, StorageError):
                 raise exc
         return flight.task
+
+    async def _release_finished(self, wait_s: float = 1.0) -> None:
+        """Free the slots of flights whose job record has already ended (e.g. failed by a
+        worker's watchdog) without waiting for the monitor's next tick: wake them and give
+        them up to ``wait_s`` [s] to leave.  A store that cannot be read frees nothing."""
+        keys = list(self._flights)
+        try:
+            records = await asyncio.to_thread(self.store.jobs_by_key, keys)
+        except StorageError:
+            return
+        ended = []
+        for key in keys:
+            job, flight = records.get(key), self._flights.get(key)
+            if (
+                flight is not None
+                and flight.task is not None
+                and job is not None
+                and not job.active
+            ):
+                flight.changed.set()
+                ended.append(flight.task)
+        if ended:
+            await asyncio.wait(ended, timeout=wait_s)
 
     def cancel(self, key: str) -> None:
         """Mark the run of ``key`` (if any) as asked to stop; see :meth:`submit`.  The job
