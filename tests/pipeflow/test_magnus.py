@@ -285,6 +285,7 @@ DOP853_FLOOR = 1e-8
 
 
 @pytest.mark.parametrize("case", list(PAPER_EXAMPLE_FLOWS))
+@pytest.mark.slow  # DOP853 at rtol 1e-12 on 2001 samples, 5-20 s a case
 def test_paper_example_meets_the_tolerance(case: str) -> None:
     """Default tolerance 1e-8 on the paper's example: the state error against DOP853
     (rtol 1e-12) is below tolerance + DOP853's own floor, the tip error below the same, and
