@@ -13,9 +13,9 @@ Oteo & Ros, Physics Reports 470, 2009, eq. 253)::
     Omega_k = h/2 (A_1 + A_2) + sqrt(3) h^2 / 12 [A_2, A_1],   Phi = prod_k exp(Omega_k),
 
 batched: all exponentials of a period (and, for a chart, of all amplitudes) are one
-:func:`~pipeflow.solvers.magnus.expm_stack` call, and the product is taken pairwise
-(:func:`~pipeflow.solvers.magnus.product_of_steps`); the step itself is
-:func:`~pipeflow.solvers.magnus.magnus4_omega`, shared with the Magnus solver.  The
+:func:`~pipeflow.linalg.expm_stack` call, and the product is taken pairwise
+(:func:`~pipeflow.linalg.product_of_steps`); the step itself is
+:func:`~pipeflow.linalg.magnus4_omega`, shared with the Magnus solver.  The
 number of steps per period is doubled until two successive monodromy matrices agree to
 ``tolerance`` (relative, 2-norm); that difference is reported as the error estimate.  With zero
 pulsation amplitude S is constant, Omega = h S and Phi = exp(S T) to rounding.
@@ -32,9 +32,9 @@ from scipy import ndimage
 
 from pipeflow import parallel
 from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.linalg import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
-from pipeflow.solvers.magnus import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.stability.core import (
     ComplexArray,
     FloatArray,

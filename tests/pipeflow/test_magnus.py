@@ -16,18 +16,12 @@ import pytest
 from scipy.linalg import expm
 
 from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.linalg import expm_stack, magnus4_omega, product_of_steps
 from pipeflow.model import PAPER_PIPE, Loading, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile, polynomial
 from pipeflow.simulation import Result, simulate
 from pipeflow.solvers import SOLVERS, Options, Problem
-from pipeflow.solvers.magnus import (
-    MagnusGenerator,
-    StepPlan,
-    expm_stack,
-    magnus4_omega,
-    product_of_steps,
-    propagate,
-)
+from pipeflow.solvers.magnus import MagnusGenerator, StepPlan, propagate
 from tests.pipeflow.cases import PAPER_FLOWS, paper_sim, reference_run
 
 #: the reference itself agrees with a 40000-step Magnus run to ~3e-10 on these cases, so
