@@ -41,6 +41,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from pipeflow._types import FloatArray
 from pipeflow.basis import (
     MAX_MODES,
     cantilever_roots,
@@ -53,9 +54,6 @@ from pipeflow.basis import (
 )
 from pipeflow.errors import InvalidInput
 from pipeflow.profiles import Profile
-
-FloatArray = NDArray[np.float64]
-
 
 #: the planes of motion: "in-plane" (the paper's eq. (1), chordwise) or "out-of-plane" (flapwise)
 PLANES = ("in-plane", "out-of-plane")

@@ -7,6 +7,7 @@ command line build a :class:`Simulation` from their JSON spec and call it.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import functools
 import math
 import time
@@ -17,17 +18,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import FloatArray, Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
-from pipeflow.model import (
-    REVERSE_FLOW_CAVEAT,
-    Loading,
-    Pipe,
-    PipeModel,
-    basis_caveats,
-    build_model,
-)
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -39,10 +34,17 @@ from pipeflow.modeshapes import (
 from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
-from pipeflow.solvers.base import ProgressCallback
 from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
 
-FloatArray = NDArray[np.float64]
+
+class SimulationStatus(enum.StrEnum):
+    """How a run ended (the ``status`` of a result; JSON carries the value)."""
+
+    OK = "ok"
+    #: the tip passed the divergence bound, or a frozen growth rate is positive at the end
+    DIVERGING = "diverging"
+    #: the response overflowed double precision (the samples after it are omitted)
+    OVERFLOW = "overflow"
 
 
 @dataclass(frozen=True)
@@ -114,7 +116,7 @@ class Result(NotebookViews):
     dimensionless: dict[str, Any]
     diagnostics: dict[str, Any]
     warnings: list[str]
-    status: str  # "ok", "diverging" or "overflow"
+    status: SimulationStatus
     initial_tip_displacement: float  # [m]
     divergence_time: float | None  # [s]
     method_used: str = ""  # the solver that ran ("auto" resolves to "cma" or "magnus")
@@ -157,7 +159,7 @@ class Result(NotebookViews):
             ]
 
         out: dict[str, Any] = {
-            "status": self.status,
+            "status": str(self.status),
             "method": self.simulation.method,
             "method_used": self.method_used,
             "method_reason": self.method_reason,
@@ -268,7 +270,7 @@ def validate(sim: Simulation) -> None:
         )
 
 
-def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Result:
+def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     """Run one simulation and derive every reported quantity."""
     validate(sim)
     wall0 = time.perf_counter()
@@ -283,14 +285,14 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     add_error_estimate(solver, problem, out)  # how far to trust it (pipeflow.diagnostics)
 
     Z = out.z
-    status = "ok"
+    status = SimulationStatus.OK
     warnings = list(out.warnings)
     finite = np.all(np.isfinite(Z), axis=1)
     if not finite.all():
         # keep the finite prefix: JSON has no Inf or NaN, and nothing after overflow is data
         last = int(np.argmin(finite))
         t, Z = t[:last], Z[:last]
-        status = "overflow"
+        status = SimulationStatus.OVERFLOW
         warnings.append(
             f"the response overflowed double precision after t = {t[-1]:.6g} s; "
             "samples after that are omitted"
@@ -338,8 +340,8 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     divergence_time = float(t[over[0]]) if over.size else None
     # a growth rate above rounding of the spectrum at the end means a growing mode
     growing = bool(unstable.size and unstable[-1] == eigen_t.size - 1)
-    if status == "ok" and (divergence_time is not None or growing):
-        status = "diverging"
+    if status == SimulationStatus.OK and (divergence_time is not None or growing):
+        status = SimulationStatus.DIVERGING
     if divergence_time is not None:
         warnings.append(
             f"tip amplitude passed the divergence bound {bound:.3g} m at t = "

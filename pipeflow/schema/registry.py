@@ -18,6 +18,7 @@ from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, Field, TypeAdapter
 
+from pipeflow._types import Progress
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
 from pipeflow.export import SIMULATION_TABLES
@@ -39,7 +40,6 @@ from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
 from pipeflow.study import run_study
 
-Progress = Callable[[float], None]
 Run = Callable[[Any, Progress | None], dict[str, Any]]
 
 

@@ -19,6 +19,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pipeflow import profiles
+from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import PipeflowError
@@ -31,7 +32,7 @@ from pipeflow.modeshapes import (
 )
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
-from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
+from pipeflow.solvers.base import MAX_STEPS_CEILING
 
 MAX_SAMPLES = 200_001
 MAX_TABLE_POINTS = 10_000
@@ -534,7 +535,7 @@ class SimulationSpec(StrictModel):
         return data
 
 
-def run_simulation(spec: SimulationSpec, progress: ProgressCallback | None = None) -> Result:
+def run_simulation(spec: SimulationSpec, progress: Progress | None = None) -> Result:
     """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
     the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
     with request_fields(SIMULATION_FIELDS):

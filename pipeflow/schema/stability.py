@@ -22,6 +22,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AliasChoices, ConfigDict, Field, Strict, model_validator
 
+from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.model import GROUPS, PAPER_PIPE, Pipe
 from pipeflow.schema.simulation import (
@@ -37,8 +38,6 @@ from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
 from pipeflow.stability.sweeps import Parameter, sweep
-
-Progress = Callable[[float], None]
 
 #: the paper's section-5 pipe, for the schema examples
 #: (E, I, L, M1, M2 only: the paper's pipe needs none of the fields beyond its model)

@@ -22,10 +22,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import expm
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded
 from pipeflow.linalg import expm_stack
 from pipeflow.solvers.base import (
-    FloatArray,
     Problem,
     Solver,
     SolverOutput,

@@ -70,6 +70,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.linalg import (
     GAUSS3_NODES,
@@ -81,7 +82,6 @@ from pipeflow.linalg import (
 )
 from pipeflow.model import Loading, PipeModel
 from pipeflow.solvers.base import (
-    FloatArray,
     Problem,
     Solver,
     SolverOutput,

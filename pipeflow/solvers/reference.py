@@ -11,10 +11,10 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.solvers.base import (
     MAX_EVALUATIONS_CEILING,
-    FloatArray,
     Options,
     Problem,
     Solver,

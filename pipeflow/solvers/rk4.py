@@ -15,9 +15,9 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import UnstableStep
 from pipeflow.solvers.base import (
-    FloatArray,
     Problem,
     Solver,
     SolverOutput,

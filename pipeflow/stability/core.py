@@ -26,16 +26,13 @@ import math
 from collections.abc import Callable, Mapping
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq, minimize_scalar
 
+from pipeflow._types import ComplexArray, FloatArray
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidInput
 from pipeflow.model import DIMENSIONLESS_GROUPS, PLANES, Coefficients, Pipe, PipeModel
-
-FloatArray = NDArray[np.float64]
-ComplexArray = NDArray[np.complex128]
-Progress = Callable[[float], None]
 
 
 def check_modes(modes: int, parameter: str = "modes") -> None:

@@ -23,6 +23,7 @@ pulsation amplitude S is constant, Omega = h S and Phi = exp(S T) to rounding.
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -31,19 +32,24 @@ import numpy as np
 from scipy import ndimage
 
 from pipeflow import parallel
+from pipeflow._types import ComplexArray, FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.linalg import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
-from pipeflow.stability.core import (
-    ComplexArray,
-    FloatArray,
-    Progress,
-    check_modes,
-    check_range,
-    eigenvalues,
-    frozen_matrices,
-)
+from pipeflow.stability.core import check_modes, check_range, eigenvalues, frozen_matrices
+
+
+class Verdict(enum.StrEnum):
+    """The stability verdict of a Floquet analysis (JSON carries the value)."""
+
+    #: every |lambda| < 1 beyond the error band
+    STABLE = "stable"
+    #: max |lambda| > 1 beyond the error band
+    UNSTABLE = "unstable"
+    #: max |lambda| = 1 within the error band
+    MARGINAL = "marginal"
+
 
 MIN_STEPS = 16
 #: ceiling on Magnus steps per period
@@ -140,7 +146,7 @@ class Floquet:
     exponents: ComplexArray
     steps: int
     error_estimate: float
-    verdict: str
+    verdict: Verdict
     frozen_mean: ComplexArray
     warnings: list[str] = field(default_factory=list)
 
@@ -158,7 +164,7 @@ class Floquet:
         upper = upper[np.argsort(upper.imag)]
         return {
             "period": self.period,
-            "verdict": self.verdict,
+            "verdict": str(self.verdict),
             "max_multiplier": self.max_multiplier,
             "growth_rate": self.growth_rate,
             "multipliers": {
@@ -187,13 +193,13 @@ class Floquet:
         }
 
 
-def _verdict(max_mod: float, err: float) -> str:
+def _verdict(max_mod: float, err: float) -> Verdict:
     band = max(1e-9, 100.0 * err)
     if max_mod > 1.0 + band:
-        return "unstable"
+        return Verdict.UNSTABLE
     if max_mod < 1.0 - band:
-        return "stable"
-    return "marginal"
+        return Verdict.STABLE
+    return Verdict.MARGINAL
 
 
 def _mean(profile: Profile) -> float:
