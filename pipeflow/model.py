@@ -456,6 +456,22 @@ class PipeModel:
         """Frozen-time balanced state matrices S(t), shape ``(len(t), 2n, 2n)`` [1/s]."""
         return np.tensordot(c.weights(), self.state_pieces, axes=1)
 
+    def frozen_state_matrix(
+        self, v: ArrayLike, vdot: ArrayLike = 0.0, w2: ArrayLike = 0.0
+    ) -> FloatArray:
+        """S = S_0 + v S_v + vdot S_vdot + v^2 S_v2 + w0^2 S_w2 [1/s] frozen at given values.
+
+        ``v`` [m/s], ``vdot`` [m/s^2] and ``w2`` = w0^2 [rad^2/s^2] broadcast to one shape
+        ``B``; the result has shape ``B + (2n, 2n)`` (:meth:`state_matrix` on the flattened
+        batch, the forcing not involved).
+        """
+        vv, aa, ww = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (v, vdot, w2)))
+        flat = vv.ravel()
+        S = self.state_matrix(
+            Coefficients(v=flat, vdot=aa.ravel(), w2=ww.ravel(), wdot=np.zeros_like(flat))
+        )
+        return np.asarray(S.reshape(vv.shape + S.shape[1:]))
+
     def forcing(self, c: Coefficients) -> FloatArray:
         """Balanced forcing vectors f(t), shape ``(len(t), 2n)`` [1/s]."""
         return c.wdot[:, None] * self.f_wdot[None]

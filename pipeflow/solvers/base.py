@@ -228,14 +228,6 @@ def step_counts(
     return counts.astype(np.int64)
 
 
-SOLVERS: dict[str, Solver] = {}
-
-
-def register(solver: Solver) -> Solver:
-    SOLVERS[solver.name] = solver
-    return solver
-
-
 def frozen_eigenvalues(
     model: PipeModel, loading: Loading, t_end: float, samples: int = 65
 ) -> NDArray[np.complex128]:

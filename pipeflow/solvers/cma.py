@@ -30,7 +30,6 @@ from pipeflow.solvers.base import (
     Solver,
     SolverOutput,
     SolverStats,
-    register,
     spectral_radius,
 )
 
@@ -237,6 +236,3 @@ def _expm_marching(S: FloatArray, t: FloatArray, z0: FloatArray) -> FloatArray:
         step = E if E is not None else expm(S * h)
         Z[k + 1] = step @ Z[k]
     return Z
-
-
-register(CMA())

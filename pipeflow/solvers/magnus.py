@@ -87,7 +87,6 @@ from pipeflow.solvers.base import (
     SolverOutput,
     SolverStats,
     given_step,
-    register,
     relative_difference,
     step_budget,
     step_counts,
@@ -420,6 +419,3 @@ def _substeps(
             count = np.ceil(current * factor)
     count = np.nan_to_num(count, nan=budget + 1.0, posinf=budget + 1.0)
     return np.clip(count, 1, budget + 1).astype(np.int64)
-
-
-register(Magnus())

@@ -20,7 +20,6 @@ from pipeflow.solvers.base import (
     Solver,
     SolverOutput,
     SolverStats,
-    register,
 )
 
 INTEGRATORS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
@@ -105,6 +104,3 @@ class Reference(Solver):
         stats.rhs_evaluations = int(sol.nfev)
         diagnostics = {"integrator": opts.integrator, "rtol": opts.rtol, "atol": opts.atol}
         return SolverOutput(z=sol.y.T.copy(), diagnostics=diagnostics)
-
-
-register(Reference())

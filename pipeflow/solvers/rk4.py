@@ -24,7 +24,6 @@ from pipeflow.solvers.base import (
     SolverStats,
     frozen_eigenvalues,
     given_step,
-    register,
     step_budget,
     step_counts,
 )
@@ -158,6 +157,3 @@ class RK4(Solver):
             if done % report_every < m:
                 problem.report(done / total)
         return Z
-
-
-register(RK4())

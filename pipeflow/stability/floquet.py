@@ -37,7 +37,7 @@ from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.linalg import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
-from pipeflow.stability.core import check_modes, check_range, eigenvalues, frozen_matrices
+from pipeflow.stability.core import check_modes, check_range, eigenvalues
 
 
 class Verdict(enum.StrEnum):
@@ -68,7 +68,7 @@ def _monodromy_steps(
     h = period / steps
     t0 = np.arange(steps) * h
     # (B, N, m, m) at each Gauss point
-    A1, A2 = (frozen_matrices(model, *coefficients(t0 + g * h)) for g in GAUSS_NODES)
+    A1, A2 = (model.frozen_state_matrix(*coefficients(t0 + g * h)) for g in GAUSS_NODES)
     return product_of_steps(expm_stack(magnus4_omega(A1, A2, h)))
 
 
