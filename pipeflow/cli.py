@@ -215,7 +215,7 @@ def cmd_example(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     result = _result_for(args, _read_json(args.spec))
     if args.format in ("csv", "parquet"):
-        from pipeflow.export import to_csv, to_parquet
+        from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
         _write(args.output, export(result, args.table))
@@ -226,12 +226,12 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from pipeflow.plots import PlotError, render
+    from pipeflow.io.plots import PlotError, render
 
     fmt = args.format or Path(args.out).suffix.lstrip(".").lower()
     if fmt not in ("png", "svg"):
         raise PlotError("give --out a .png or .svg file name, or --format", field="--out")
-    from pipeflow.plots import available_plots
+    from pipeflow.io.plots import available_plots
 
     result = _result_for(args, _read_json(args.input))
     names = available_plots(result)
@@ -279,8 +279,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from pipeflow import __version__
-    from pipeflow.export import TABLES
-    from pipeflow.plots import PLOTS
+    from pipeflow.io.export import TABLES
+    from pipeflow.io.plots import PLOTS
 
     p = argparse.ArgumentParser(
         prog="pipeflow",

@@ -22,6 +22,7 @@ from pipeflow._types import FloatArray, Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
+from pipeflow.io.json import json_safe
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -31,7 +32,6 @@ from pipeflow.modeshapes import (
     ModeShapes,
     frozen_mode_shapes,
 )
-from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
@@ -96,11 +96,12 @@ class Simulation:
 
 
 @dataclass
-class Result(NotebookViews):
+class Result:
     """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form).
 
-    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot` (from
-    :class:`pipeflow.notebook.NotebookViews`; xarray/pandas are the ``notebook`` extra).
+    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot`, shorthands of
+    the functions of :mod:`pipeflow.io.notebook` (imported on first use; xarray/pandas are
+    the ``notebook`` extra), which take this result or its JSON form.
     """
 
     simulation: Simulation
@@ -139,8 +140,24 @@ class Result(NotebookViews):
     def fundamental(self) -> Traces:
         return Traces(self.frozen.xi[:, :1], self.frozen.confidence[:, :1])
 
-    def _document(self) -> dict[str, Any]:
-        return self.to_dict()
+    # the views a notebook asks a result for (README): the io layer, imported on first use
+    def to_xarray(self) -> Any:
+        """The result as an :class:`xarray.Dataset`: :func:`pipeflow.io.notebook.to_xarray`."""
+        from pipeflow.io.notebook import to_xarray
+
+        return to_xarray(self.to_dict())
+
+    def to_dataframe(self, table: str = "history") -> Any:
+        """One table as a :class:`pandas.DataFrame`: :func:`pipeflow.io.notebook.to_dataframe`."""
+        from pipeflow.io.notebook import to_dataframe
+
+        return to_dataframe(self.to_dict(), table)
+
+    def plot(self, name: str = "tip_displacement", **kwargs: Any) -> Any:
+        """A matplotlib Figure of plot ``name``: :func:`pipeflow.io.notebook.plot`."""
+        from pipeflow.io.notebook import plot
+
+        return plot(self.to_dict(), name, **kwargs)
 
     def to_dict(self, include_modal: bool | None = None) -> dict[str, Any]:
         """JSON-ready dictionary: lists of floats, every number finite."""
@@ -194,27 +211,6 @@ def _finite(a: Any) -> Any:
     if not np.all(np.isfinite(arr)):
         raise ValueError("internal error: non-finite value reached the output")
     return arr.tolist()
-
-
-def json_safe(data: Any) -> Any:
-    """JSON-ready copy: non-finite floats become null (JSON has no Inf/NaN), numpy scalars
-    Python numbers, nested dicts, lists and tuples are walked.  The one rule for every result.
-
-    A list of Python floats whose sum is finite (no Inf or NaN among them, which would make
-    it Inf or NaN; a sum that overflows takes the element-wise path too) is copied as it is:
-    the traces of a result are such lists, and the per-element walk cost ~4 ms on a
-    2001-sample result."""
-    if isinstance(data, dict):
-        return {k: json_safe(v) for k, v in data.items()}
-    if isinstance(data, list | tuple):
-        if all(type(v) is float for v in data) and math.isfinite(sum(data)):
-            return list(data)
-        return [json_safe(v) for v in data]
-    if hasattr(data, "item") and not isinstance(data, str):
-        data = data.item()
-    if isinstance(data, float) and not math.isfinite(data):
-        return None
-    return data
 
 
 def validate(sim: Simulation) -> None:

@@ -15,7 +15,7 @@ Progress is exact: the fraction of cases done (served by the memo or computed), 
 after the memo look-up and after each chunk.
 
 The result is a table (``columns`` with their units, one ``row`` per case in case order)
-and ``counts``; :mod:`pipeflow.export` writes it as the ``study`` CSV table.
+and ``counts``; :mod:`pipeflow.io.export` writes it as the ``study`` CSV table.
 """
 
 from __future__ import annotations

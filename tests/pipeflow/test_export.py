@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from pipeflow.export import (
+from pipeflow.io.export import (
     SIMULATION_TABLES,
     ExportError,
     available_tables,
