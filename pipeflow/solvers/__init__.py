@@ -5,10 +5,11 @@ from pipeflow.solvers.base import Options, Problem, Solver, SolverOutput, Solver
 
 _cma, _magnus = cma.CMA(), magnus.Magnus()
 #: every solver by name; the order is that of the API's method description and of
-#: :func:`pipeflow.compare.compare`'s default methods
+#: :func:`pipeflow.compare.compare`'s default methods (the order the registrations used to
+#: happen in: magnus first, imported through the Floquet analysis)
 SOLVERS: dict[str, Solver] = {
-    "cma": _cma,
     "magnus": _magnus,
+    "cma": _cma,
     "auto": auto.Auto(_cma, _magnus),
     "reference": reference.Reference(),
     "rk4": rk4.RK4(),
