@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipeflow.io.plots import figure, to_bytes
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Profile, polynomial
 from pipeflow.simulation import Simulation, simulate
 

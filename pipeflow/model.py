@@ -263,10 +263,6 @@ def basis_caveats(pipe: Pipe) -> list[str]:
     ]
 
 
-#: The worked example of the paper, section 5 (A = 1.57e-8 m^2 is not needed by the model).
-PAPER_PIPE = Pipe(E=7.8e9, I=1.21e-17, L=0.025, M1=1.884e-5, M2=1.6485e-5)
-
-
 @dataclass(frozen=True)
 class ModeIntegrals:
     """Non-dimensional Galerkin integrals on xi in [0, 1] for ``n`` normalised modes.

@@ -17,7 +17,7 @@ from pipeflow.io.export import (
     to_csv,
     to_parquet,
 )
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 

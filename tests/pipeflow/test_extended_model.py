@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pipeflow.model import GROUPS, PAPER_PIPE, Pipe, build_model
+from pipeflow.model import GROUPS, Pipe, build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options

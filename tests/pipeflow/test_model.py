@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from pipeflow.basis import cantilever_roots
-from pipeflow.model import PAPER_PIPE, Integrals, Pipe, build_model
+from pipeflow.model import Integrals, Pipe, build_model
+from pipeflow.paper import PAPER_PIPE
 
 
 def frozen_spectrum(pipe: Pipe, n: int, v: float, w0: float) -> np.ndarray:

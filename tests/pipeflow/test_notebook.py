@@ -10,7 +10,7 @@ import pytest
 
 from pipeflow.io.export import SIMULATION_TABLES, table
 from pipeflow.io.plots import PLOTS
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Result, Simulation, simulate
 

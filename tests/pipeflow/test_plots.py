@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from pipeflow.io.plots import PlotError, available_plots, figure, render, to_bytes
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 

@@ -22,7 +22,7 @@ from pipeflow import parallel
 from pipeflow import study as study_module
 from pipeflow.errors import Cancelled
 from pipeflow.io.export import available_tables, to_csv
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.schema import registry
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.registry import COMPUTATIONS
