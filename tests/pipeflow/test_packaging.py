@@ -35,7 +35,7 @@ def test_results_do_not_load_the_presentation_layer() -> None:
     (pipeflow.io.json, the non-finite rule of its JSON form, is the one io module it uses)."""
     code = (
         "import sys, json\n"
-        "from pipeflow.model import PAPER_PIPE\n"
+        "from pipeflow.paper import PAPER_PIPE\n"
         "from pipeflow.simulation import Simulation, simulate\n"
         "simulate(Simulation(PAPER_PIPE, modes=2, t_end=0.01, samples=11)).to_dict()\n"
         "print(json.dumps(sorted(m for m in sys.modules if m.startswith('pipeflow.io'))))\n"
