@@ -2,10 +2,10 @@
 
 Installed as the ``pipeflow`` console script.  Every subcommand reads and writes the same
 JSON as the HTTP service (a request of :mod:`pipeflow.schema` in, the result dictionary
-out), and local runs go through the same registry of computations.  Web libraries are
-imported only inside the subcommands that talk HTTP (``serve``, which is the service's own
-``python -m service``, and ``--server``), so ``import pipeflow.cli`` keeps the library free
-of them.
+out), and local runs go through the same registry of computations.  The command line never
+imports the service: ``serve`` runs ``python -m service`` in a child process, and the HTTP
+client is imported only inside the subcommands that talk HTTP (``--server``), so
+``import pipeflow.cli`` keeps the library free of web libraries.
 
 Exit status: 0 success, 2 invalid input (the message names the field), 1 other failures.
 """
@@ -33,7 +33,8 @@ the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s
   pipeflow plot result.json --name tip_displacement --out tip.png
   pipeflow plot spec.json --name frequency --out freq.svg        # runs the spec, then plots
   pipeflow stability stab.json                  # critical flow velocity, sweeps, maps
-  pipeflow serve --port 8000                    # the HTTP service and viewer at /
+  pipeflow serve --port 8000                    # the HTTP service and viewer at / (it
+                                                # runs: python -m service --port 8000)
   pipeflow run spec.json --server http://localhost:8000          # run on a server
 """
 
@@ -215,7 +216,7 @@ def cmd_example(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     result = _result_for(args, _read_json(args.spec))
     if args.format in ("csv", "parquet"):
-        from pipeflow.export import to_csv, to_parquet
+        from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
         _write(args.output, export(result, args.table))
@@ -226,12 +227,12 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from pipeflow.plots import PlotError, render
+    from pipeflow.io.plots import PlotError, render
 
     fmt = args.format or Path(args.out).suffix.lstrip(".").lower()
     if fmt not in ("png", "svg"):
         raise PlotError("give --out a .png or .svg file name, or --format", field="--out")
-    from pipeflow.plots import available_plots
+    from pipeflow.io.plots import available_plots
 
     result = _result_for(args, _read_json(args.input))
     names = available_plots(result)
@@ -266,21 +267,34 @@ def cmd_stability(args: argparse.Namespace) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    try:  # the service is an extra: pip install 'pipeflow[service]'
-        from service.__main__ import serve
-    except ImportError as exc:
-        raise PipeflowError(
-            f"the service is not installed ({exc}); pip install -e '.[service]'",
-            parameter="serve",
-        ) from None
-    serve(args.host, args.port, workers=args.workers, data_dir=args.data_dir)
-    return 0
+    """Run ``python -m service`` with the same flags in a child process and return its exit
+    status: the service (an extra, ``pip install 'pipeflow[service]'``) is not imported by
+    the command line.  Ctrl-C reaches the child through the terminal's process group."""
+    import importlib.util
+    import subprocess
+
+    for module in ("service", "uvicorn"):
+        if importlib.util.find_spec(module) is None:
+            raise PipeflowError(
+                f"the service is not installed (no module {module!r}); pip install -e '.[service]'",
+                parameter="serve",
+            )
+    argv = [sys.executable, "-m", "service", "--host", args.host, "--port", str(args.port)]
+    if args.workers is not None:
+        argv += ["--workers", str(args.workers)]
+    if args.data_dir is not None:
+        argv += ["--data-dir", str(args.data_dir)]
+    child = subprocess.Popen(argv)
+    try:
+        return child.wait()
+    except KeyboardInterrupt:  # the child got the same interrupt: let it shut down
+        return child.wait()
 
 
 def build_parser() -> argparse.ArgumentParser:
     from pipeflow import __version__
-    from pipeflow.export import TABLES
-    from pipeflow.plots import PLOTS
+    from pipeflow.io.export import TABLES
+    from pipeflow.io.plots import PLOTS
 
     p = argparse.ArgumentParser(
         prog="pipeflow",
@@ -384,9 +398,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser(
         "serve",
         help="run the HTTP service (API and viewer)",
-        description="Run the pipeflow HTTP service (python -m service) with uvicorn; the "
-        "viewer is at /.  One server process per data directory: its worker pool "
-        "(PIPEFLOW_WORKERS) gives the parallelism.",
+        description="Run the pipeflow HTTP service with uvicorn, as 'python -m service' with "
+        "the same flags (in a child process; or 'uvicorn service.main:app', configured by "
+        "the environment); the viewer is at /.  One server process per data directory: its "
+        "worker pool (PIPEFLOW_WORKERS) gives the parallelism.",
     )
     sp.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1)")
     sp.add_argument("--port", type=int, default=8000, help="TCP port (default 8000)")

@@ -15,12 +15,12 @@ Progress is exact: the fraction of cases done (served by the memo or computed), 
 after the memo look-up and after each chunk.
 
 The result is a table (``columns`` with their units, one ``row`` per case in case order)
-and ``counts``; :mod:`pipeflow.export` writes it as the ``study`` CSV table.
+and ``counts``; :mod:`pipeflow.io.export` writes it as the ``study`` CSV table.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,11 +28,10 @@ from numpy.linalg import LinAlgError
 from pydantic import BaseModel
 
 from pipeflow import parallel
+from pipeflow._types import Progress
 from pipeflow.errors import PipeflowError
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.study import BASE_MODELS, StudySpec, field_unit
-
-Progress = Callable[[float], None]
 
 #: most cases in one fanned-out piece (amortises a dispatch of ~10 ms over several cases,
 #: and bounds the cases between two progress reports) [-]

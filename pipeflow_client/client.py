@@ -31,7 +31,7 @@ import tenacity
 from numpy.typing import NDArray
 
 from pipeflow.errors import PipeflowError
-from pipeflow.notebook import NotebookViews
+from pipeflow.io.notebook import NotebookViews
 
 FloatArray = NDArray[np.float64]
 Progress = Callable[[float], None]
@@ -86,7 +86,7 @@ class SimulationResult(NotebookViews):
     raw : the full JSON document.
 
     ``to_xarray()``, ``to_dataframe(table)`` and ``plot(name)`` give the same objects as a
-    local :class:`pipeflow.simulation.Result` (:mod:`pipeflow.notebook`).
+    local :class:`pipeflow.simulation.Result` (:mod:`pipeflow.io.notebook`).
     """
 
     key: str

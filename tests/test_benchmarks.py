@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeflow.model import PAPER_PIPE, build_model
+from pipeflow.model import build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 
 

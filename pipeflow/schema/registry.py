@@ -18,10 +18,12 @@ from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, Field, TypeAdapter
 
+from pipeflow._types import Progress
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
-from pipeflow.export import SIMULATION_TABLES
-from pipeflow.plots import available_plots
+from pipeflow.io.export import SIMULATION_TABLES
+from pipeflow.io.json import json_safe
+from pipeflow.io.plots import available_plots
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
 from pipeflow.schema.simulation import (
@@ -34,12 +36,10 @@ from pipeflow.schema.simulation import (
 from pipeflow.schema.simulation import run_simulation as simulate_request
 from pipeflow.schema.stability import STABILITY_FIELDS
 from pipeflow.schema.study import MAX_CASES, STABILITY_STUDY_EXAMPLE, STUDY_EXAMPLE, StudySpec
-from pipeflow.simulation import json_safe
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
 from pipeflow.study import run_study
 
-Progress = Callable[[float], None]
 Run = Callable[[Any, Progress | None], dict[str, Any]]
 
 

@@ -18,7 +18,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from pipeflow import profiles
+from pipeflow import paper, profiles
+from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import PipeflowError
@@ -31,7 +32,7 @@ from pipeflow.modeshapes import (
 )
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
-from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
+from pipeflow.solvers.base import MAX_STEPS_CEILING
 
 MAX_SAMPLES = 200_001
 MAX_TABLE_POINTS = 10_000
@@ -439,19 +440,18 @@ class SimulationSpec(StrictModel):
     model_config = ConfigDict(
         json_schema_extra={
             "examples": [
-                {
-                    "pipe": {
-                        "E": 7.8e9,
-                        "I": 1.21e-17,
-                        "L": 0.025,
-                        "M1": 1.884e-5,
-                        "M2": 1.6485e-5,
+                {  # the paper's example (pipeflow.paper) as JSON
+                    "pipe": dict(paper.PAPER_PIPE_JSON),
+                    "rotation": {"omega0": {"kind": "constant", "value": paper.PAPER_OMEGA0}},
+                    "flow": {
+                        "velocity": {
+                            "kind": "polynomial",
+                            "coefficients": list(paper.PAPER_FLOW.coefficients),
+                        }
                     },
-                    "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
-                    "flow": {"velocity": {"kind": "polynomial", "coefficients": [0.0, 0.4]}},
-                    "initial": {"u0": 0.001, "du0": 0.0},
-                    "modes": 10,
-                    "time": {"t_end": 1.0, "samples": 2001},
+                    "initial": {"u0": paper.PAPER_U0, "du0": 0.0},
+                    "modes": paper.PAPER_MODES,
+                    "time": {"t_end": paper.PAPER_T_END, "samples": paper.PAPER_SAMPLES},
                     "method": "auto",
                 }
             ]
@@ -534,14 +534,15 @@ class SimulationSpec(StrictModel):
         return data
 
 
-def run_simulation(spec: SimulationSpec, progress: ProgressCallback | None = None) -> Result:
+def run_simulation(spec: SimulationSpec, progress: Progress | None = None) -> Result:
     """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
     the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
     with request_fields(SIMULATION_FIELDS):
         return simulate(spec.to_simulation(), progress=progress)
 
 
-#: the paper's section-5 example, v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s
+#: the paper's section-5 example (:mod:`pipeflow.paper`), v = 0.4 t m/s, w0 = 100 rad/s,
+#: 10 modes, 1 s
 PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_json_schema()["examples"][0]
 
 

@@ -22,8 +22,10 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AliasChoices, ConfigDict, Field, Strict, model_validator
 
+from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
-from pipeflow.model import GROUPS, PAPER_PIPE, Pipe
+from pipeflow.model import GROUPS, Pipe
+from pipeflow.paper import PAPER_PIPE_JSON
 from pipeflow.schema.simulation import (
     ConstantProfile,
     HarmonicProfile,
@@ -38,11 +40,8 @@ from pipeflow.stability.floquet import check_chart_work, floquet, period_of, res
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
 from pipeflow.stability.sweeps import Parameter, sweep
 
-Progress = Callable[[float], None]
-
 #: the paper's section-5 pipe, for the schema examples
 #: (E, I, L, M1, M2 only: the paper's pipe needs none of the fields beyond its model)
-PAPER_PIPE_JSON: Any = {name: getattr(PAPER_PIPE, name) for name in ("E", "I", "L", "M1", "M2")}
 MAX_SWEEP_POINTS = 2001
 MAX_MAP_SIDE = 200
 MAX_CHART_SIDE = 101

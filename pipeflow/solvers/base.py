@@ -6,18 +6,15 @@ import dataclasses
 import math
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import Loading, PipeModel
-
-FloatArray = NDArray[np.float64]
-ProgressCallback = Callable[[float], None]
 
 #: hard ceilings that no option may lift (they bound what one request can cost)
 MAX_STEPS_CEILING = 20_000_000
@@ -64,7 +61,7 @@ class Problem:
     z0: FloatArray
     t: FloatArray  # output times [s], t[0] == 0, strictly increasing
     options: Options = field(default_factory=Options)
-    progress: ProgressCallback | None = None
+    progress: Progress | None = None
 
     def report(self, fraction: float) -> None:
         if self.progress is not None:
@@ -229,14 +226,6 @@ def step_counts(
             smallest_step=smallest if math.isfinite(smallest) else None,
         )
     return counts.astype(np.int64)
-
-
-SOLVERS: dict[str, Solver] = {}
-
-
-def register(solver: Solver) -> Solver:
-    SOLVERS[solver.name] = solver
-    return solver
 
 
 def frozen_eigenvalues(

@@ -6,6 +6,7 @@ import io
 import json
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -139,19 +140,48 @@ def test_stability_refuses_a_simulation_spec(
     assert "not a stability spec" in capsys.readouterr().err
 
 
-def test_serve_runs_one_server_process_with_n_compute_workers(
+def test_serve_runs_python_m_service_with_the_same_flags(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """``pipeflow serve`` imports no service module: it runs ``python -m service`` with its
+    flags in a child process and returns the child's exit status."""
+    calls: list[list[str]] = []
+
+    class Child:
+        def __init__(self, argv: list[str]) -> None:
+            calls.append(argv)
+
+        def wait(self) -> int:
+            return 2
+
+    monkeypatch.setattr(subprocess, "Popen", Child)
+    before = {m for m in sys.modules if m == "service" or m.startswith("service.")}
+    argv = ["serve", "--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]
+    assert main(argv) == 2
+    head = [sys.executable, "-m", "service", "--host", "127.0.0.1"]
+    assert calls == [[*head, "--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]]
+    calls.clear()
+    assert main(["serve"]) == 2
+    assert calls == [[*head, "--port", "8000"]]
+    assert {m for m in sys.modules if m == "service" or m.startswith("service.")} == before
+
+
+def test_python_m_service_runs_one_server_process_with_n_compute_workers(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """--workers is the compute pool (PIPEFLOW_WORKERS), never uvicorn's server processes:
     N servers on one data directory is what the store forbids."""
     import uvicorn
 
+    from service.__main__ import main as service_main
+
     calls: list[tuple[Any, dict[str, Any]]] = []
     monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append((app, kw)))
     monkeypatch.setenv("PIPEFLOW_WORKERS", "2")
     monkeypatch.setenv("PIPEFLOW_QUEUE_SIZE", "7")
     monkeypatch.setenv("PIPEFLOW_DATA_DIR", str(tmp_path / "env"))
-    assert main(["serve", "--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]) == 0
+    argv = ["--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]
+    assert service_main(argv) == 0
     ((app, kw),) = calls
     assert kw == {"host": "127.0.0.1", "port": 8123}  # no "workers": one server process
     settings = app.state.settings
@@ -160,9 +190,9 @@ def test_serve_runs_one_server_process_with_n_compute_workers(
 
     # without the flags the environment decides, as for uvicorn service.main:app
     calls.clear()
-    assert main(["serve"]) == 0
+    assert service_main([]) == 0
     settings = calls[0][0].state.settings
     assert (settings.workers, settings.data_dir) == (2, tmp_path / "env")
 
-    assert main(["serve", "--workers", "0"]) == 2
+    assert service_main(["--workers", "0"]) == 2
     assert "workers: Input should be greater than or equal to 1" in capsys.readouterr().err

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from pipeflow.model import GROUPS, PAPER_PIPE, Pipe
+from pipeflow.model import GROUPS, Pipe
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.schema.registry import STABILITY, computation_for, parse
 from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
 from pipeflow.schema.results import StabilityDimensionless

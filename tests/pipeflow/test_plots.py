@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-from pipeflow.model import PAPER_PIPE
-from pipeflow.plots import PlotError, available_plots, figure, render, to_bytes
+from pipeflow.io.plots import PlotError, available_plots, figure, render, to_bytes
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 

@@ -8,7 +8,7 @@ import typing
 import pytest
 
 from pipeflow.errors import InvalidInput
-from pipeflow.plots import available_plots
+from pipeflow.io.plots import available_plots
 from pipeflow.schema import registry
 from pipeflow.schema.registry import COMPUTATIONS, SIMULATION, SWEEP_KINDS, SWEEPS
 from pipeflow.schema.simulation import PAPER_EXAMPLE, MethodOptions, SimulationSpec
@@ -70,7 +70,7 @@ def test_execute_adds_the_plots_the_entry_names() -> None:
 
 @pytest.mark.parametrize("name", sorted(TINY))
 def test_every_plot_a_result_can_have_is_named_by_its_entry(name: str) -> None:
-    """execute() keeps the plots its entry names: a plot kind added to pipeflow.plots for a
+    """execute() keeps the plots its entry names: a plot kind added to pipeflow.io.plots for a
     computation must be added to the entry too, or this fails (it would be dropped)."""
     c = COMPUTATIONS[name]
     raw = c.run(tiny_request(name), None)

@@ -21,8 +21,8 @@ from pydantic import ValidationError
 from pipeflow import parallel
 from pipeflow import study as study_module
 from pipeflow.errors import Cancelled
-from pipeflow.export import available_tables, to_csv
-from pipeflow.model import PAPER_PIPE
+from pipeflow.io.export import available_tables, to_csv
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.schema import registry
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.registry import COMPUTATIONS
@@ -373,7 +373,7 @@ def test_csv_table_of_a_study() -> None:
 
 def test_parquet_table_of_a_study_keeps_text_flags_and_floats() -> None:
     pq = pytest.importorskip("pyarrow.parquet")  # in the dev extra: CI runs this
-    from pipeflow.export import to_parquet
+    from pipeflow.io.export import to_parquet
 
     result = COMPUTATIONS["study"].execute(study(cases=[{"pipe.E": 7e9}, {"pipe.E": 8e9}]))
     t = pq.read_table(io.BytesIO(to_parquet(result, "study")))
