@@ -132,12 +132,11 @@ def _progress(args: argparse.Namespace, label: str) -> ProgressBar:
     return ProgressBar(label, enabled=True if args.progress else (False if args.quiet else None))
 
 
-def _run_local(endpoint: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
-    """Validate ``spec_data`` as a body of the registry's endpoint ``endpoint`` and run it."""
+def _run_local(kind: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
+    """Validate ``spec_data`` as a request of the registry's computation ``kind``; run it."""
     from pipeflow.schema import registry
 
-    endpoint_of = {e.path: e for e in registry.endpoints()}
-    request = registry.parse(endpoint_of[endpoint], spec_data)
+    request = registry.parse(kind, spec_data)
     try:
         return registry.computation_for(request).execute(request, bar)
     finally:
@@ -174,11 +173,11 @@ def _result_for(args: argparse.Namespace, data: Any) -> dict[str, Any]:
         bar = _progress(args, "analysing")
         if getattr(args, "server", None):
             return _stability_remote(data, args.server, bar)
-        return _run_local("sweeps" if "kind" in data else "stability", data, bar)
+        return _run_local(data["kind"] if "kind" in data else "stability", data, bar)
     bar = _progress(args, "simulating")
     if getattr(args, "server", None):
         return _run_remote(data, args.server, bar)
-    return _run_local("simulations", data, bar)
+    return _run_local("simulation", data, bar)
 
 
 def _write(out: str | None, payload: str | bytes) -> None:
