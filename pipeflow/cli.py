@@ -199,7 +199,12 @@ def _result_for(
     if _is_result(data):
         return data
     kind = _kind(args, data, default, allowed or _kinds())
-    bar = _progress(args, "simulating" if kind == "simulation" else "computing")
+    bar = _progress(
+        args,
+        {"simulation": "simulating", "compare": "comparing", "study": "studying"}.get(
+            kind, "analysing"
+        ),
+    )
     if getattr(args, "server", None):
         return _run_remote(kind, data, args.server, bar)
     return _run_local(kind, data, bar)

@@ -413,9 +413,14 @@ class _Operations:
         """Submit a sweep, map or Floquet analysis (``POST /v1/sweeps``, spec ``kind``) as a
         job; returns the job document (``key``, ``kind``, ``status``, ``progress``)."""
         kind = spec.get("kind") if isinstance(spec, dict) else getattr(spec, "kind", None)
-        if kind not in SWEEP_KINDS:
-            raise ValueError(f"a sweep's kind is one of: {', '.join(SWEEP_KINDS)}; not {kind!r}")
-        return (yield from _Operations.submit_job(kind, spec, refresh=refresh))
+        if kind in SWEEP_KINDS:
+            return (yield from _Operations.submit_job(kind, spec, refresh=refresh))
+        # no or an unknown kind: the service's 422 names the field
+        path = _job_path(SWEEP_KINDS[0])
+        doc: dict[str, Any] = yield from _json(
+            Call("POST", path, _refresh(refresh), _spec_json(spec))
+        )
+        return doc
 
     @staticmethod
     def sweep(
