@@ -137,7 +137,36 @@ def test_stability_refuses_a_simulation_spec(
     small_spec: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert main(["stability", str(small_spec)]) == 2
-    assert "not a stability spec" in capsys.readouterr().err
+    assert "not a valid 'stability' request" in capsys.readouterr().err
+    assert main(["stability", str(small_spec), "--kind", "simulation"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown kind 'simulation'; choose one of: stability, argand, campbell" in err
+
+
+def test_a_wrong_kind_names_the_allowed_ones(
+    tmp_path: Path, small_spec: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", str(small_spec), "--kind", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown kind 'nope'; choose one of: simulation, compare, stability, argand" in err
+    tagged = tmp_path / "bogus.json"
+    tagged.write_text(json.dumps({"kind": "bogus", "pipe": PIPE}))
+    assert main(["run", str(tagged)]) == 2
+    assert "the spec's kind 'bogus' names no computation" in capsys.readouterr().err
+    sweep = tmp_path / "argand.json"
+    sweep.write_text(json.dumps({"kind": "argand", "pipe": PIPE}))
+    assert main(["stability", str(sweep), "--kind", "campbell"]) == 2
+    assert "--kind campbell but the spec's kind is 'argand'" in capsys.readouterr().err
+
+
+def test_kind_selects_the_computation_of_a_spec_without_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    spec = tmp_path / "argand.json"
+    spec.write_text(json.dumps({"pipe": PIPE, "modes": 4, "velocity_range": [0, 40], "points": 11}))
+    out = tmp_path / "out.json"
+    assert main(["run", str(spec), "--kind", "argand", "-o", str(out), "--quiet"]) == 0
+    assert json.loads(out.read_text())["kind"] == "argand"
 
 
 def test_serve_runs_python_m_service_with_the_same_flags(

@@ -40,6 +40,4 @@ def sleep(spec: SleepSpec, progress: Progress | None) -> dict[str, Any]:
     return {"slept": spec.seconds, "tag": spec.tag}
 
 
-SLEEP = register(
-    Computation("test-sleep", SleepSpec, SleepResult, sleep, endpoint=None, budget="seconds <= 120")
-)
+SLEEP = register(Computation("test-sleep", SleepSpec, SleepResult, sleep, budget="seconds <= 120"))

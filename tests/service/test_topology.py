@@ -33,7 +33,7 @@ from sqlalchemy import create_engine, text
 from tests.service.conftest import SMALL
 from tests.service.processes import free_port, kill_group, server, spawn, wait_http, wait_job
 
-#: slow (PostgreSQL, a scheduler, workers and two replicas; about 75 s): run by .ci/run's second pytest step
+#: slow (PostgreSQL, a scheduler, workers and two replicas; about 75 s): .ci/run's -m slow step
 pytestmark = pytest.mark.slow
 
 PG_BIN = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
