@@ -9,7 +9,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, Field
 
 from pipeflow.schema.registry import COMPUTATIONS
-from service.problems import Problem
+from service.http.problems import Problem
 
 KEY_PATTERN = r"^[0-9a-f]{64}$"
 

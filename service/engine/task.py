@@ -41,7 +41,7 @@ from pipeflow import parallel
 from pipeflow.errors import Cancelled, PipeflowError
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
-from service.problems import pipeflow_problem, problem
+from service.http.problems import pipeflow_problem, problem
 from service.store import StorageError, Store
 from service.store.memo import StoreMemo
 

@@ -8,10 +8,16 @@ from typing import Annotated, Any, Literal, Union
 from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
 from pipeflow.schema.registry import COMPUTATIONS
-from service.compute import CACHE_HEADERS, encoded_hit, entity_tag, result_response, sends_gzip
 from service.deps import HitDep, RunnerDep, StoreDep
-from service.negotiation import JSON, accepts
-from service.problems import ProblemError, responses
+from service.http.negotiation import JSON, accepts
+from service.http.problems import ProblemError, responses
+from service.http.responses import (
+    CACHE_HEADERS,
+    encoded_hit,
+    entity_tag,
+    result_response,
+    sends_gzip,
+)
 from service.routes.exports import (
     TABLE_CONTENT,
     TABLE_DESCRIPTION,

@@ -306,10 +306,10 @@ def test_health_and_ready(client: TestClient) -> None:
 
 
 def test_workers_pin_blas_threads(client: TestClient) -> None:
-    from service.engine import worker
+    from service.engine import preload
 
     runner = client.app.state.runner  # type: ignore[attr-defined]
-    info = client.portal.call(runner.call, worker.ping)  # type: ignore[union-attr]
+    info = client.portal.call(runner.call, preload.ping)  # type: ignore[union-attr]
     assert info["threads"]["OMP_NUM_THREADS"] == "1"
     assert info["threads"]["OPENBLAS_NUM_THREADS"] == "1"
     assert info["numpy_loaded"]

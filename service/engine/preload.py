@@ -3,7 +3,7 @@
 The service's workers run with one thread and one BLAS thread each
 (:data:`THREAD_VARIABLES` set to 1 in the worker's environment before numpy loads): two
 computations on two cores must not fight over BLAS threads.  ``dask worker --preload
-service.engine.worker`` (and the embedded cluster) import the numerical stack at start,
+service.engine.preload`` (and the embedded cluster) import the numerical stack at start,
 and warm up (:func:`warm_up`: a tiny run of each solver through the task's compute path
 and the encoder), so the first request does not pay for them.  The worker's log lines go
 to stdout in the service's format (``PIPEFLOW_LOG_LEVEL``, ``PIPEFLOW_LOG_FORMAT``).
