@@ -24,11 +24,10 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from numpy.linalg import LinAlgError
 from pydantic import BaseModel
 
 from pipeflow import parallel
-from pipeflow.errors import PipeflowError
+from pipeflow.errors import classify
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.study import BASE_MODELS, StudySpec, field_unit
 
@@ -145,6 +144,11 @@ def summarise(kind: str, result: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+#: failures of a case that say nothing lasting about its request (a bug, or the case
+#: stopped or could not be stored): reported in the row, never memoised
+UNLASTING = ("internal", "cancelled", "runtime-limit", "storage")
+
+
 def _failure(error_type: str, field: str | None, detail: str) -> dict[str, Any]:
     return {"error_type": error_type, "error_field": field, "error_detail": detail}
 
@@ -154,23 +158,9 @@ def run_case(kind: str, request: BaseModel) -> dict[str, Any]:
     **summary}`` or ``{"status": "failed", error_type, error_field, error_detail}``."""
     try:
         result = _computation(kind).execute(request)
-    except PipeflowError as exc:
-        return {"status": "failed", **_failure(exc.slug, exc.field, exc.message)}
-    except (ArithmeticError, LinAlgError) as exc:
-        return {
-            "status": "failed",
-            **_failure(
-                "numerical-range",
-                None,
-                f"the inputs take the computation out of the range of double precision "
-                f"({type(exc).__name__}: {exc})",
-            ),
-        }
-    except Exception as exc:  # a bug: reported in the row, not memoised (see run_study)
-        return {
-            "status": "failed",
-            **_failure("internal", None, f"internal error: {type(exc).__name__}: {exc}"),
-        }
+    except Exception as exc:  # an internal one is a bug: in the row, not memoised (run_study)
+        record = classify(exc)  # the failure as the service's jobs record it
+        return {"status": "failed", **_failure(record.type, record.field, record.message)}
     return {"status": "ok", **summarise(kind, result)}
 
 
@@ -230,7 +220,7 @@ def run_study(spec: StudySpec, progress: Progress | None = None) -> dict[str, An
             keep = {
                 memo_key(k): s
                 for k, s in zip(chunk_keys, results, strict=True)
-                if s.get("error_type") != "internal"
+                if s.get("error_type") not in UNLASTING
             }
             if keep:
                 memo.put_many(keep)

@@ -4,7 +4,7 @@ Routes stay thin: they validate the body once (FastAPI + the computation's reque
 key it once (:func:`service.keys.keyed`) and call :func:`run_sync` (answer with the
 result) or :func:`accept_job` (answer 202 with a job).  The answers themselves are built by
 :mod:`service.http.responses`; an engine outcome that is an error becomes a problem
-document there too (:func:`service.http.problems.record_problem`).
+document there too (:func:`service.http.problems.stored_problem`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
 from service.engine import ComputationCancelled, ComputationFailed, QueueFull, Runner
-from service.http.problems import ProblemError
+from service.http.problems import ProblemError, stored_problem
 from service.http.responses import Hit, hit_response, job_response, result_response
 from service.keys import Keyed
 from service.store import Job, Store
@@ -79,7 +79,7 @@ async def run_sync(
     except QueueFull as exc:
         raise _saturated(runner, exc) from None
     except ComputationFailed as exc:
-        raise ProblemError.from_document(exc.problem) from None
+        raise ProblemError.from_document(stored_problem(exc.error)) from None
     except ComputationCancelled as exc:
         raise ProblemError(409, f"the computation was cancelled: {exc}", slug="cancelled") from None
     return result_response(key, False, body)

@@ -37,13 +37,14 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
+from pipeflow.errors import ErrorRecord, StorageError
 from pipeflow.schema.registry import COMPUTATIONS
 from service import observability
 from service.engine.preload import WORKER_ENV
 from service.engine.task import Outcome, TaskConfig, run_job
 from service.keys import Keyed
 from service.settings import Settings
-from service.store import Job, StorageError, Store
+from service.store import Job, Store
 
 log = logging.getLogger("service.engine")
 
@@ -65,11 +66,13 @@ class QueueFull(Exception):
 
 
 class ComputationFailed(Exception):
-    """The computation ended in a failure; ``problem`` is its RFC 9457 document."""
+    """The computation ended in a failure; ``error`` is what its job record says (an
+    :class:`~pipeflow.errors.ErrorRecord` as JSON, see :meth:`ErrorRecord.to_dict`)."""
 
-    def __init__(self, problem: dict[str, Any]) -> None:
-        super().__init__(problem.get("detail", "failed"))
-        self.problem = problem
+    def __init__(self, error: dict[str, Any]) -> None:
+        record = ErrorRecord.from_dict(error)
+        super().__init__(record.message if record is not None else error.get("detail", "failed"))
+        self.error = error
 
 
 class ComputationCancelled(Exception):
@@ -93,10 +96,9 @@ class Flight:
         return self.job.key
 
 
-def _internal(detail: str) -> dict[str, Any]:
-    from service.http.problems import problem
-
-    return problem(500, detail, slug="internal")
+def _internal(message: str) -> dict[str, Any]:
+    """A job record's error: the engine failed (not the computation)."""
+    return ErrorRecord.internal(message).to_dict()
 
 
 class Runner:
@@ -448,12 +450,13 @@ class Runner:
             if waiter is not None:
                 outcome = waiter.result()
                 waiter = None
-                if outcome[2] is not None:
-                    flight.seconds = outcome[2]
-                if outcome[0] == "storage":
-                    await self._storage_failure(key, *outcome[1])
-                if outcome[0] == "exception":
-                    log.warning("task of job %s ended abnormally: %s", key, outcome[1])
+                if outcome.seconds is not None:
+                    flight.seconds = outcome.seconds
+                if outcome.status == "storage":
+                    assert outcome.error is not None
+                    await self._storage_failure(key, outcome.error)
+                if outcome.status == "exception":
+                    log.warning("task of job %s ended abnormally: %s", key, outcome.note)
                     flight.resubmits += 1  # a fresh Dask key: the old one may be erred
                     tag = None
                     await asyncio.sleep(self.poll_s)
@@ -487,17 +490,20 @@ class Runner:
         try:
             return await fut
         except asyncio.CancelledError:
-            return ("exception", "cancelled by the scheduler (restarted or lost)", None)
+            return Outcome("exception", note="cancelled by the scheduler (restarted or lost)")
         except Exception as exc:
-            return ("exception", f"{type(exc).__name__}: {exc}", None)
+            return Outcome("exception", note=f"{type(exc).__name__}: {exc}")
 
-    async def _storage_failure(self, key: str, message: str, full: bool) -> None:
+    async def _storage_failure(self, key: str, failure: ErrorRecord) -> None:
         """The task could not store its result: fail the job with the reason (if the store
         takes that write) and answer the waiting request with the storage error."""
-        from service.http.problems import problem
-
-        status = 507 if full else 503
-        doc = problem(status, f"the result could not be stored: {message}", slug="storage")
+        message, full = failure.message, bool(failure.data.get("full"))
+        doc = ErrorRecord(
+            "storage",
+            "storage",
+            f"the result could not be stored: {message}",
+            data={"full": full},
+        ).to_dict()
         self.store.mark_failed(message, full=full)  # not ready until a probe write succeeds
         try:
             await asyncio.to_thread(self.store.finish_job, key, "failed", doc)
