@@ -56,6 +56,27 @@ def _rebuild(cls: type[PipeflowError], message: str, state: dict[str, Any]) -> P
     return err
 
 
+class InvalidField(ValueError):
+    """A request validator's refusal that names the offending field as data.
+
+    ``loc``: the path of that field below the model (or field) the validator checks, as a
+    tuple or a dotted path (``()``: the checked model itself); the message is the text
+    shown as is.  Raised inside a pydantic validator, it reaches the
+    ``ValidationError`` as a ``value_error`` whose ``ctx["error"]`` is this exception, so a
+    reader takes the field from ``loc`` rather than from the message.
+    """
+
+    def __init__(self, message: str, loc: tuple[str | int, ...] | str | None = ()) -> None:
+        super().__init__(message)
+        self.message = message
+        if isinstance(loc, str):
+            loc = tuple(loc.split("."))
+        self.loc: tuple[str | int, ...] = tuple(loc or ())
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.message, self.loc))
+
+
 class InvalidInput(PipeflowError):
     """An input value is out of range or inconsistent with another."""
 

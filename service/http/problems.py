@@ -9,7 +9,6 @@ reaches that path because it is validated first.
 from __future__ import annotations
 
 import logging
-import re
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -259,25 +258,25 @@ def _walk(body: Any, loc: tuple[Any, ...]) -> list[Any]:
     return path
 
 
-_LEADING_FIELD = re.compile(r"^(?:Value error, )?([A-Za-z_]\w*(?:\.\w+)*)")
+def _named_field(body: Any, base: list[Any], err: dict[str, Any]) -> list[Any]:
+    """A validator's refusal names its field as data (:class:`pipeflow.errors.InvalidField`,
+    ``loc`` below the model or field it checks, the error's ``ctx["error"]``); resolve it.
 
-
-def _field_from_message(body: Any, base: list[Any], msg: str) -> list[Any]:
-    """Model-level validators name the field at the start of their message; resolve it.
-
-    ``"output.eigen_modes cannot exceed modes"`` raised on the whole body points at
-    ``output.eigen_modes``; ``"M1 + M2 must be > 0"`` raised on ``pipe`` at ``pipe.M1``;
-    ``"methods.1: unknown method"`` raised on ``methods`` at ``methods.1``.
+    ``InvalidField(..., "output.eigen_modes")`` raised on the whole body points at
+    ``output.eigen_modes``; ``"M1"`` raised on ``pipe`` at ``pipe.M1`` when the body gives
+    ``pipe.M1`` (a one-part location that the body lacks stays at ``base``); ``"methods"``
+    raised by the validator of ``methods`` at ``methods`` (its own field, not
+    ``methods.methods``).  A refusal without a location stays at ``base``.
     """
-    m = _LEADING_FIELD.match(msg)
-    if not m:
+    loc = getattr((err.get("ctx") or {}).get("error"), "loc", None)
+    if not loc:
         return base
+    parts = [str(p) for p in loc]
     node = body
     for part in base:
         node = node[part] if isinstance(node, dict | list) else None
-    parts = m.group(1).split(".")
     if base and parts[0] == str(base[-1]):
-        # a field validator naming its own field: "methods.1: ..." raised on ``methods``
+        # a field validator naming its own field: ("methods", ...) raised on ``methods``
         return base + parts[1:]
     if len(parts) > 1 or (isinstance(node, dict) and parts[0] in node):
         return base + parts
@@ -294,7 +293,7 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
         if where == "body":
             path = _walk(body, rest)
             if err.get("type") == "value_error" or err.get("type") == "assertion_error":
-                path = _field_from_message(body, path, str(err.get("msg", "")))
+                path = _named_field(body, path, err)
             if err.get("type") == "json_invalid":
                 path = []
             if not path and err.get("type") in ("union_tag_invalid", "union_tag_not_found"):
