@@ -8,7 +8,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
-from service.problems import Problem
+from service.http.problems import Problem
 from service.routes.endpoints import served
 
 KEY_PATTERN = r"^[0-9a-f]{64}$"

@@ -22,7 +22,7 @@ from pipeflow import paper, profiles
 from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
-from pipeflow.errors import PipeflowError
+from pipeflow.errors import InvalidField, PipeflowError
 from pipeflow.model import Pipe
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -115,11 +115,12 @@ def request_fields(fields: Mapping[str, str], prefix: str = "") -> Iterator[None
 def library_check(check: Callable[..., object], fields: Mapping[str, str], *args: Any) -> None:
     """Run a library check (budget, common period...) at validation time, so a request the
     library would refuse is a 422 naming the field at submission, not a job that fails later
-    (a pydantic validator must raise ValueError: the field leads its message)."""
+    (a pydantic validator must raise ValueError: :class:`InvalidField` carries the field)."""
     try:
         check(*args)
     except PipeflowError as exc:
-        raise ValueError(f"{request_field(exc, fields).field}: {exc.message}") from None
+        field = request_field(exc, fields).field
+        raise InvalidField(f"{field}: {exc.message}", field) from None
 
 
 class StrictModel(BaseModel):
@@ -195,7 +196,7 @@ class PipeSpec(StrictModel):
     @model_validator(mode="after")
     def _mass(self) -> PipeSpec:
         if self.M1 + self.M2 < MIN_MASS:
-            raise ValueError(f"M1 + M2 must be >= {MIN_MASS:g} kg/m")
+            raise InvalidField(f"M1 + M2 must be >= {MIN_MASS:g} kg/m", "M1")
         return self
 
     def to_pipe(self, hub_radius: float = 0.0, plane: str = "in-plane") -> Pipe:
@@ -285,11 +286,11 @@ class TableProfile(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> TableProfile:
         if len(self.t) != len(self.values):
-            raise ValueError("t and values must have the same length")
+            raise InvalidField("t and values must have the same length", "t")
         if any(b <= a for a, b in zip(self.t, self.t[1:], strict=False)):
-            raise ValueError("t must be strictly increasing")
+            raise InvalidField("t must be strictly increasing", "t")
         if self.t[0] > 0:
-            raise ValueError("the table must start at or before t = 0 s")
+            raise InvalidField("the table must start at or before t = 0 s")
         return self
 
     def to_profile(self) -> profiles.Profile:
@@ -479,7 +480,7 @@ class SimulationSpec(StrictModel):
     @classmethod
     def _known_method(cls, v: str) -> str:
         if v not in SOLVERS:
-            raise ValueError(f"unknown method {v!r}; choose one of {', '.join(sorted(SOLVERS))}")
+            raise InvalidField(f"unknown method {v!r}; choose one of {', '.join(sorted(SOLVERS))}")
         return v
 
     @model_validator(mode="after")
@@ -489,17 +490,24 @@ class SimulationSpec(StrictModel):
             self.output.eigen_modes = self.modes
         for i, x in enumerate(self.output.positions):
             if not 0 <= x <= self.pipe.L:
-                raise ValueError(f"output.positions[{i}] = {x} m is outside [0, L]")
+                raise InvalidField(
+                    f"output.positions[{i}] = {x} m is outside [0, L]", "output.positions"
+                )
         shapes = self.output.mode_shapes
         for i, t in enumerate(shapes.times if shapes is not None else []):
             if not 0 <= t <= self.time.t_end:
-                raise ValueError(f"output.mode_shapes.times.{i}: {t} s is outside [0, time.t_end]")
+                raise InvalidField(
+                    f"output.mode_shapes.times.{i}: {t} s is outside [0, time.t_end]",
+                    f"output.mode_shapes.times.{i}",
+                )
         for name, prof in (
             ("flow.velocity", self.flow.velocity),
             ("rotation.omega0", self.rotation.omega0),
         ):
             if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
-                raise ValueError(f"{name}: the table ends at {prof.t[-1]} s, before time.t_end")
+                raise InvalidField(
+                    f"{name}: the table ends at {prof.t[-1]} s, before time.t_end", name
+                )
         return self
 
     def to_simulation(self) -> Simulation:
@@ -572,7 +580,7 @@ class CompareSpec(StrictModel):
     @classmethod
     def _distinct(cls, v: list[str]) -> list[str]:
         if len(set(v)) != len(v):
-            raise ValueError("methods must be distinct")
+            raise InvalidField("methods must be distinct", "methods")
         return v
 
     def canonical(self) -> dict[str, Any]:

@@ -27,12 +27,11 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from numpy.linalg import LinAlgError
 from pydantic import BaseModel
 
 from pipeflow import parallel
 from pipeflow._types import Progress
-from pipeflow.errors import PipeflowError
+from pipeflow.errors import classify
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.study import StudySpec, field_unit
 
@@ -109,6 +108,11 @@ def _summarize(base: BaseComputation, result: dict[str, Any]) -> dict[str, Any]:
     return base.summarize(result)
 
 
+#: failures of a case that say nothing lasting about its request (a bug, or the case
+#: stopped or could not be stored): reported in the row, never memoised
+UNLASTING = ("internal", "cancelled", "runtime-limit", "storage")
+
+
 def _failure(error_type: str, field: str | None, detail: str) -> dict[str, Any]:
     return {"error_type": error_type, "error_field": field, "error_detail": detail}
 
@@ -118,23 +122,9 @@ def run_case(base: BaseComputation, request: BaseModel) -> dict[str, Any]:
     **summary}`` or ``{"status": "failed", error_type, error_field, error_detail}``."""
     try:
         result = base.execute(request)
-    except PipeflowError as exc:
-        return {"status": "failed", **_failure(exc.slug, exc.field, exc.message)}
-    except (ArithmeticError, LinAlgError) as exc:
-        return {
-            "status": "failed",
-            **_failure(
-                "numerical-range",
-                None,
-                f"the inputs take the computation out of the range of double precision "
-                f"({type(exc).__name__}: {exc})",
-            ),
-        }
-    except Exception as exc:  # a bug: reported in the row, not memoised (see run_study)
-        return {
-            "status": "failed",
-            **_failure("internal", None, f"internal error: {type(exc).__name__}: {exc}"),
-        }
+    except Exception as exc:  # an internal one is a bug: in the row, not memoised (run_study)
+        record = classify(exc)  # the failure as the service's jobs record it
+        return {"status": "failed", **_failure(record.type, record.field, record.message)}
     return {"status": "ok", **_summarize(base, result)}
 
 
@@ -200,7 +190,7 @@ def run_study(
             keep = {
                 memo_key(k): s
                 for k, s in zip(chunk_keys, results, strict=True)
-                if s.get("error_type") != "internal"
+                if s.get("error_type") not in UNLASTING
             }
             if keep:
                 memo.put_many(keep)

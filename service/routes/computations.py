@@ -26,11 +26,12 @@ from pipeflow.schema.registry import (
     request_type,
     response_type,
 )
-from service.compute import CACHE_HEADERS, JOB_ACCEPTED, Refresh, accept_job, run_sync
 from service.deps import HitDep, RunnerDep, StoreDep
+from service.http.negotiation import JSON, accepts, json_body
+from service.http.problems import responses
+from service.http.responses import CACHE_HEADERS, JOB_ACCEPTED
 from service.keys import keyed
-from service.negotiation import JSON, accepts, json_body
-from service.problems import responses
+from service.orchestration import Refresh, accept_job, run_sync
 from service.routes.endpoints import Endpoint, computations_at
 from service.schemas import JobStatus
 

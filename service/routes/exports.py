@@ -31,8 +31,8 @@ from pipeflow.io.export import (
     to_parquet,
 )
 from service.deps import StoreDep
-from service.negotiation import accepts, media_ranges
-from service.problems import ProblemError, responses
+from service.http.negotiation import accepts, media_ranges
+from service.http.problems import ProblemError, responses
 from service.schemas import KEY_PATTERN
 
 router = APIRouter(prefix="/v1/results", tags=["results"])

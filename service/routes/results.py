@@ -7,10 +7,16 @@ from typing import Annotated, Any, Literal, Union
 
 from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
-from service.compute import CACHE_HEADERS, encoded_hit, entity_tag, result_response, sends_gzip
 from service.deps import HitDep, RunnerDep, StoreDep
-from service.negotiation import JSON, accepts
-from service.problems import ProblemError, responses
+from service.http.negotiation import JSON, accepts
+from service.http.problems import ProblemError, responses
+from service.http.responses import (
+    CACHE_HEADERS,
+    encoded_hit,
+    entity_tag,
+    result_response,
+    sends_gzip,
+)
 from service.routes.endpoints import served
 from service.routes.exports import (
     TABLE_CONTENT,

@@ -90,7 +90,7 @@ class Topology:
         return spawn(
             [
                 *(sys.executable, "-m", "distributed.cli.dask_worker", address),
-                *("--nthreads", "1", "--preload", "service.engine.worker"),
+                *("--nthreads", "1", "--preload", "service.engine.preload"),
                 *("--no-dashboard", "--name", f"w{i}"),
             ],
             self.logs / f"worker{i}.log",
