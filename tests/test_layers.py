@@ -2,7 +2,8 @@
 
 Three rules:
 
-1. no import circle among the modules of ``pipeflow``, ``service`` and ``pipeflow_client``
+1. no import circle among the modules of ``pipeflow``, ``service``, ``pipeflow_client`` and
+   ``pipeflow_cli``
    (every import counts, deferred ones inside functions too: a circle broken only by
    deferring an import is still a circle of responsibilities; imports under
    ``if TYPE_CHECKING:`` do not count);
@@ -23,15 +24,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("pipeflow", "service", "pipeflow_client")
+PACKAGES = ("pipeflow", "service", "pipeflow_client", "pipeflow_cli")
 
-#: circles known at the time of writing, each as the set of its modules.  Another change
-#: removes pipeflow.study <-> pipeflow.schema.registry (the study looks the computations up
-#: in the registry, which lists run_study); this entry goes when it lands.  Nothing else
-#: may be added here: a new circle fails the test.
-KNOWN_CIRCLES_TO_REMOVE: tuple[frozenset[str], ...] = (
-    frozenset({"pipeflow.study", "pipeflow.schema.registry"}),
-)
 
 #: what the library must not import (rule 2)
 LIBRARY_FORBIDDEN = (
@@ -42,16 +36,6 @@ LIBRARY_FORBIDDEN = (
     "uvicorn",
     "distributed",
     "sqlalchemy",
-)
-
-#: exceptions to rule 2 found at the time of writing, each ``(module, target)``, to be
-#: removed: the command line (``pipeflow.cli``) is a front end living in the library
-#: package; it imports the client (``--server``) and the service (``pipeflow serve``),
-#: deferred inside the commands so that the library loads neither.  Moving the command
-#: line out of ``pipeflow/`` removes these.  Only deferred imports of exactly these
-#: targets are tolerated; nothing else may be added here.
-LIBRARY_EXCEPTIONS_TO_REMOVE: frozenset[tuple[str, str]] = frozenset(
-    {("pipeflow.cli", "pipeflow_client"), ("pipeflow.cli", "service.__main__")}
 )
 
 #: the HTTP layer, which the engine must not import (rule 3)
@@ -183,25 +167,17 @@ def circles(imports: Iterable[Import]) -> list[frozenset[str]]:
     return found
 
 
-def unknown_circles(imports: Iterable[Import]) -> list[frozenset[str]]:
-    return [c for c in circles(imports) if c not in KNOWN_CIRCLES_TO_REMOVE]
-
-
 def violations(
     imports: Iterable[Import],
     layer: str,
     forbidden: Iterable[str],
-    tolerated: frozenset[tuple[str, str]] = frozenset(),
 ) -> list[str]:
-    """``module:line imports target`` for each import of ``layer`` that is ``forbidden``
-    (but for the deferred imports listed in ``tolerated`` as ``(module, target)``)."""
+    """``module:line imports target`` for each import of ``layer`` that is ``forbidden``"""
     forbidden = tuple(forbidden)
     return [
         f"{imp.module}:{imp.line} imports {imp.target}"
         for imp in imports
-        if within(imp.module, [layer])
-        and within(imp.target, forbidden)
-        and not (imp.deferred and (imp.module, imp.target) in tolerated)
+        if within(imp.module, [layer]) and within(imp.target, forbidden)
     ]
 
 
@@ -214,15 +190,27 @@ def tree_imports() -> list[Import]:
 
 
 def test_no_import_circles(tree_imports: list[Import]) -> None:
-    found = unknown_circles(tree_imports)
+    found = circles(tree_imports)
     assert not found, "import circles: " + "; ".join(" <-> ".join(sorted(c)) for c in found)
 
 
 def test_library_imports_no_service_client_or_web_stack(tree_imports: list[Import]) -> None:
-    bad = violations(tree_imports, "pipeflow", LIBRARY_FORBIDDEN, LIBRARY_EXCEPTIONS_TO_REMOVE)
+    bad = violations(tree_imports, "pipeflow", LIBRARY_FORBIDDEN)
     assert not bad, "the library imports the service, the client or the web stack:\n" + "\n".join(
         bad
     )
+
+
+def test_client_and_command_line_stay_front_ends(tree_imports: list[Import]) -> None:
+    """The client speaks HTTP to the service and never imports it; nothing imports the
+    command line, which sits on top of the library and the client."""
+    bad = violations(tree_imports, "pipeflow_client", ("service", "pipeflow_cli"))
+    bad += [
+        f"{imp.module}:{imp.line} imports {imp.target}"
+        for imp in tree_imports
+        if within(imp.target, ["pipeflow_cli"]) and not within(imp.module, ["pipeflow_cli"])
+    ]
+    assert not bad, "a front end is imported the wrong way:\n" + "\n".join(bad)
 
 
 def test_engine_imports_no_http_layer(tree_imports: list[Import]) -> None:
@@ -233,7 +221,12 @@ def test_engine_imports_no_http_layer(tree_imports: list[Import]) -> None:
 def test_the_tree_is_read(tree_imports: list[Import]) -> None:
     """The rules above see the code base (a wrong root would make them pass vacuously)."""
     modules = {imp.module for imp in tree_imports}
-    assert {"pipeflow.study", "service.engine.task", "service.http.problems"} <= modules
+    assert {
+        "pipeflow.schema.study_runner",
+        "service.engine.task",
+        "service.http.problems",
+    } <= modules
+    assert "pipeflow_cli.cli" in modules
     assert any(imp.target == "pipeflow.errors" for imp in tree_imports)
 
 
@@ -278,23 +271,6 @@ def test_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
         "pipeflow.c:2 imports service.store",
         "pipeflow.e:2 imports fastapi",
     ]
-    # a tolerated exception covers a deferred import of its target only
-    tolerated = frozenset(
-        {("pipeflow.c", "service.store"), ("pipeflow.c", "sqlalchemy"), ("pipeflow.e", "fastapi")}
-    )
-    assert violations(imports, "pipeflow", LIBRARY_FORBIDDEN, tolerated) == [
-        "pipeflow.c:1 imports sqlalchemy",
-        "pipeflow.c:2 imports service.store",
-    ]
     assert violations(imports, "service.engine", HTTP_LAYER) == [
         "service.engine.task:1 imports service.http.problems"
     ]
-
-
-def test_only_the_known_circle_is_allowed() -> None:
-    known = next(iter(KNOWN_CIRCLES_TO_REMOVE))
-    edges = [Import(a, b, 1, False) for a, b in (sorted(known), sorted(known)[::-1])]
-    assert unknown_circles(edges) == []
-    wider = [*edges, Import("pipeflow.schema.registry", "pipeflow.x", 1, False)]
-    wider += [Import("pipeflow.x", "pipeflow.study", 1, False)]
-    assert unknown_circles(wider) == [known | {"pipeflow.x"}]

@@ -21,7 +21,7 @@ def test_library_imports_no_extra() -> None:
     code = (
         "import sys, json\n"
         "import pipeflow, pipeflow.simulation, pipeflow.compare, pipeflow.stability\n"
-        "import pipeflow.schema.registry, pipeflow.io.export, pipeflow.io.plots, pipeflow.cli\n"
+        "import pipeflow.schema.registry, pipeflow.io.export, pipeflow.io.plots, pipeflow_cli\n"
         f"print(json.dumps([m for m in {list(EXTRAS)!r} if m in sys.modules]))\n"
     )
     out = subprocess.run(

@@ -4,8 +4,8 @@ Installed as the ``pipeflow`` console script.  Every subcommand reads and writes
 JSON as the HTTP service (a request of :mod:`pipeflow.schema` in, the result dictionary
 out), and local runs go through the same registry of computations.  The command line never
 imports the service: ``serve`` runs ``python -m service`` in a child process, and the HTTP
-client is imported only inside the subcommands that talk HTTP (``--server``), so
-``import pipeflow.cli`` keeps the library free of web libraries.
+client is imported only inside the subcommands that talk HTTP (``--server``), so the
+command works with the library alone (``pip install -e .``) for local runs.
 
 Exit status: 0 success, 2 invalid input (the message names the field), 1 other failures.
 """

@@ -12,8 +12,8 @@ from typing import Any
 
 import pytest
 
-from pipeflow.cli import ProgressBar, main
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
+from pipeflow_cli.cli import ProgressBar, main
 
 
 @pytest.fixture
