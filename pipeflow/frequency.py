@@ -323,7 +323,8 @@ def _generalised_force(model: PipeModel, load: Load) -> FloatArray:
 
 
 def _quantity_factor(quantity: str, W: FloatArray) -> ComplexArray:
-    iw = 1j * W
+    """1, i W or -W^2 [1, 1/s, 1/s^2]: displacement to the quantity."""
+    iw = np.asarray(1j * W, dtype=np.complex128)
     if quantity == "displacement":
         return np.ones_like(iw)
     return iw if quantity == "velocity" else iw * iw
@@ -394,12 +395,11 @@ def frequency_grid(
 
 
 # -- responses --------------------------------------------------------------------------
-def _modal_sum(
-    op: _Operator, out: FloatArray, b: ComplexArray, W: FloatArray
-) -> ComplexArray:
+def _modal_sum(op: _Operator, out: FloatArray, b: ComplexArray, W: FloatArray) -> ComplexArray:
     """Phi_out V_low diag(1/(iW - xi)) V^-1 b for all W: (p x 2n) @ (2n x nW)."""
     left = (out @ op.V_low) * (op.W_left @ b)[None, :]
-    return np.asarray(left @ (1.0 / (1j * W[None, :] - op.xi[:, None])))
+    with np.errstate(divide="ignore", invalid="ignore"):  # W on an undamped pole
+        return np.asarray(left @ (1.0 / (1j * W[None, :] - op.xi[:, None])))
 
 
 def _direct(op: _Operator, out: FloatArray, f: FloatArray, W: FloatArray) -> ComplexArray:
@@ -411,13 +411,15 @@ def _direct(op: _Operator, out: FloatArray, f: FloatArray, W: FloatArray) -> Com
 
 
 def _check_points(W: FloatArray, peaks: list[Resonance]) -> FloatArray:
-    """Up to five frequencies of ``W`` spread over it, one of them next to the first peak
-    (an undamped pole itself is avoided: the direct solve is singular there)."""
+    """Up to five of the (sorted, pole-free) frequencies ``W`` spread over them, one of them
+    the nearest to the first peak inside (0.1 % above it when undamped)."""
+    if W.size == 0:
+        return W
     idx = set(np.linspace(0, W.size - 1, min(DIAGNOSTIC_POINTS - 1, W.size)).astype(int))
     inside = [r for r in peaks if W[0] <= r.frequency <= W[-1]]
-    if inside and W.size > 1:
+    if inside:
         r = inside[0]
-        near = r.frequency * (1.0 + max(r.damping_ratio, 1e-3))
+        near = r.frequency * (1.0 + (1e-3 if r.damping_ratio == 0.0 else 0.0))
         idx.add(int(np.argmin(np.abs(W - near))))
     return np.sort(W[sorted(idx)])
 
@@ -460,30 +462,40 @@ def frequency_response(
     model = op.model
     f = _generalised_force(model, load)
     b = np.concatenate([np.linalg.solve(model.M, f) / model.omega_ref, np.zeros(n)])
+    b = b.astype(complex)
     out = mode_shapes(n, x / pipe.L).T  # (p, n)
-    H = _modal_sum(op, out, b.astype(complex), W)
+    H = _modal_sum(op, out, b, W)
 
+    # frequencies on an undamped pole (|i W - xi| at rounding): H is unbounded there
+    level = float(rounding_level(op.xi))
+    gap = np.abs(1j * W[:, None] - op.xi[None, :]).min(axis=1)
+    on_pole = gap <= np.maximum(level, 1e-12 * np.maximum(W, 1.0))
     res = _resonances(op.xi, pipe.damped)
-    order = np.argsort(W)
-    Ws = W[order]
-    checks = _check_points(Ws, sorted(res, key=lambda r: r.frequency))
-    Hm = _modal_sum(op, out, b.astype(complex), checks)
+    checks = _check_points(np.sort(W[~on_pole]), sorted(res, key=lambda r: r.frequency))
     Hd = _direct(op, out, f, checks)
     with np.errstate(all="ignore"):
-        rel = np.linalg.norm(Hm - Hd, axis=0) / np.linalg.norm(Hd, axis=0)
+        rel = np.linalg.norm(_modal_sum(op, out, b, checks) - Hd, axis=0)
+        rel = rel / np.linalg.norm(Hd, axis=0)
     rel = np.where(np.isfinite(rel), rel, np.inf)
-    max_rel = float(rel.max())
+    max_rel = float(rel.max()) if rel.size else 0.0
     warnings: list[str] = []
     method = "modal"
     if not max_rel <= FALLBACK_RTOL:
         method = "direct"
-        H = _direct(op, out, f, W)
+        H[:, ~on_pole] = _direct(op, out, f, W[~on_pole])
         warnings.append(
             f"the modal sum differed from direct solves by {max_rel:.2g} (relative; eigenvector "
             f"condition number {op.condition:.2g}: coalescing eigenvalues), so every "
             "frequency was solved directly"
         )
+    H[:, on_pole] = 0.0
     H = H * _quantity_factor(quantity, W)[None, :]
+    if on_pole.any():
+        H[:, on_pole] = complex(math.inf, 0.0)
+        warnings.append(
+            f"{int(on_pole.sum())} frequencies (the first {W[on_pole][0]:.6g} rad/s) fall on "
+            "an undamped resonance, where the response is unbounded: H is inf there"
+        )
 
     growth = float(max_growth_rates(op.xi[None])[0])
     stable = growth <= 0.0
@@ -496,32 +508,19 @@ def frequency_response(
     if v < 0:
         warnings.append(REVERSE_FLOW_CAVEAT)
     warnings += basis_caveats(pipe)
-    level = float(rounding_level(op.xi))
-    hit = [
-        float(w) for w in W if np.any(np.abs(1j * w - op.xi) <= max(level, 1e-12 * max(w, 1.0)))
-    ]
-    if hit:
-        warnings.append(
-            f"{len(hit)} frequencies (the first {hit[0]:.6g} rad/s) fall on an undamped "
-            "resonance, where the response is unbounded: H there is rounding"
-        )
 
     peaks = []
-    if W.size:
-        lo, hi = float(Ws[0]), float(Ws[-1])
-        for r in res:
-            if not lo <= r.frequency <= hi:
-                continue
-            if r.damping_ratio == 0.0:
-                mag = tuple(math.inf for _ in x)
-            else:
-                Wp = np.array([r.frequency])
-                hp = _modal_sum(op, out, b.astype(complex), Wp) if method == "modal" else None
-                if hp is None:
-                    hp = _direct(op, out, f, Wp)
-                hp = hp * _quantity_factor(quantity, Wp)[None, :]
-                mag = tuple(float(m) for m in np.abs(hp[:, 0]))
-            peaks.append(Peak(r.frequency, r.natural_frequency, r.damping_ratio, r.mode, mag))
+    for r in res:
+        if not W.min() <= r.frequency <= W.max():
+            continue
+        if r.damping_ratio == 0.0:
+            mag = tuple(math.inf for _ in x)
+        else:
+            Wp = np.array([r.frequency])
+            hp = _modal_sum(op, out, b, Wp) if method == "modal" else _direct(op, out, f, Wp)
+            hp = hp * _quantity_factor(quantity, Wp)[None, :]
+            mag = tuple(float(m) for m in np.abs(hp[:, 0]))
+        peaks.append(Peak(r.frequency, r.natural_frequency, r.damping_ratio, r.mode, mag))
 
     unit = UNITS[quantity][0 if isinstance(load, PointForce) else 1]
     for a in (W, x, H, op.xi):
