@@ -155,8 +155,9 @@ class Diagnostics:
     ``check_frequencies`` [rad/s]: where it was made (spread over the range, one near the
     first peak); ``max_relative_difference`` [-]: the largest ||H_modal - H_direct|| /
     ||H_direct|| over them (norms over the positions); ``eigenvector_condition`` [-] the
-    condition number of V; ``method``: ``"modal"``, or ``"direct"`` when the modal sum
-    disagreed by more than :data:`FALLBACK_RTOL` and every frequency was solved directly.
+    1-norm condition number of V (unit columns); ``method``: ``"modal"``, or ``"direct"``
+    when the modal sum disagreed by more than :data:`FALLBACK_RTOL` and every frequency
+    was solved directly.
     """
 
     check_frequencies: tuple[float, ...]
@@ -245,9 +246,10 @@ def _check_positions(pipe: Pipe, positions: ArrayLike, name: str = "positions") 
         raise InvalidInput(f"{name} must be a non-empty list of positions [m]", name)
     if x.size > MAX_POSITIONS:
         raise InvalidInput(f"at most {MAX_POSITIONS} {name}, got {x.size}", name)
-    for i, xi in enumerate(x):
-        if not (math.isfinite(xi) and 0.0 < xi <= pipe.L * (1 + 1e-12)):
-            raise InvalidInput(f"{name}[{i}] = {xi} m is outside (0, L = {pipe.L} m]", name)
+    bad = np.flatnonzero(~(np.isfinite(x) & (x > 0.0) & (x <= pipe.L * (1 + 1e-12))))
+    if bad.size:
+        i = int(bad[0])
+        raise InvalidInput(f"{name}[{i}] = {x[i]} m is outside (0, L = {pipe.L} m]", name)
     return np.minimum(x, pipe.L)
 
 
@@ -263,7 +265,7 @@ def _check_load(pipe: Pipe, load: object) -> Load:
 
 
 def _check_frequencies(frequencies: ArrayLike) -> FloatArray:
-    W = np.atleast_1d(np.asarray(frequencies, dtype=float))
+    W = np.atleast_1d(np.array(frequencies, dtype=float))  # a copy: returned read-only
     if W.ndim != 1 or W.size == 0:
         raise InvalidInput("frequencies must be a non-empty list [rad/s]", "frequencies")
     if W.size > MAX_FREQUENCIES:
@@ -303,18 +305,21 @@ def _operator(pipe: Pipe, v: float, w0: float, modes: int) -> _Operator:
     xi, V = np.linalg.eig(A)
     V = V / np.linalg.norm(V, axis=0, keepdims=True)
     with np.errstate(all="ignore"):
-        cond = float(np.linalg.cond(V))
         W_left = np.linalg.solve(V, np.eye(V.shape[0], dtype=complex))
+        cond = float(np.linalg.norm(V, 1) * np.linalg.norm(W_left, 1))
     n = modes
     C = model.C_0 + v * model.C_v
     K = model.K_0 + v * v * model.K_v2 + w0 * w0 * model.K_w2
     return _Operator(model, model.M, C, K, xi, V[n:], W_left, cond)
 
 
-def _generalised_force(model: PipeModel, load: Load) -> FloatArray:
-    """f_j per unit load: [N/N] for a point force, [kg] per unit base acceleration."""
+def _generalised_force(model: PipeModel, load: Load, shape: FloatArray | None = None) -> FloatArray:
+    """f_j per unit load: [N/N] for a point force, [kg] per unit base acceleration.
+    ``shape``: phi_j(a) when already evaluated."""
     pipe, n = model.pipe, model.n
     if isinstance(load, PointForce):
+        if shape is not None:
+            return shape
         return mode_shapes(n, np.array([load.position / pipe.L]))[:, 0]
     f = -pipe.mass * pipe.L * mode_integrals(n, model.quadrature_order).f
     if pipe.tip_mass:
@@ -342,11 +347,11 @@ def resonances(pipe: Pipe, velocity: float, omega0: float, *, modes: int = 10) -
 def _resonances(xi: ComplexArray, damped: bool) -> list[Resonance]:
     tol = 1e-9 * float(np.max(np.abs(xi)))
     numbers = mode_numbers(xi, damped)
+    level = float(rounding_level(xi))
     out = []
     for i in np.flatnonzero(xi.imag > tol):
         mag = float(abs(xi[i]))
         zeta = -float(xi[i].real) / mag
-        level = float(rounding_level(xi))
         if abs(float(xi[i].real)) <= level:
             zeta = 0.0
         out.append(Resonance(complex(xi[i]), float(xi[i].imag), mag, zeta, int(numbers[i])))
@@ -460,16 +465,19 @@ def frequency_response(
 
     op = _operator(pipe, v, w0, n)
     model = op.model
-    f = _generalised_force(model, load)
+    a: list[float] = [load.position] if isinstance(load, PointForce) else []
+    shapes = mode_shapes(n, np.concatenate([x, a]) / pipe.L)  # (n, p [+ 1])
+    out = shapes[:, : x.size].T  # (p, n)
+    f = _generalised_force(model, load, shapes[:, -1] if a else None)
     b = np.concatenate([np.linalg.solve(model.M, f) / model.omega_ref, np.zeros(n)])
     b = b.astype(complex)
-    out = mode_shapes(n, x / pipe.L).T  # (p, n)
     H = _modal_sum(op, out, b, W)
 
     # frequencies on an undamped pole (|i W - xi| at rounding): H is unbounded there
+    on_pole = np.zeros(W.size, dtype=bool)
     level = float(rounding_level(op.xi))
-    gap = np.abs(1j * W[:, None] - op.xi[None, :]).min(axis=1)
-    on_pole = gap <= np.maximum(level, 1e-12 * np.maximum(W, 1.0))
+    for pole in op.xi[np.abs(op.xi.real) <= level]:
+        on_pole |= np.abs(W - pole.imag) <= max(level, 1e-12 * abs(pole))
     res = _resonances(op.xi, pipe.damped)
     checks = _check_points(np.sort(W[~on_pole]), sorted(res, key=lambda r: r.frequency))
     Hd = _direct(op, out, f, checks)
@@ -509,22 +517,21 @@ def frequency_response(
         warnings.append(REVERSE_FLOW_CAVEAT)
     warnings += basis_caveats(pipe)
 
-    peaks = []
-    for r in res:
-        if not W.min() <= r.frequency <= W.max():
-            continue
+    inside = [r for r in res if W.min() <= r.frequency <= W.max()]
+    Wp = np.array([r.frequency for r in inside if r.damping_ratio != 0.0])
+    hp = _modal_sum(op, out, b, Wp) if method == "modal" else _direct(op, out, f, Wp)
+    hp = np.abs(hp * _quantity_factor(quantity, Wp)[None, :])
+    peaks, k = [], 0
+    for r in inside:
         if r.damping_ratio == 0.0:
             mag = tuple(math.inf for _ in x)
         else:
-            Wp = np.array([r.frequency])
-            hp = _modal_sum(op, out, b, Wp) if method == "modal" else _direct(op, out, f, Wp)
-            hp = hp * _quantity_factor(quantity, Wp)[None, :]
-            mag = tuple(float(m) for m in np.abs(hp[:, 0]))
+            mag, k = tuple(float(m) for m in hp[:, k]), k + 1
         peaks.append(Peak(r.frequency, r.natural_frequency, r.damping_ratio, r.mode, mag))
 
     unit = UNITS[quantity][0 if isinstance(load, PointForce) else 1]
-    for a in (W, x, H, op.xi):
-        a.setflags(write=False)
+    for arr in (W, x, H, op.xi):
+        arr.setflags(write=False)
     return FrequencyResponse(
         frequencies=W,
         positions=x,
