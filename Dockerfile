@@ -17,6 +17,7 @@ COPY pyproject.toml README.md ./
 COPY pipeflow ./pipeflow
 COPY service ./service
 COPY pipeflow_client ./pipeflow_client
+COPY pipeflow_cli ./pipeflow_cli
 # the package alone; pip check fails the build if constraints.txt misses a dependency
 RUN /opt/venv/bin/pip install --no-cache-dir --no-deps . && /opt/venv/bin/pip check
 

@@ -20,11 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from pipeflow.model import PAPER_PIPE, Loading, build_model
-from pipeflow.profiles import Constant, Profile, polynomial
+from pipeflow.model import Loading, build_model
+from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_SPIN
+from pipeflow.profiles import Profile
 from pipeflow.simulation import Simulation, cma_exponents, frozen_spectrum, simulate
 
-CASES: dict[str, Profile] = {"v=0.4 (LTI)": Constant(0.4), "v=0.4t": polynomial(0, 0.4)}
+CASES: dict[str, Profile] = {"v=0.4 (LTI)": PAPER_FLOWS["v=0.4"], "v=0.4t": PAPER_FLOWS["v=0.4t"]}
 
 
 def best(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
@@ -46,7 +47,7 @@ def main() -> None:
     print("| case | method used | simulate [ms] | solver [ms] | check [ms] | traces [ms] | ratio |")
     print("|---|---|---|---|---|---|---|")
     for name, flow in CASES.items():
-        sim = Simulation(PAPER_PIPE, flow=flow, spin=Constant(100.0))
+        sim = Simulation(PAPER_PIPE, flow=flow, spin=PAPER_SPIN)
         runs = []
         for _ in range(args.repeats):  # wall and solver time of the same run
             t0 = time.perf_counter()
@@ -54,7 +55,7 @@ def main() -> None:
             runs.append((time.perf_counter() - t0, result.diagnostics["solve_seconds"], result))
         wall, solve, result = min(runs, key=lambda r: r[0])
         ratio = float(np.median([w / s for w, s, _ in runs]))
-        loading = Loading(flow, Constant(100.0))
+        loading = Loading(flow, PAPER_SPIN)
 
         def traces(loading: Loading = loading) -> None:
             frozen_spectrum(model, loading, eigen_t)

@@ -144,7 +144,8 @@ def run(spec: dict[str, Any], repeats: int) -> dict[str, Any]:
 
 
 def _sweep_piece(args: tuple[int, Any]) -> Any:
-    from pipeflow.model import PAPER_PIPE, build_model
+    from pipeflow.model import build_model
+    from pipeflow.paper import PAPER_PIPE
     from pipeflow.spectra import decompose
     from pipeflow.stability.core import state_matrices
 
@@ -158,7 +159,7 @@ def sweep_probe() -> str:
     import numpy as np
     from distributed import Client, LocalCluster
 
-    from pipeflow.model import PAPER_PIPE
+    from pipeflow.paper import PAPER_PIPE
     from pipeflow.stability.sweeps import sweep
 
     def best(fn: Any, *args: Any) -> float:

@@ -18,10 +18,8 @@ from typing import Any
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pipeflow.model import (
-    PAPER_PIPE,
-    build_model,
-)
+from pipeflow.model import build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.stability import critical_velocities
 from pipeflow.stability.core import eigenvalues, nondimensional_pipe
 from pipeflow.stability.floquet import resonance_chart

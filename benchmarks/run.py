@@ -57,20 +57,14 @@ from scipy import signal
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
-from pipeflow.model import PAPER_PIPE, Loading, PipeModel, build_model
+from pipeflow.model import Loading, PipeModel, build_model
+from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_SPIN
 from pipeflow.profiles import Constant, Harmonic, Polynomial, Profile, polynomial
 from pipeflow.solvers import SOLVERS, Options, Problem
 
 TARGET = 1e-8
-CASES: dict[str, Profile] = {
-    "v=0.4": Constant(0.4),
-    "v=0.4t": polynomial(0, 0.4),
-    "v=0.4t^2": polynomial(0, 0, 0.4),
-    "v=-0.4": Constant(-0.4),
-    "v=-0.4t": polynomial(0, -0.4),
-    "v=2+sin50t": Harmonic(2.0, 1.0, 50.0),
-}
-SPIN = Constant(100.0)
+CASES: dict[str, Profile] = {**PAPER_FLOWS, "v=2+sin50t": Harmonic(2.0, 1.0, 50.0)}
+SPIN = PAPER_SPIN
 IVP_METHODS = ("LSODA", "DOP853", "Radau", "BDF")
 #: the two that were fastest on every case of the earlier runs (Radau and BDF took 5-10x
 #: longer); ``--all-ivp`` runs all four

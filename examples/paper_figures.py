@@ -27,8 +27,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from pipeflow.model import PAPER_PIPE
-from pipeflow.plots import figure, to_bytes
+from pipeflow.io.plots import figure, to_bytes
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Profile, polynomial
 from pipeflow.simulation import Simulation, simulate
 

@@ -14,7 +14,7 @@ import argparse
 
 import numpy as np
 
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant
 from pipeflow.simulation import Simulation, simulate
 

@@ -2,7 +2,7 @@
 
 Library entry points (SI units throughout):
 
-- :class:`pipeflow.model.Pipe`, :data:`pipeflow.model.PAPER_PIPE`
+- :class:`pipeflow.model.Pipe`; the paper's cases in :mod:`pipeflow.paper` (``PAPER_PIPE``, ...)
 - profiles: :mod:`pipeflow.profiles` (constant, polynomial, harmonic, table)
 - :class:`pipeflow.simulation.Simulation` and :func:`pipeflow.simulation.simulate`
 - :mod:`pipeflow.schema`: the request and result models shared with the service and CLI,

@@ -22,10 +22,9 @@ from __future__ import annotations
 from functools import cache
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import brentq
 
-FloatArray = NDArray[np.float64]
+from pipeflow._types import FloatArray
 
 MAX_MODES = 40
 

@@ -17,12 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from pipeflow._types import Progress
 from pipeflow.diagnostics import summary
 from pipeflow.errors import InvalidInput
 from pipeflow.model import build_model
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS
-from pipeflow.solvers.base import ProgressCallback, relative_difference
+from pipeflow.solvers.base import relative_difference
 
 MAX_METHODS = 8
 
@@ -42,7 +43,7 @@ def default_methods() -> list[str]:
 def compare(
     sim: Simulation,
     methods: Sequence[str] | None = None,
-    progress: ProgressCallback | None = None,
+    progress: Progress | None = None,
 ) -> dict[str, Any]:
     """Run ``sim`` with each of ``methods`` (default: :func:`default_methods`, every
     registered method but ``reference`` and ``auto``) and compare.
@@ -99,7 +100,7 @@ def compare(
             {
                 "method": result.simulation.method,
                 "method_used": result.method_used,
-                "status": result.status,
+                "status": str(result.status),
                 "solve_seconds": solve_s,
                 "wall_seconds": wall,
                 "speedup_vs_slowest": slowest / solve_s if solve_s > 0 else None,

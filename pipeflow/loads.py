@@ -38,14 +38,13 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from pipeflow._types import FloatArray
 from pipeflow.basis import gauss_legendre_unit, mode_shapes
 from pipeflow.errors import InvalidInput
 from pipeflow.model import PipeModel, mode_integrals
 from pipeflow.profiles import Constant, Harmonic, Polynomial, Profile, Table
-
-FloatArray = NDArray[np.float64]
 
 #: at most this many loads per simulation
 MAX_LOADS = 16

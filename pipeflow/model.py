@@ -41,6 +41,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from pipeflow._types import FloatArray
 from pipeflow.basis import (
     MAX_MODES,
     cantilever_roots,
@@ -53,9 +54,6 @@ from pipeflow.basis import (
 )
 from pipeflow.errors import InvalidInput
 from pipeflow.profiles import Profile
-
-FloatArray = NDArray[np.float64]
-
 
 #: the planes of motion: "in-plane" (the paper's eq. (1), chordwise) or "out-of-plane" (flapwise)
 PLANES = ("in-plane", "out-of-plane")
@@ -265,10 +263,6 @@ def basis_caveats(pipe: Pipe) -> list[str]:
     ]
 
 
-#: The worked example of the paper, section 5 (A = 1.57e-8 m^2 is not needed by the model).
-PAPER_PIPE = Pipe(E=7.8e9, I=1.21e-17, L=0.025, M1=1.884e-5, M2=1.6485e-5)
-
-
 @dataclass(frozen=True)
 class ModeIntegrals:
     """Non-dimensional Galerkin integrals on xi in [0, 1] for ``n`` normalised modes.
@@ -457,6 +451,22 @@ class PipeModel:
     def state_matrix(self, c: Coefficients) -> NDArray[np.float64]:
         """Frozen-time balanced state matrices S(t), shape ``(len(t), 2n, 2n)`` [1/s]."""
         return np.tensordot(c.weights(), self.state_pieces, axes=1)
+
+    def frozen_state_matrix(
+        self, v: ArrayLike, vdot: ArrayLike = 0.0, w2: ArrayLike = 0.0
+    ) -> FloatArray:
+        """S = S_0 + v S_v + vdot S_vdot + v^2 S_v2 + w0^2 S_w2 [1/s] frozen at given values.
+
+        ``v`` [m/s], ``vdot`` [m/s^2] and ``w2`` = w0^2 [rad^2/s^2] broadcast to one shape
+        ``B``; the result has shape ``B + (2n, 2n)`` (:meth:`state_matrix` on the flattened
+        batch, the forcing not involved).
+        """
+        vv, aa, ww = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (v, vdot, w2)))
+        flat = vv.ravel()
+        S = self.state_matrix(
+            Coefficients(v=flat, vdot=aa.ravel(), w2=ww.ravel(), wdot=np.zeros_like(flat))
+        )
+        return np.asarray(S.reshape(vv.shape + S.shape[1:]))
 
     def forcing(self, c: Coefficients) -> FloatArray:
         """Balanced forcing vectors f(t), shape ``(len(t), 2n)`` [1/s]."""

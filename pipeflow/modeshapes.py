@@ -28,12 +28,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import ComplexArray, FloatArray
 from pipeflow.basis import mode_shapes as cantilever_shapes
 from pipeflow.model import Loading, PipeModel
 from pipeflow.spectra import assign, decompose, match_branches, order_lowest
-
-FloatArray = NDArray[np.float64]
-ComplexArray = NDArray[np.complex128]
 
 #: bounds a request may ask for (the cost is one eigen-decomposition per time)
 MAX_SHAPE_TIMES = 32

@@ -22,10 +22,11 @@ from typing import Literal
 
 import numpy as np
 from numpy.polynomial import Polynomial as _Poly
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline, PchipInterpolator, PPoly
 
-FloatArray = NDArray[np.float64]
+from pipeflow._types import FloatArray
+
 Interpolation = Literal["linear", "cubic", "pchip"]
 
 
@@ -56,10 +57,6 @@ class Profile(ABC):
         """Last time [s] at which the profile is defined (``inf`` for analytic ones)."""
         return math.inf
 
-    def scaled(self, factor: float) -> Profile:
-        """The profile multiplied by ``factor`` (used for the v -> -v identity)."""
-        raise NotImplementedError
-
 
 @dataclass(frozen=True)
 class Constant(Profile):
@@ -82,9 +79,6 @@ class Constant(Profile):
     @property
     def is_constant(self) -> bool:
         return True
-
-    def scaled(self, factor: float) -> Profile:
-        return Constant(self.val * factor)
 
 
 @dataclass(frozen=True)
@@ -117,9 +111,6 @@ class Polynomial(Profile):
     @property
     def is_constant(self) -> bool:
         return all(c == 0.0 for c in self.coefficients[1:])
-
-    def scaled(self, factor: float) -> Profile:
-        return Polynomial(tuple(c * factor for c in self.coefficients))
 
 
 @dataclass(frozen=True)
@@ -161,9 +152,6 @@ class Harmonic(Profile):
     @property
     def is_constant(self) -> bool:
         return self.amplitude == 0.0 or self.frequency == 0.0
-
-    def scaled(self, factor: float) -> Profile:
-        return Harmonic(self.mean * factor, self.amplitude * factor, self.frequency, self.phase)
 
 
 def _square_ppoly(p: PPoly) -> PPoly:
@@ -251,9 +239,6 @@ class Table(Profile):
 
     def domain_end(self) -> float:
         return float(self.times[-1])
-
-    def scaled(self, factor: float) -> Profile:
-        return Table(self.times, tuple(v * factor for v in self.values), self.interpolation)
 
 
 def polynomial(*coefficients: float) -> Polynomial:

@@ -7,6 +7,7 @@ command line build a :class:`Simulation` from their JSON spec and call it.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import functools
 import math
 import time
@@ -17,9 +18,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import FloatArray, Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
+from pipeflow.io.json import json_safe
 from pipeflow.loads import (
     BASE_ACCELERATION_NOTE,
     BaseAcceleration,
@@ -28,14 +31,7 @@ from pipeflow.loads import (
     project_loads,
     validate_loads,
 )
-from pipeflow.model import (
-    REVERSE_FLOW_CAVEAT,
-    Loading,
-    Pipe,
-    PipeModel,
-    basis_caveats,
-    build_model,
-)
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -44,13 +40,19 @@ from pipeflow.modeshapes import (
     ModeShapes,
     frozen_mode_shapes,
 )
-from pipeflow.notebook import NotebookViews
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
-from pipeflow.solvers.base import ProgressCallback
 from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
 
-FloatArray = NDArray[np.float64]
+
+class SimulationStatus(enum.StrEnum):
+    """How a run ended (the ``status`` of a result; JSON carries the value)."""
+
+    OK = "ok"
+    #: the tip passed the divergence bound, or a frozen growth rate is positive at the end
+    DIVERGING = "diverging"
+    #: the response overflowed double precision (the samples after it are omitted)
+    OVERFLOW = "overflow"
 
 
 @dataclass(frozen=True)
@@ -108,11 +110,12 @@ class Simulation:
 
 
 @dataclass
-class Result(NotebookViews):
+class Result:
     """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form).
 
-    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot` (from
-    :class:`pipeflow.notebook.NotebookViews`; xarray/pandas are the ``notebook`` extra).
+    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot`, shorthands of
+    the functions of :mod:`pipeflow.io.notebook` (imported on first use; xarray/pandas are
+    the ``notebook`` extra), which take this result or its JSON form.
     """
 
     simulation: Simulation
@@ -128,7 +131,7 @@ class Result(NotebookViews):
     dimensionless: dict[str, Any]
     diagnostics: dict[str, Any]
     warnings: list[str]
-    status: str  # "ok", "diverging" or "overflow"
+    status: SimulationStatus
     initial_tip_displacement: float  # [m]
     divergence_time: float | None  # [s]
     method_used: str = ""  # the solver that ran ("auto" resolves to "cma" or "magnus")
@@ -151,8 +154,24 @@ class Result(NotebookViews):
     def fundamental(self) -> Traces:
         return Traces(self.frozen.xi[:, :1], self.frozen.confidence[:, :1])
 
-    def _document(self) -> dict[str, Any]:
-        return self.to_dict()
+    # the views a notebook asks a result for (README): the io layer, imported on first use
+    def to_xarray(self) -> Any:
+        """The result as an :class:`xarray.Dataset`: :func:`pipeflow.io.notebook.to_xarray`."""
+        from pipeflow.io.notebook import to_xarray
+
+        return to_xarray(self.to_dict())
+
+    def to_dataframe(self, table: str = "history") -> Any:
+        """One table as a :class:`pandas.DataFrame`: :func:`pipeflow.io.notebook.to_dataframe`."""
+        from pipeflow.io.notebook import to_dataframe
+
+        return to_dataframe(self.to_dict(), table)
+
+    def plot(self, name: str = "tip_displacement", **kwargs: Any) -> Any:
+        """A matplotlib Figure of plot ``name``: :func:`pipeflow.io.notebook.plot`."""
+        from pipeflow.io.notebook import plot
+
+        return plot(self.to_dict(), name, **kwargs)
 
     def to_dict(self, include_modal: bool | None = None) -> dict[str, Any]:
         """JSON-ready dictionary: lists of floats, every number finite."""
@@ -171,7 +190,7 @@ class Result(NotebookViews):
             ]
 
         out: dict[str, Any] = {
-            "status": self.status,
+            "status": str(self.status),
             "method": self.simulation.method,
             "method_used": self.method_used,
             "method_reason": self.method_reason,
@@ -209,27 +228,6 @@ def _finite(a: Any) -> Any:
     if not np.all(np.isfinite(arr)):
         raise ValueError("internal error: non-finite value reached the output")
     return arr.tolist()
-
-
-def json_safe(data: Any) -> Any:
-    """JSON-ready copy: non-finite floats become null (JSON has no Inf/NaN), numpy scalars
-    Python numbers, nested dicts, lists and tuples are walked.  The one rule for every result.
-
-    A list of Python floats whose sum is finite (no Inf or NaN among them, which would make
-    it Inf or NaN; a sum that overflows takes the element-wise path too) is copied as it is:
-    the traces of a result are such lists, and the per-element walk cost ~4 ms on a
-    2001-sample result."""
-    if isinstance(data, dict):
-        return {k: json_safe(v) for k, v in data.items()}
-    if isinstance(data, list | tuple):
-        if all(type(v) is float for v in data) and math.isfinite(sum(data)):
-            return list(data)
-        return [json_safe(v) for v in data]
-    if hasattr(data, "item") and not isinstance(data, str):
-        data = data.item()
-    if isinstance(data, float) and not math.isfinite(data):
-        return None
-    return data
 
 
 def validate(sim: Simulation) -> None:
@@ -286,7 +284,7 @@ def validate(sim: Simulation) -> None:
         )
 
 
-def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Result:
+def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     """Run one simulation and derive every reported quantity."""
     validate(sim)
     wall0 = time.perf_counter()
@@ -302,14 +300,14 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     add_error_estimate(solver, problem, out)  # how far to trust it (pipeflow.diagnostics)
 
     Z = out.z
-    status = "ok"
+    status = SimulationStatus.OK
     warnings = list(out.warnings)
     finite = np.all(np.isfinite(Z), axis=1)
     if not finite.all():
         # keep the finite prefix: JSON has no Inf or NaN, and nothing after overflow is data
         last = int(np.argmin(finite))
         t, Z = t[:last], Z[:last]
-        status = "overflow"
+        status = SimulationStatus.OVERFLOW
         warnings.append(
             f"the response overflowed double precision after t = {t[-1]:.6g} s; "
             "samples after that are omitted"
@@ -357,8 +355,8 @@ def simulate(sim: Simulation, progress: ProgressCallback | None = None) -> Resul
     divergence_time = float(t[over[0]]) if over.size else None
     # a growth rate above rounding of the spectrum at the end means a growing mode
     growing = bool(unstable.size and unstable[-1] == eigen_t.size - 1)
-    if status == "ok" and (divergence_time is not None or growing):
-        status = "diverging"
+    if status == SimulationStatus.OK and (divergence_time is not None or growing):
+        status = SimulationStatus.DIVERGING
     if divergence_time is not None:
         warnings.append(
             f"tip amplitude passed the divergence bound {bound:.3g} m at t = "

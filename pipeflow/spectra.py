@@ -32,9 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
-ComplexArray = NDArray[np.complex128]
-FloatArray = NDArray[np.float64]
-Progress = Callable[[float], None]
+from pipeflow._types import ComplexArray, FloatArray, Progress
 
 #: sigma below this fraction of the spectral radius is rounding, not growth
 MARGINAL_RTOL = 1e-11

@@ -31,7 +31,7 @@ import tenacity
 from numpy.typing import NDArray
 
 from pipeflow.errors import PipeflowError
-from pipeflow.notebook import NotebookViews
+from pipeflow.io.notebook import NotebookViews
 
 FloatArray = NDArray[np.float64]
 Progress = Callable[[float], None]
@@ -86,7 +86,7 @@ class SimulationResult(NotebookViews):
     raw : the full JSON document.
 
     ``to_xarray()``, ``to_dataframe(table)`` and ``plot(name)`` give the same objects as a
-    local :class:`pipeflow.simulation.Result` (:mod:`pipeflow.notebook`).
+    local :class:`pipeflow.simulation.Result` (:mod:`pipeflow.io.notebook`).
     """
 
     key: str
@@ -168,10 +168,92 @@ def _refresh(refresh: bool) -> dict[str, str] | None:
     return {"refresh": "true"} if refresh else None
 
 
+#: the sweeps, maps and Floquet analyses: one path, their request bodies told apart by ``kind``
+SWEEP_KINDS = ("argand", "campbell", "spin_map", "beta_map", "resonance_chart", "floquet")
+
+#: computation name (the registry's, the job's ``kind``) -> ``(path, sync)``: with ``sync``
+#: ``POST path`` answers with the result and ``POST path/jobs`` with a job; without it
+#: ``POST path`` always answers with a job.  The one place the client spells URL paths of
+#: computations.
+PATHS: dict[str, tuple[str, bool]] = {
+    "simulation": ("/v1/simulations", True),
+    "compare": ("/v1/compare", True),
+    "stability": ("/v1/stability", True),
+    **{kind: ("/v1/sweeps", False) for kind in SWEEP_KINDS},
+    "study": ("/v1/studies", False),
+}
+
+
+def _path(kind: str) -> tuple[str, bool]:
+    try:
+        return PATHS[kind]
+    except KeyError:
+        raise ValueError(
+            f"unknown computation {kind!r}; choose one of: {', '.join(PATHS)}"
+        ) from None
+
+
+def _job_path(kind: str) -> str:
+    path, sync = _path(kind)
+    return f"{path}/jobs" if sync else path
+
+
+def _body(kind: str, spec: Any) -> Any:
+    """The JSON body of ``spec`` for ``kind``: where several computations share a path, it
+    carries ``kind`` (added when missing; a different one is refused)."""
+    body = _spec_json(spec)
+    shared = sum(1 for path, _ in PATHS.values() if path == _path(kind)[0]) > 1
+    if shared and isinstance(body, dict):
+        given = body.get("kind", getattr(spec, "kind", kind))  # a model's default tag is unset
+        if given != kind:
+            raise ValueError(f"the spec's kind is {given!r}, not {kind!r}")
+        body = {"kind": kind, **{k: v for k, v in body.items() if k != "kind"}}
+    return body
+
+
 class _Operations:
     """Every operation of the service as a generator of :class:`Call`/:class:`Pause`; the
     public methods of :class:`Client` and :class:`AsyncClient` are made from these by
     :func:`_operation`."""
+
+    @staticmethod
+    def compute(
+        kind: str,
+        spec: Any,
+        *,
+        refresh: bool = False,
+        progress: Progress | None = None,
+        poll: float = 0.2,
+        timeout: float | None = None,
+    ) -> Steps[dict[str, Any]]:
+        """Run the computation named ``kind`` (``simulation``, ``compare``, ``stability``,
+        a sweep kind, ``study``: :data:`PATHS`) on ``spec`` and return the result JSON.
+
+        One ``POST`` where the service answers with the result and no ``progress`` is
+        given; otherwise submitted as a job (:meth:`submit_job`) and waited for
+        (``progress(fraction)`` while running, see :meth:`wait_raw`).
+        """
+        path, sync = _path(kind)
+        if sync and progress is None:
+            doc: dict[str, Any] = yield from _json(
+                Call("POST", path, _refresh(refresh), _body(kind, spec))
+            )
+            return doc
+        job = yield from _Operations.submit_job(kind, spec, refresh=refresh)
+        return (
+            yield from _Operations.wait_raw(
+                job["key"], progress=progress, poll=poll, timeout=timeout
+            )
+        )
+
+    @staticmethod
+    def submit_job(kind: str, spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
+        """Submit the computation named ``kind`` on ``spec`` as a job; returns the job
+        document (``key``, ``kind``, ``status``, ``progress``)."""
+        doc: dict[str, Any] = yield from _json(
+            Call("POST", _job_path(kind), _refresh(refresh), _body(kind, spec))
+        )
+        return doc
 
     @staticmethod
     def simulate_raw(
@@ -182,13 +264,9 @@ class _Operations:
         With ``progress`` the run goes through a job, and ``progress(fraction)`` is called
         while waiting; otherwise it is one ``POST /v1/simulations``.
         """
-        if progress is None:
-            doc: dict[str, Any] = yield from _json(
-                Call("POST", "/v1/simulations", _refresh(refresh), _spec_json(spec))
-            )
-            return doc
-        job = yield from _Operations.submit(spec, refresh=refresh)
-        return (yield from _Operations.wait_raw(job["key"], progress=progress))
+        return (
+            yield from _Operations.compute("simulation", spec, refresh=refresh, progress=progress)
+        )
 
     @staticmethod
     def simulate(
@@ -201,10 +279,7 @@ class _Operations:
     @staticmethod
     def submit(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
         """Submit ``spec`` as a job; returns the job document (``key``, ``status``, ...)."""
-        doc: dict[str, Any] = yield from _json(
-            Call("POST", "/v1/jobs", _refresh(refresh), _spec_json(spec))
-        )
-        return doc
+        return (yield from _Operations.submit_job("simulation", spec, refresh=refresh))
 
     @staticmethod
     def job(key: str) -> Steps[dict[str, Any]]:
@@ -311,8 +386,7 @@ class _Operations:
         body: dict[str, Any] = {"simulation": _spec_json(simulation)}
         if methods is not None:
             body["methods"] = list(methods)
-        doc: dict[str, Any] = yield from _json(Call("POST", "/v1/compare", _refresh(refresh), body))
-        return doc
+        return (yield from _Operations.compute("compare", body, refresh=refresh))
 
     @staticmethod
     def stability(
@@ -325,30 +399,27 @@ class _Operations:
         One ``POST /v1/stability``; with ``progress`` it runs as a job instead
         (``POST /v1/stability/jobs``) and ``progress(fraction)`` is called while waiting.
         """
-        if progress is None:
-            doc: dict[str, Any] = yield from _json(
-                Call("POST", "/v1/stability", _refresh(refresh), _spec_json(spec))
-            )
-            return doc
-        job = yield from _Operations.submit_stability(spec, refresh=refresh)
-        return (yield from _Operations.wait_raw(job["key"], progress=progress))
+        return (
+            yield from _Operations.compute("stability", spec, refresh=refresh, progress=progress)
+        )
 
     @staticmethod
     def submit_stability(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
         """Submit a critical-velocity analysis as a job; returns the job document."""
-        doc: dict[str, Any] = yield from _json(
-            Call("POST", "/v1/stability/jobs", _refresh(refresh), _spec_json(spec))
-        )
-        return doc
+        return (yield from _Operations.submit_job("stability", spec, refresh=refresh))
 
     @staticmethod
     def submit_sweep(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
         """Submit a sweep, map or Floquet analysis (``POST /v1/sweeps``, spec ``kind``) as a
         job; returns the job document (``key``, ``kind``, ``status``, ``progress``)."""
-        body = _spec_json(spec)
-        if isinstance(body, dict) and "kind" not in body and hasattr(spec, "kind"):
-            body = {"kind": spec.kind, **body}  # a model's default tag is not "set"
-        doc: dict[str, Any] = yield from _json(Call("POST", "/v1/sweeps", _refresh(refresh), body))
+        kind = spec.get("kind") if isinstance(spec, dict) else getattr(spec, "kind", None)
+        if kind in SWEEP_KINDS:
+            return (yield from _Operations.submit_job(kind, spec, refresh=refresh))
+        # no or an unknown kind: the service's 422 names the field
+        path = _job_path(SWEEP_KINDS[0])
+        doc: dict[str, Any] = yield from _json(
+            Call("POST", path, _refresh(refresh), _spec_json(spec))
+        )
         return doc
 
     @staticmethod
@@ -375,10 +446,7 @@ class _Operations:
     def submit_study(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
         """Submit a design study (``POST /v1/studies``: a base simulation or stability
         request and its ``cases`` or ``grid`` of overrides) as a job; returns the job."""
-        doc: dict[str, Any] = yield from _json(
-            Call("POST", "/v1/studies", _refresh(refresh), _spec_json(spec))
-        )
-        return doc
+        return (yield from _Operations.submit_job("study", spec, refresh=refresh))
 
     @staticmethod
     def study(
@@ -521,6 +589,8 @@ class _Base:
             "headers": {**self.headers, **call.headers},
         }
 
+    compute = _operation(_Operations.compute)
+    submit_job = _operation(_Operations.submit_job)
     simulate_raw = _operation(_Operations.simulate_raw)
     simulate = _operation(_Operations.simulate)
     submit = _operation(_Operations.submit)

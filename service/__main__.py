@@ -2,9 +2,9 @@
 service with uvicorn.
 
 The app object is built here by :func:`service.main.create_app` and handed to uvicorn, not
-imported by a string name; ``pipeflow serve`` calls :func:`serve`.  One server process (the
-store allows one per data directory): ``workers`` is the compute pool (PIPEFLOW_WORKERS),
-never uvicorn's server processes.
+imported by a string name; ``pipeflow serve`` runs this module in a child process.  One
+server process (the store allows one per data directory): ``workers`` is the compute pool
+(PIPEFLOW_WORKERS), never uvicorn's server processes.
 """
 
 from __future__ import annotations
@@ -44,7 +44,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, help="compute worker processes")
     parser.add_argument("--data-dir", type=Path, help="directory of the store")
     args = parser.parse_args(argv)
-    serve(args.host, args.port, workers=args.workers, data_dir=args.data_dir)
+    from pydantic import ValidationError
+
+    try:
+        serve(args.host, args.port, workers=args.workers, data_dir=args.data_dir)
+    except ValidationError as exc:  # a flag or variable out of range: name it, exit 2
+        for e in exc.errors():
+            print(f"error: {'.'.join(map(str, e['loc']))}: {e['msg']}", file=sys.stderr)
+        return 2
     return 0
 
 

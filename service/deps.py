@@ -6,8 +6,9 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from service.compute import Hit, accepts_gzip
 from service.engine import Runner
+from service.http.negotiation import accepts_gzip
+from service.http.responses import Hit
 from service.settings import Settings
 from service.store import Store
 

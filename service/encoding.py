@@ -1,6 +1,6 @@
 """The service's JSON encoder: orjson, under pipeflow's one rule for non-finite numbers.
 
-:func:`pipeflow.simulation.json_safe` is the rule (Inf and NaN become null; numpy scalars
+:func:`pipeflow.io.json.json_safe` is the rule (Inf and NaN become null; numpy scalars
 become Python numbers); orjson applies exactly that rule natively (it writes NaN and
 +-Infinity as null, and numpy scalars and arrays with ``OPT_SERIALIZE_NUMPY``), so the
 bytes of :func:`dumps` decode to ``json_safe(obj)`` without walking ``obj`` in Python

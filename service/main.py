@@ -16,12 +16,13 @@ from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
-from pipeflow.schema.registry import endpoints
-from service import observability, problems
-from service.compute import HitCache
+from service import observability
 from service.engine import Runner
-from service.middleware import BodyLimit, HitFastPath, RequestContext
+from service.http import problems
+from service.http.middleware import BodyLimit, HitFastPath, RequestContext
+from service.http.responses import HitCache
 from service.routes import computations, docs, exports, health, jobs, metrics, results, viewer
+from service.routes.endpoints import endpoints
 from service.settings import Settings, get_settings
 from service.store import Store, StoreRefused
 

@@ -1,7 +1,7 @@
 """Metrics, structured logs, request ids and optional tracing: the service's one home for them.
 
 * Request ids: :data:`REQUEST_ID` (a contextvar) holds the id of the request being served;
-  the middleware (:class:`service.middleware.RequestContext`) sets it from ``X-Request-ID``
+  the middleware (:class:`service.http.middleware.RequestContext`) sets it from ``X-Request-ID``
   or generates one.  Tasks the request starts copy the context, so the runner reads it
   (:func:`request_id`) and passes it with the job; the worker sets it again around the
   computation, and :class:`RequestIdFilter` stamps it on every log record.

@@ -8,8 +8,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
-from pipeflow.schema.registry import COMPUTATIONS
-from service.problems import Problem
+from service.http.problems import Problem
+from service.routes.endpoints import served
 
 KEY_PATTERN = r"^[0-9a-f]{64}$"
 
@@ -20,7 +20,7 @@ class JobStatus(BaseModel):
     key: str = Field(description="Job id = parameter hash (SHA-256 hex).")
     kind: str = Field(
         description="What is computed (the job kind, a computation of the registry): "
-        + ", ".join(f"'{name}'" for name, c in COMPUTATIONS.items() if c.endpoint is not None)
+        + ", ".join(f"'{c.name}'" for c in served())
         + "."
     )
     status: Literal["queued", "running", "succeeded", "failed", "cancelled"]

@@ -7,8 +7,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
-from pipeflow.model import PAPER_PIPE, build_model
+from pipeflow.model import build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 
 
@@ -43,6 +45,7 @@ def test_benchmark_runs_one_tiny_case() -> None:
         assert dop853["err"] < 1e-8
 
 
+@pytest.mark.slow  # a benchmark's smoke run, 15-55 s
 def test_quick_run_prints_every_issue_9_target(capsys) -> None:  # type: ignore[no-untyped-def]
     """``run.py --quick`` (2 modes, 0.05 s) prints the targets table of issue 9 with one
     row per target and a verdict on each (numbers not asserted: timing is not a test)."""
@@ -63,6 +66,7 @@ def test_quick_run_prints_every_issue_9_target(capsys) -> None:  # type: ignore[
         assert row.rstrip().endswith(("met |", "**missed** |", "n/a |")), row
 
 
+@pytest.mark.slow  # a benchmark's smoke run, 15-55 s
 def test_service_benchmark_smoke(tmp_path: Path) -> None:
     """benchmarks/service.py --smoke runs every row against a real server (wrk included)
     and writes its section; the mixed load has no errors.  No timing is asserted: the
@@ -94,6 +98,7 @@ def test_service_benchmark_smoke(tmp_path: Path) -> None:
     assert re.search(r"\| 0 errors / [1-9]\d*", section), section
 
 
+@pytest.mark.slow  # a benchmark's smoke run, 15-55 s
 def test_fanout_benchmark_smoke(tmp_path: Path) -> None:
     """benchmarks/bench_fanout.py --smoke runs a tiny spin map job on a 1-worker and a
     2-worker server and writes its section: the 2-worker job reports pieces on 2 workers.

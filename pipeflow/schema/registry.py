@@ -2,26 +2,34 @@
 
 An entry (:class:`Computation`) names the request model, the response model, the function
 that runs it (a plain library call: validated request in, JSON-ready dict out), its cost
-bound, its plots and CSV tables, its OpenAPI examples, and where library parameter names
-land in the request (:attr:`Computation.fields`).  Everything else is derived from
-:data:`COMPUTATIONS`: the service's routes and job kinds, the union of result documents,
-the OpenAPI examples and the command line's kinds.
+bound, its plots and CSV tables, its examples, where library parameter names land in the
+request (:attr:`Computation.fields`) and, for the computations a design study can vary,
+its study summary (:attr:`Computation.summary_columns`, :attr:`Computation.summarize`).
+Everything else is derived from :data:`COMPUTATIONS`: the job kinds, the union of result
+documents, the examples and the command line's and the clients' kinds.
 
-Adding a computation is one :func:`register` call here plus its function.
+The registry names computations only; it knows nothing of HTTP.  Where each one is asked
+for (URL path, tag, operation ids) is the service's table
+(:mod:`service.routes.endpoints`, keyed by the computation's name).
+
+Adding a computation is one :func:`register` call here plus its function (and, to serve
+it, one line of the service's table).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, Field, TypeAdapter
 
+from pipeflow._types import Progress
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
-from pipeflow.export import SIMULATION_TABLES
-from pipeflow.plots import available_plots
+from pipeflow.io.export import SIMULATION_TABLES
+from pipeflow.io.json import json_safe
+from pipeflow.io.plots import available_plots
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
 from pipeflow.schema.simulation import (
@@ -34,34 +42,11 @@ from pipeflow.schema.simulation import (
 from pipeflow.schema.simulation import run_simulation as simulate_request
 from pipeflow.schema.stability import STABILITY_FIELDS
 from pipeflow.schema.study import MAX_CASES, STABILITY_STUDY_EXAMPLE, STUDY_EXAMPLE, StudySpec
-from pipeflow.simulation import json_safe
+from pipeflow.schema.study_runner import Column, run_study
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
-from pipeflow.study import run_study
 
-Progress = Callable[[float], None]
 Run = Callable[[Any, Progress | None], dict[str, Any]]
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    """Where a group of computations is asked for: ``POST /v1/<path>`` and its job form.
-
-    Several computations share one endpoint when their request models are told apart by
-    ``kind`` (``/v1/sweeps``).  ``run_operation`` is None for endpoints that always answer
-    with a job (202); the operation ids are stable so the OpenAPI document only changes
-    when the API does.
-    """
-
-    path: str
-    tag: str
-    summary: str
-    description: str
-    run_operation: str | None
-    job_operation: str
-    job_summary: str
-    #: extra paths accepting the job form (``/v1/jobs`` for simulations), with operation ids
-    job_aliases: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -72,7 +57,6 @@ class Computation:
     request: type[BaseModel]
     response: type[BaseModel]
     run: Run
-    endpoint: Endpoint | None
     #: what bounds a request's work beyond the request model's own bounds (library budgets)
     budget: str
     plots: tuple[str, ...] = ()
@@ -83,6 +67,10 @@ class Computation:
     #: validation too costly for model validation (run by :func:`parse`, in a thread by the
     #: service before it accepts the request; raises ValidationError naming the field)
     check: Callable[[Any], None] | None = None
+    #: the columns a design study gives each case of this computation (empty: a study
+    #: cannot vary it) and the function reducing the JSON of :meth:`execute` to them
+    summary_columns: tuple[Column, ...] = ()
+    summarize: Callable[[dict[str, Any]], dict[str, Any]] | None = None
 
     @property
     def cost(self) -> str:
@@ -138,38 +126,37 @@ def register(computation: Computation) -> Computation:
     return computation
 
 
-def computations_at(endpoint: Endpoint) -> list[Computation]:
-    """The computations asked for at ``endpoint``, in registration order."""
-    return [c for c in COMPUTATIONS.values() if c.endpoint is endpoint]
+def _named(kinds: str | Sequence[str]) -> list[Computation]:
+    names = [kinds] if isinstance(kinds, str) else list(kinds)
+    unknown = [n for n in names if n not in COMPUTATIONS]
+    if unknown or not names:
+        raise KeyError(
+            f"unknown computation {', '.join(map(repr, unknown)) or '(none given)'}; "
+            f"the computations are: {', '.join(COMPUTATIONS)}"
+        )
+    return [COMPUTATIONS[n] for n in names]
 
 
-def endpoints() -> list[Endpoint]:
-    """Every endpoint of the registered computations, in registration order."""
-    out: list[Endpoint] = []
-    for c in COMPUTATIONS.values():
-        if c.endpoint is not None and c.endpoint not in out:
-            out.append(c.endpoint)
-    return out
-
-
-def request_type(endpoint: Endpoint) -> Any:
-    """The body type of ``endpoint``: its one request model, or their union by ``kind``."""
-    models = [c.request for c in computations_at(endpoint)]
+def request_type(kinds: str | Sequence[str]) -> Any:
+    """The request type of the computation named ``kinds``, or of several (their request
+    models told apart by ``kind``)."""
+    models = [c.request for c in _named(kinds)]
     if len(models) == 1:
         return models[0]
     return Annotated[Union[tuple(models)], Field(discriminator="kind")]  # noqa: UP007
 
 
-def response_type(endpoint: Endpoint) -> Any:
-    """The result document of ``endpoint`` (a union where it has several computations)."""
-    models = list(dict.fromkeys(c.response for c in computations_at(endpoint)))
+def response_type(kinds: str | Sequence[str]) -> Any:
+    """The result document of the computation(s) ``kinds`` (a union where they differ)."""
+    models = list(dict.fromkeys(c.response for c in _named(kinds)))
     return models[0] if len(models) == 1 else Union[tuple(models)]  # noqa: UP007
 
 
-def parse(endpoint: Endpoint, data: Any) -> BaseModel:
-    """Validate a JSON body (already decoded) for ``endpoint``, including its computation's
-    :attr:`Computation.check` (raises ValidationError)."""
-    model: BaseModel = TypeAdapter(request_type(endpoint)).validate_python(data)
+def parse(kinds: str | Sequence[str], data: Any) -> BaseModel:
+    """Validate a JSON body (already decoded) as a request of the computation named
+    ``kinds`` (or of one of several, told apart by ``kind``), including its computation's
+    :attr:`Computation.check` (raises ValidationError; KeyError for an unknown name)."""
+    model: BaseModel = TypeAdapter(request_type(kinds)).validate_python(data)
     check = computation_for(model).check
     if check is not None:
         check(model)
@@ -189,23 +176,46 @@ def computation_for(request: BaseModel) -> Computation:
 
 # -- the computations --------------------------------------------------------------------
 
-SIMULATIONS = Endpoint(
-    path="simulations",
-    tag="simulations",
-    summary="Run one simulation (or serve it from the cache)",
-    description="Validate the spec, then answer with the result: cached if an equivalent "
-    "request (same key) was computed before, otherwise computed in a worker process.  "
-    "Identical concurrent requests share one computation.",
-    run_operation="runSimulation",
-    job_operation="submitSimulationJob",
-    job_summary="Submit a simulation as a job",
-    job_aliases=(("/v1/jobs", "submitJob"),),
-)
+
+def _peak(values: Sequence[float | None]) -> float | None:
+    finite = [abs(v) for v in values if v is not None]
+    return max(finite) if finite else None
+
+
+def _last(values: Sequence[float | None]) -> float | None:
+    return values[-1] if values else None
 
 
 def run_simulation(spec: SimulationSpec, progress: Progress | None) -> dict[str, Any]:
     """:func:`pipeflow.simulation.simulate` (see :meth:`~pipeflow.simulation.Result.to_dict`)."""
     return simulate_request(spec, progress).to_dict()
+
+
+#: a simulation's row in a design study
+SIMULATION_SUMMARY = (
+    Column("peak_tip_displacement", "m", "max |u(L, t)| over the output times."),
+    Column(
+        "final_sigma_1",
+        "1/s",
+        "Damping sigma of the fundamental (branch 1 of the "
+        "frozen spectrum) at the last output time t_end; > 0: growing.",
+    ),
+    Column("final_omega_1", "rad/s", "Frequency omega of the fundamental at t_end."),
+    Column("method_used", "", "The solver that ran (what 'auto' chose)."),
+    Column("result_status", "", "The simulation's status: ok, diverging or overflow."),
+)
+
+
+def summarize_simulation(result: dict[str, Any]) -> dict[str, Any]:
+    """A simulation result (JSON) reduced to :data:`SIMULATION_SUMMARY`."""
+    fundamental = result["fundamental"]
+    return {
+        "peak_tip_displacement": _peak(result["tip_displacement"]),
+        "final_sigma_1": _last(fundamental["sigma"]),
+        "final_omega_1": _last(fundamental["omega"]),
+        "method_used": result["method_used"],
+        "result_status": result["status"],
+    }
 
 
 SIMULATION = register(
@@ -214,7 +224,6 @@ SIMULATION = register(
         request=SimulationSpec,
         response=r.SimulationResponse,
         run=run_simulation,
-        endpoint=SIMULATIONS,
         budget="the solver refuses runs over options.max_steps steps",
         plots=(
             "tip_displacement",
@@ -232,21 +241,9 @@ SIMULATION = register(
             }
         },
         fields=SIMULATION_FIELDS,
+        summary_columns=SIMULATION_SUMMARY,
+        summarize=summarize_simulation,
     )
-)
-
-COMPARE_ENDPOINT = Endpoint(
-    path="compare",
-    tag="compare",
-    summary="Run one case with several methods; wall times and differences",
-    description="Run ``simulation`` with each of ``methods``; for each, the solve and wall "
-    "time [s], the speed-up against the slowest, its estimated relative error [-] and its "
-    "relative difference from the most accurate method (``baseline``) on the modal state and "
-    "on the tip displacement [-].  Cached like simulations (the timings are those of the run "
-    "that filled the cache: ``X-Cache`` says which).",
-    run_operation="compareMethods",
-    job_operation="submitCompareJob",
-    job_summary="Submit a method comparison as a job",
 )
 
 
@@ -261,7 +258,6 @@ COMPARE = register(
         request=CompareSpec,
         response=r.CompareResponse,
         run=run_compare,
-        endpoint=COMPARE_ENDPOINT,
         budget=f"one simulation's bound per method, at most {MAX_METHODS} methods",
         examples={
             "paper": {
@@ -283,22 +279,6 @@ def run_analysis(spec: s.StabilitySpec | s.SweepModel, progress: Progress | None
     return spec.run(progress)
 
 
-STABILITY_ENDPOINT = Endpoint(
-    path="stability",
-    tag="stability",
-    summary="Critical flow velocities at constant spin (or served from the cache)",
-    description="Every crossing of the stability boundary (sigma = 0) for flow velocities v "
-    "[m/s] in ``velocity_range`` at constant spin w0 [rad/s]: flutter or divergence, loss or "
-    "gain, the crossing mode and its frequency [rad/s], each located by root-finding.  "
-    "``critical_velocity`` [m/s] is the first loss (null when stable throughout); the "
-    "non-dimensional u_cr, beta and gamma are in ``dimensionless``.  The v < 0 part of the "
-    "range (reverse flow, the aspirating pipe) gets the caveat in ``reverse_flow`` and no "
-    "threshold.  Cached like simulations (``X-Cache``, ``?refresh=true``).",
-    run_operation="runStability",
-    job_operation="submitStabilityJob",
-    job_summary="Submit a critical-velocity analysis as a job",
-)
-
 #: the paper's pipe (beta = 0.467) at w0 = 100 rad/s: flutter of mode 3 at v = 27.69 m/s
 PAPER_STABILITY: dict[str, Any] = {
     "pipe": s.PAPER_PIPE_JSON,
@@ -307,13 +287,36 @@ PAPER_STABILITY: dict[str, Any] = {
     "velocity_range": [0.0, 60.0],
 }
 
+#: a critical-velocity analysis's row in a design study
+STABILITY_SUMMARY = (
+    Column("critical_velocity", "m/s", "First loss of stability in the range (null: none)."),
+    Column("critical_mode", "-", "The mode that loses stability there."),
+    Column("critical_kind", "", "flutter or divergence."),
+    Column("stable_throughout", "", "Stable over the whole v >= 0 part of the range."),
+)
+
+
+def summarize_stability(result: dict[str, Any]) -> dict[str, Any]:
+    """A critical-velocity result (JSON) reduced to :data:`STABILITY_SUMMARY`."""
+    critical = result["critical_velocity"]
+    first = next(
+        (c for c in result["crossings"] if c["direction"] == "loss" and c["velocity"] == critical),
+        None,
+    )
+    return {
+        "critical_velocity": critical,
+        "critical_mode": first["mode"] if first else None,
+        "critical_kind": first["kind"] if first else None,
+        "stable_throughout": result["stable_throughout"],
+    }
+
+
 STABILITY = register(
     Computation(
         name="stability",
         request=s.StabilitySpec,
         response=r.StabilityResponse,
         run=run_analysis,
-        endpoint=STABILITY_ENDPOINT,
         budget="one frozen spectrum per point",
         examples={
             "paper": {
@@ -328,32 +331,9 @@ STABILITY = register(
             },
         },
         fields=STABILITY_FIELDS,
+        summary_columns=STABILITY_SUMMARY,
+        summarize=summarize_stability,
     )
-)
-
-SWEEPS = Endpoint(
-    path="sweeps",
-    tag="sweeps",
-    summary="Submit a sweep, stability map or Floquet analysis as a job",
-    description="Accept the computation named by ``kind`` and answer at once with its job "
-    "(202, ``Location: /v1/jobs/{key}``; the job's ``kind`` is the spec's):\n\n"
-    "- ``argand``: eigenvalues sigma [1/s] + i omega [rad/s] against flow velocity [m/s] at "
-    "constant spin, modes tracked by left/right eigenvector overlap (optimal assignment), "
-    "with a per-point confidence and refinement where it drops;\n"
-    "- ``campbell``: the same against spin w0 [rad/s] (also in Hz and rpm) at constant v;\n"
-    "- ``spin_map``: growth rate over (w0, v) and the critical velocity [m/s] at each spin;\n"
-    "- ``beta_map``: u_cr(beta) in non-dimensional form, every crossing (S-shaped segments);\n"
-    "- ``resonance_chart``: Floquet chart of pulsating flow over amplitude [m/s] and "
-    "frequency [rad/s];\n"
-    "- ``floquet``: multipliers, exponents and a verdict for one harmonic flow and/or spin.\n\n"
-    "Poll ``GET /v1/jobs/{key}`` (status, progress 0..1), then fetch "
-    "``GET /v1/results/{key}``; its ``plots`` name the figures at "
-    "``/v1/results/{key}/plots/{name}.png``.  Resubmitting is idempotent.  Sweeps and maps "
-    "can be large, so they always run as jobs; a sweep already computed answers 202 with a "
-    "job that has already ``succeeded``.",
-    run_operation=None,
-    job_operation="submitSweep",
-    job_summary="Submit a sweep, stability map or Floquet analysis as a job",
 )
 
 _PAPER = s.PAPER_PIPE_JSON
@@ -374,7 +354,6 @@ def _sweep(
             request=model,
             response=response,
             run=run_analysis,
-            endpoint=SWEEPS,
             budget=budget,
             plots=plots,
             examples={name: {"summary": summary, "value": {"kind": name, **example}}},
@@ -466,37 +445,22 @@ FLOQUET = _sweep(
     },
 )
 
-#: names of the computations asked for by ``kind`` at ``/v1/sweeps`` (the CLI's sweep kinds)
-SWEEP_KINDS: tuple[str, ...] = tuple(c.name for c in computations_at(SWEEPS))
-
-STUDIES = Endpoint(
-    path="studies",
-    tag="studies",
-    summary="Submit a design study (many cases of one simulation or stability analysis)",
-    description="Accept a study and answer at once with its job (202, "
-    "``Location: /v1/jobs/{key}``): a ``base`` simulation or stability request and either "
-    "``cases`` (a list of overrides) or ``grid`` (values per field, every combination), "
-    "overriding numeric fields by dotted path (``pipe.E`` [Pa], ``pipe.L`` [m], ``pipe.M2`` "
-    "[kg/m], ``rotation.omega0.value`` [rad/s], ``flow.velocity.coefficients.1`` [m/s^2], "
-    "...).  Every case is validated by the base request model before any work (a 422 "
-    "names the study field: ``cases.3.pipe.E``, ``grid.pipe.L.2``).  Each case is cached "
-    "under its own key, the key of the same request sent alone: a study overlapping an "
-    "earlier one computes only its new cases.  The job's progress is the fraction of cases "
-    "done.  The result (``GET /v1/results/{key}``) is a table, one row per case: its "
-    "overrides, its key, ok or failed (with the problem's type, field and detail: one "
-    "failing case does not fail the study), and for simulations the peak tip displacement "
-    "[m], the damping sigma [1/s] and frequency omega [rad/s] of the fundamental at t_end "
-    "and the method used, for stability the critical velocity [m/s] and the mode that loses "
-    "stability; ``?format=csv`` gives it as CSV with units in the header.",
-    run_operation=None,
-    job_operation="submitStudy",
-    job_summary="Submit a design study as a job",
+#: the sweeps, maps and Floquet analyses: computations whose request models carry their
+#: name as ``kind`` (one body type, told apart by it; the command line's sweep kinds)
+SWEEP_KINDS: tuple[str, ...] = (
+    ARGAND.name,
+    CAMPBELL.name,
+    SPIN_MAP.name,
+    BETA_MAP.name,
+    RESONANCE_CHART.name,
+    FLOQUET.name,
 )
 
 
 def run_study_request(spec: StudySpec, progress: Progress | None) -> dict[str, Any]:
-    """:func:`pipeflow.study.run_study` (cases fanned out on the current host)."""
-    return run_study(spec, progress)
+    """:func:`pipeflow.schema.study_runner.run_study` with the base computation of the
+    registry (cases fanned out on the current host)."""
+    return run_study(spec, COMPUTATIONS[spec.base_kind], progress)
 
 
 STUDY = register(
@@ -505,7 +469,6 @@ STUDY = register(
         request=StudySpec,
         response=r.StudyResponse,
         run=run_study_request,
-        endpoint=STUDIES,
         budget=f"at most {MAX_CASES} cases (the list's length or the grid's product), each "
         f"bounded as its base computation is (simulation: {SIMULATION.cost}; stability: "
         f"{STABILITY.cost}): at most {MAX_CASES} times the base's bound",

@@ -18,10 +18,11 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from pipeflow import profiles
+from pipeflow import paper, profiles
+from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
-from pipeflow.errors import PipeflowError
+from pipeflow.errors import InvalidField, PipeflowError
 from pipeflow.loads import MAX_LOADS, BaseAcceleration, DistributedForce, Load, PointForce
 from pipeflow.model import Pipe
 from pipeflow.modeshapes import (
@@ -32,7 +33,7 @@ from pipeflow.modeshapes import (
 )
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
-from pipeflow.solvers.base import MAX_STEPS_CEILING, ProgressCallback
+from pipeflow.solvers.base import MAX_STEPS_CEILING
 
 MAX_SAMPLES = 200_001
 MAX_TABLE_POINTS = 10_000
@@ -116,11 +117,12 @@ def request_fields(fields: Mapping[str, str], prefix: str = "") -> Iterator[None
 def library_check(check: Callable[..., object], fields: Mapping[str, str], *args: Any) -> None:
     """Run a library check (budget, common period...) at validation time, so a request the
     library would refuse is a 422 naming the field at submission, not a job that fails later
-    (a pydantic validator must raise ValueError: the field leads its message)."""
+    (a pydantic validator must raise ValueError: :class:`InvalidField` carries the field)."""
     try:
         check(*args)
     except PipeflowError as exc:
-        raise ValueError(f"{request_field(exc, fields).field}: {exc.message}") from None
+        field = request_field(exc, fields).field
+        raise InvalidField(f"{field}: {exc.message}", field) from None
 
 
 class StrictModel(BaseModel):
@@ -196,7 +198,7 @@ class PipeSpec(StrictModel):
     @model_validator(mode="after")
     def _mass(self) -> PipeSpec:
         if self.M1 + self.M2 < MIN_MASS:
-            raise ValueError(f"M1 + M2 must be >= {MIN_MASS:g} kg/m")
+            raise InvalidField(f"M1 + M2 must be >= {MIN_MASS:g} kg/m", "M1")
         return self
 
     def to_pipe(self, hub_radius: float = 0.0, plane: str = "in-plane") -> Pipe:
@@ -286,11 +288,11 @@ class TableProfile(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> TableProfile:
         if len(self.t) != len(self.values):
-            raise ValueError("t and values must have the same length")
+            raise InvalidField("t and values must have the same length", "t")
         if any(b <= a for a, b in zip(self.t, self.t[1:], strict=False)):
-            raise ValueError("t must be strictly increasing")
+            raise InvalidField("t must be strictly increasing", "t")
         if self.t[0] > 0:
-            raise ValueError("the table must start at or before t = 0 s")
+            raise InvalidField("the table must start at or before t = 0 s")
         return self
 
     def to_profile(self) -> profiles.Profile:
@@ -501,19 +503,18 @@ class SimulationSpec(StrictModel):
     model_config = ConfigDict(
         json_schema_extra={
             "examples": [
-                {
-                    "pipe": {
-                        "E": 7.8e9,
-                        "I": 1.21e-17,
-                        "L": 0.025,
-                        "M1": 1.884e-5,
-                        "M2": 1.6485e-5,
+                {  # the paper's example (pipeflow.paper) as JSON
+                    "pipe": dict(paper.PAPER_PIPE_JSON),
+                    "rotation": {"omega0": {"kind": "constant", "value": paper.PAPER_OMEGA0}},
+                    "flow": {
+                        "velocity": {
+                            "kind": "polynomial",
+                            "coefficients": list(paper.PAPER_FLOW.coefficients),
+                        }
                     },
-                    "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
-                    "flow": {"velocity": {"kind": "polynomial", "coefficients": [0.0, 0.4]}},
-                    "initial": {"u0": 0.001, "du0": 0.0},
-                    "modes": 10,
-                    "time": {"t_end": 1.0, "samples": 2001},
+                    "initial": {"u0": paper.PAPER_U0, "du0": 0.0},
+                    "modes": paper.PAPER_MODES,
+                    "time": {"t_end": paper.PAPER_T_END, "samples": paper.PAPER_SAMPLES},
                     "method": "auto",
                 }
             ]
@@ -549,7 +550,7 @@ class SimulationSpec(StrictModel):
     @classmethod
     def _known_method(cls, v: str) -> str:
         if v not in SOLVERS:
-            raise ValueError(f"unknown method {v!r}; choose one of {', '.join(sorted(SOLVERS))}")
+            raise InvalidField(f"unknown method {v!r}; choose one of {', '.join(sorted(SOLVERS))}")
         return v
 
     @model_validator(mode="after")
@@ -559,45 +560,56 @@ class SimulationSpec(StrictModel):
             self.output.eigen_modes = self.modes
         for i, x in enumerate(self.output.positions):
             if not 0 <= x <= self.pipe.L:
-                raise ValueError(f"output.positions[{i}] = {x} m is outside [0, L]")
+                raise InvalidField(
+                    f"output.positions[{i}] = {x} m is outside [0, L]", "output.positions"
+                )
         shapes = self.output.mode_shapes
         for i, t in enumerate(shapes.times if shapes is not None else []):
             if not 0 <= t <= self.time.t_end:
-                raise ValueError(f"output.mode_shapes.times.{i}: {t} s is outside [0, time.t_end]")
+                raise InvalidField(
+                    f"output.mode_shapes.times.{i}: {t} s is outside [0, time.t_end]",
+                    f"output.mode_shapes.times.{i}",
+                )
         for name, prof in (
             ("flow.velocity", self.flow.velocity),
             ("rotation.omega0", self.rotation.omega0),
         ):
             if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
-                raise ValueError(f"{name}: the table ends at {prof.t[-1]} s, before time.t_end")
+                raise InvalidField(
+                    f"{name}: the table ends at {prof.t[-1]} s, before time.t_end", name
+                )
         self._check_loads()
         return self
 
     def _check_loads(self) -> None:
         """Stations against the pipe's length, spans ordered, tables covering t_end; the
-        message leads with the field (``loads.0.position``)."""
+        error names the field (``loads.0.position``)."""
         L = self.pipe.L
         for i, load in enumerate(self.loads):
             if isinstance(load, PointForceLoad):
                 if load.position > L:
-                    raise ValueError(
-                        f"loads.{i}.position: {load.position} m is beyond the tip, L = {L} m"
+                    where = f"loads.{i}.position"
+                    raise InvalidField(
+                        f"{where}: {load.position} m is beyond the tip, L = {L} m", where
                     )
                 name, prof = "force", load.force
             elif isinstance(load, DistributedForceLoad):
                 end = L if load.end is None else load.end
                 if end > L:
-                    raise ValueError(f"loads.{i}.end: {end} m is beyond the tip, L = {L} m")
+                    where = f"loads.{i}.end"
+                    raise InvalidField(f"{where}: {end} m is beyond the tip, L = {L} m", where)
                 if load.start >= end:
-                    raise ValueError(
-                        f"loads.{i}.start: {load.start} m must be below the end, {end} m"
+                    where = f"loads.{i}.start"
+                    raise InvalidField(
+                        f"{where}: {load.start} m must be below the end, {end} m", where
                     )
                 name, prof = "intensity", load.intensity
             else:
                 name, prof = "acceleration", load.acceleration
             if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
-                raise ValueError(
-                    f"loads.{i}.{name}: the table ends at {prof.t[-1]} s, before time.t_end"
+                where = f"loads.{i}.{name}"
+                raise InvalidField(
+                    f"{where}: the table ends at {prof.t[-1]} s, before time.t_end", where
                 )
 
     def to_simulation(self) -> Simulation:
@@ -635,14 +647,15 @@ class SimulationSpec(StrictModel):
         return data
 
 
-def run_simulation(spec: SimulationSpec, progress: ProgressCallback | None = None) -> Result:
+def run_simulation(spec: SimulationSpec, progress: Progress | None = None) -> Result:
     """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
     the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
     with request_fields(SIMULATION_FIELDS):
         return simulate(spec.to_simulation(), progress=progress)
 
 
-#: the paper's section-5 example, v = 0.4 t m/s, w0 = 100 rad/s, 10 modes, 1 s
+#: the paper's section-5 example (:mod:`pipeflow.paper`), v = 0.4 t m/s, w0 = 100 rad/s,
+#: 10 modes, 1 s
 PAPER_EXAMPLE: dict[str, Any] = SimulationSpec.model_json_schema()["examples"][0]
 
 
@@ -672,7 +685,7 @@ class CompareSpec(StrictModel):
     @classmethod
     def _distinct(cls, v: list[str]) -> list[str]:
         if len(set(v)) != len(v):
-            raise ValueError("methods must be distinct")
+            raise InvalidField("methods must be distinct", "methods")
         return v
 
     def canonical(self) -> dict[str, Any]:

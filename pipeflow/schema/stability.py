@@ -22,8 +22,11 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AliasChoices, ConfigDict, Field, Strict, model_validator
 
+from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
-from pipeflow.model import GROUPS, PAPER_PIPE, Pipe
+from pipeflow.errors import InvalidField
+from pipeflow.model import GROUPS, Pipe
+from pipeflow.paper import PAPER_PIPE_JSON
 from pipeflow.schema.simulation import (
     ConstantProfile,
     HarmonicProfile,
@@ -38,11 +41,8 @@ from pipeflow.stability.floquet import check_chart_work, floquet, period_of, res
 from pipeflow.stability.maps import beta_map, check_map_work, spin_map
 from pipeflow.stability.sweeps import Parameter, sweep
 
-Progress = Callable[[float], None]
-
 #: the paper's section-5 pipe, for the schema examples
 #: (E, I, L, M1, M2 only: the paper's pipe needs none of the fields beyond its model)
-PAPER_PIPE_JSON: Any = {name: getattr(PAPER_PIPE, name) for name in ("E", "I", "L", "M1", "M2")}
 MAX_SWEEP_POINTS = 2001
 MAX_MAP_SIDE = 200
 MAX_CHART_SIDE = 101
@@ -67,9 +67,9 @@ STABILITY_FIELDS: dict[str, str] = {
 def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
     lo, hi = value
     if not lo < hi:
-        raise ValueError(f"{name} must be increasing: got [{lo}, {hi}] {unit}")
+        raise InvalidField(f"{name} must be increasing: got [{lo}, {hi}] {unit}", name)
     if max(abs(lo), abs(hi)) > bound:
-        raise ValueError(f"{name} must lie within +-{bound:g} {unit}")
+        raise InvalidField(f"{name} must lie within +-{bound:g} {unit}", name)
 
 
 class Hub(StrictModel):
@@ -147,7 +147,10 @@ class StabilitySpec(_Mounted):
     def _ranges(self) -> StabilitySpec:
         _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
         if abs(self.rotation.omega0.value) > MAX_SPIN:
-            raise ValueError(f"rotation.omega0.value must lie within +-{MAX_SPIN:g} rad/s")
+            raise InvalidField(
+                f"rotation.omega0.value must lie within +-{MAX_SPIN:g} rad/s",
+                "rotation.omega0.value",
+            )
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
@@ -185,9 +188,9 @@ class _TrackedSweep(_Mounted):
     @model_validator(mode="after")
     def _tracked(self) -> _TrackedSweep:
         if self.tracked_modes > self.modes:
-            raise ValueError("tracked_modes cannot exceed modes")
+            raise InvalidField("tracked_modes cannot exceed modes", "tracked_modes")
         if self.max_points is not None and self.max_points < self.points:
-            raise ValueError("max_points must be >= points")
+            raise InvalidField("max_points must be >= points", "max_points")
         return self
 
     def _sweep(
@@ -326,10 +329,12 @@ class BetaMapSweep(StrictModel):
     def _ranges(self) -> BetaMapSweep:
         _check_range(self.beta_range, "beta_range", 1.0, "")
         if not (self.beta_range[0] > 0 and self.beta_range[1] < 1):
-            raise ValueError("beta_range must lie inside (0, 1)")
+            raise InvalidField("beta_range must lie inside (0, 1)", "beta_range")
         _check_range(self.u_range, "u_range", 1e3, "")
         if self.u_range[0] < 0:
-            raise ValueError("u_range must be >= 0 (reverse flow has no critical velocity)")
+            raise InvalidField(
+                "u_range must be >= 0 (reverse flow has no critical velocity)", "u_range"
+            )
         _library_check(check_map_work, self.beta_points * self.u_points, self.modes, "u_points")
         return self
 
@@ -373,9 +378,9 @@ class ResonanceChartSweep(_Mounted):
         _check_range(self.amplitude_range, "amplitude_range", MAX_SPEED, "m/s")
         _check_range(self.frequency_range, "frequency_range", 1e7, "rad/s")
         if self.amplitude_range[0] < 0:
-            raise ValueError("amplitude_range must be >= 0 m/s")
+            raise InvalidField("amplitude_range must be >= 0 m/s", "amplitude_range")
         if self.frequency_range[0] <= 0:
-            raise ValueError("frequency_range must be > 0 rad/s")
+            raise InvalidField("frequency_range must be > 0 rad/s", "frequency_range")
         _library_check(
             check_chart_work,
             self.mounted_pipe(),
@@ -461,7 +466,8 @@ def _library_check(check: Callable[..., object], *args: Any) -> None:
     try:
         library_check(check, STABILITY_FIELDS, *args)
     except (ArithmeticError, np.linalg.LinAlgError) as exc:
-        raise ValueError(
+        raise InvalidField(
             f"pipe: the pipe's magnitudes take the model out of double precision "
-            f"({type(exc).__name__}: {exc}); check E, I, L, M1 and M2"
+            f"({type(exc).__name__}: {exc}); check E, I, L, M1 and M2",
+            "pipe",
         ) from None

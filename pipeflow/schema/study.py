@@ -48,6 +48,7 @@ from pydantic import (
 )
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
+from pipeflow.errors import InvalidField
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec, StrictModel
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 
@@ -77,9 +78,9 @@ Path = Annotated[
 def _number(value: Any) -> int | float:
     # JSON numbers only: a string is never evaluated, a boolean is not 1
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError("an override is a JSON number (in the field's SI unit)")
+        raise InvalidField("an override is a JSON number (in the field's SI unit)")
     if isinstance(value, float) and not math.isfinite(value):
-        raise ValueError("an override must be finite")
+        raise InvalidField("an override must be finite")
     return value
 
 
@@ -281,13 +282,16 @@ class StudySpec(StrictModel):
     @model_validator(mode="after")
     def _valid(self) -> StudySpec:
         if (self.cases is None) == (self.grid is None):
-            raise ValueError(
+            raise InvalidField(
                 "cases: give exactly one of cases (a list of overrides) and grid (values per "
-                "field, combined as a cartesian product)"
+                "field, combined as a cartesian product)",
+                "cases",
             )
         if self.grid is not None and self.count() > MAX_CASES:
             sizes = " x ".join(str(len(v)) for _, v in sorted(self.grid.items()))
-            raise ValueError(f"grid: {sizes} = {self.count()} cases, more than {MAX_CASES}")
+            raise InvalidField(
+                f"grid: {sizes} = {self.count()} cases, more than {MAX_CASES}", "grid"
+            )
         self._check_paths()
         return self
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from pipeflow.solvers.base import SOLVERS, Problem, Solver, SolverOutput, SolverStats, register
+from pipeflow.solvers.base import Problem, Solver, SolverOutput, SolverStats
 from pipeflow.solvers.cma import CMA
 from pipeflow.solvers.magnus import Magnus
 
@@ -27,12 +27,14 @@ class Auto(Solver):
     )
     compared_by_default: ClassVar[bool] = False  # it is one of the others
 
+    def __init__(self, cma: CMA, magnus: Magnus) -> None:
+        self.cma = cma  # the instances of :data:`pipeflow.solvers.SOLVERS`
+        self.magnus = magnus
+
     def choose(self, problem: Problem) -> tuple[Solver, str]:
         if problem.loading.is_time_invariant:
-            return SOLVERS["cma"], (
-                "constant flow and spin: cma is exact (one eigen-decomposition)"
-            )
-        return SOLVERS["magnus"], (
+            return self.cma, ("constant flow and spin: cma is exact (one eigen-decomposition)")
+        return self.magnus, (
             "time-variant flow or spin: cma would be only the first Magnus term; magnus "
             f"meets the tolerance {problem.options.tolerance:g}"
         )
@@ -42,6 +44,3 @@ class Auto(Solver):
         out = solver._solve_impl(problem, stats)
         out.method = solver.name
         return out
-
-
-register(Auto())

@@ -6,19 +6,16 @@ import dataclasses
 import math
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.loads import ExternalForcing
 from pipeflow.model import Coefficients, Loading, PipeModel
-
-FloatArray = NDArray[np.float64]
-ProgressCallback = Callable[[float], None]
 
 #: hard ceilings that no option may lift (they bound what one request can cost)
 MAX_STEPS_CEILING = 20_000_000
@@ -69,7 +66,7 @@ class Problem:
     z0: FloatArray
     t: FloatArray  # output times [s], t[0] == 0, strictly increasing
     options: Options = field(default_factory=Options)
-    progress: ProgressCallback | None = None
+    progress: Progress | None = None
     loads: ExternalForcing | None = None
 
     @property
@@ -248,14 +245,6 @@ def step_counts(
             smallest_step=smallest if math.isfinite(smallest) else None,
         )
     return counts.astype(np.int64)
-
-
-SOLVERS: dict[str, Solver] = {}
-
-
-def register(solver: Solver) -> Solver:
-    SOLVERS[solver.name] = solver
-    return solver
 
 
 def frozen_eigenvalues(

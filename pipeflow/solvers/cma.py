@@ -5,7 +5,7 @@
 with exp(P) = Y diag(e^xi) Y^-1 from the eigen-decomposition of P (eq. 19-26) for constant
 coefficients (P = t S: one decomposition serves every output time).  For time-variant
 coefficients exp(P(t)) at every output time is the batched scaling-and-squaring
-exponential (:func:`pipeflow.solvers.magnus.expm_stack`): the same matrix function, without
+exponential (:func:`pipeflow.linalg.expm_stack`): the same matrix function, without
 one eigen-decomposition per output time (the CMA exponents, eigenvalues of P(t)/t, are
 decomposed only at the times a result reports them).  This is
 exact when the S(t) commute with each other (constant coefficients); otherwise it is the
@@ -33,18 +33,17 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import expm
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded
+from pipeflow.linalg import expm_stack
 from pipeflow.solvers.base import (
-    FloatArray,
     Problem,
     Solver,
     SolverOutput,
     SolverStats,
-    register,
     spectral_radius,
 )
 from pipeflow.solvers.convolution import QUADRATURE_ERROR, dense_particular, modal_particular
-from pipeflow.solvers.magnus import expm_stack
 
 #: at most this many exp(-P) evaluations for the Duhamel integral
 MAX_DUHAMEL_NODES = 400_000
@@ -284,6 +283,3 @@ def _expm_marching(S: FloatArray, t: FloatArray, z0: FloatArray) -> FloatArray:
         step = E if E is not None else expm(S * h)
         Z[k + 1] = step @ Z[k]
     return Z
-
-
-register(CMA())

@@ -34,9 +34,9 @@ from numpy.typing import NDArray
 from scipy.linalg import expm
 from scipy.signal import lfilter
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded
 from pipeflow.loads import ExternalForcing
-from pipeflow.solvers.base import FloatArray
 
 #: Gauss-Legendre nodes per piece, and the largest phase (|xi| + w_load) h of a piece [rad]
 PIECE_NODES = 16

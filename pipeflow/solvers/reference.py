@@ -11,16 +11,15 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.solvers.base import (
     MAX_EVALUATIONS_CEILING,
-    FloatArray,
     Options,
     Problem,
     Solver,
     SolverOutput,
     SolverStats,
-    register,
 )
 
 INTEGRATORS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
@@ -109,6 +108,3 @@ class Reference(Solver):
         stats.rhs_evaluations = int(sol.nfev)
         diagnostics = {"integrator": opts.integrator, "rtol": opts.rtol, "atol": opts.atol}
         return SolverOutput(z=sol.y.T.copy(), diagnostics=diagnostics)
-
-
-register(Reference())

@@ -15,16 +15,15 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeflow._types import FloatArray
 from pipeflow.errors import UnstableStep
 from pipeflow.solvers.base import (
-    FloatArray,
     Problem,
     Solver,
     SolverOutput,
     SolverStats,
     frozen_eigenvalues,
     given_step,
-    register,
     step_budget,
     step_counts,
 )
@@ -158,6 +157,3 @@ class RK4(Solver):
             if done % report_every < m:
                 problem.report(done / total)
         return Z
-
-
-register(RK4())

@@ -26,16 +26,13 @@ import math
 from collections.abc import Callable, Mapping
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq, minimize_scalar
 
+from pipeflow._types import ComplexArray, FloatArray
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidInput
-from pipeflow.model import DIMENSIONLESS_GROUPS, PLANES, Coefficients, Pipe, PipeModel
-
-FloatArray = NDArray[np.float64]
-ComplexArray = NDArray[np.complex128]
-Progress = Callable[[float], None]
+from pipeflow.model import DIMENSIONLESS_GROUPS, PLANES, Pipe, PipeModel
 
 
 def check_modes(modes: int, parameter: str = "modes") -> None:
@@ -52,28 +49,13 @@ def check_range(lo: float, hi: float, parameter: str) -> None:
         raise InvalidInput(f"{parameter} must be increasing, got [{lo}, {hi}]", parameter=parameter)
 
 
-def frozen_matrices(model: PipeModel, v: ArrayLike, vdot: ArrayLike, w2: ArrayLike) -> FloatArray:
-    """S = S_0 + v S_v + vdot S_vdot + v^2 S_v2 + w0^2 S_w2 [1/s] for any batch shape.
-
-    ``v`` [m/s], ``vdot`` [m/s^2] and ``w2`` = w0^2 [rad^2/s^2] broadcast to one shape
-    ``B``; the result has shape ``B + (2n, 2n)`` (:meth:`PipeModel.state_matrix` on the
-    flattened batch).
-    """
-    vv, aa, ww = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (v, vdot, w2)))
-    flat = vv.ravel()
-    S = model.state_matrix(
-        Coefficients(v=flat, vdot=aa.ravel(), w2=ww.ravel(), wdot=np.zeros_like(flat))
-    )
-    return np.asarray(S.reshape(vv.shape + S.shape[1:]))
-
-
 def state_matrices(model: PipeModel, v: ArrayLike, w0: ArrayLike) -> FloatArray:
     """Balanced state matrices S(v, w0), shape ``(N, 2n, 2n)`` [1/s], for constant v, w0.
 
     ``v`` [m/s] and ``w0`` [rad/s] broadcast against each other (flattened).
     """
     vv, ww = np.broadcast_arrays(np.asarray(v, dtype=float), np.asarray(w0, dtype=float))
-    return frozen_matrices(model, vv.ravel(), 0.0, ww.ravel() ** 2)
+    return model.frozen_state_matrix(vv.ravel(), 0.0, ww.ravel() ** 2)
 
 
 def eigenvalues(model: PipeModel, v: ArrayLike, w0: ArrayLike) -> ComplexArray:

@@ -23,12 +23,11 @@ from typing import Any, Literal
 
 import numpy as np
 
+from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats, build_model
 from pipeflow.spectra import Branches, follow, rounding_level
 from pipeflow.stability.core import (
-    FloatArray,
-    Progress,
     check_modes,
     check_range,
     growth_rate,

@@ -13,9 +13,9 @@ Oteo & Ros, Physics Reports 470, 2009, eq. 253)::
     Omega_k = h/2 (A_1 + A_2) + sqrt(3) h^2 / 12 [A_2, A_1],   Phi = prod_k exp(Omega_k),
 
 batched: all exponentials of a period (and, for a chart, of all amplitudes) are one
-:func:`~pipeflow.solvers.magnus.expm_stack` call, and the product is taken pairwise
-(:func:`~pipeflow.solvers.magnus.product_of_steps`); the step itself is
-:func:`~pipeflow.solvers.magnus.magnus4_omega`, shared with the Magnus solver.  The
+:func:`~pipeflow.linalg.expm_stack` call, and the product is taken pairwise
+(:func:`~pipeflow.linalg.product_of_steps`); the step itself is
+:func:`~pipeflow.linalg.magnus4_omega`, shared with the Magnus solver.  The
 number of steps per period is doubled until two successive monodromy matrices agree to
 ``tolerance`` (relative, 2-norm); that difference is reported as the error estimate.  With zero
 pulsation amplitude S is constant, Omega = h S and Phi = exp(S T) to rounding.
@@ -23,6 +23,7 @@ pulsation amplitude S is constant, Omega = h S and Phi = exp(S T) to rounding.
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -31,19 +32,24 @@ import numpy as np
 from scipy import ndimage
 
 from pipeflow import parallel
+from pipeflow._types import ComplexArray, FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.linalg import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
-from pipeflow.solvers.magnus import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
-from pipeflow.stability.core import (
-    ComplexArray,
-    FloatArray,
-    Progress,
-    check_modes,
-    check_range,
-    eigenvalues,
-    frozen_matrices,
-)
+from pipeflow.stability.core import check_modes, check_range, eigenvalues
+
+
+class Verdict(enum.StrEnum):
+    """The stability verdict of a Floquet analysis (JSON carries the value)."""
+
+    #: every |lambda| < 1 beyond the error band
+    STABLE = "stable"
+    #: max |lambda| > 1 beyond the error band
+    UNSTABLE = "unstable"
+    #: max |lambda| = 1 within the error band
+    MARGINAL = "marginal"
+
 
 MIN_STEPS = 16
 #: ceiling on Magnus steps per period
@@ -62,7 +68,7 @@ def _monodromy_steps(
     h = period / steps
     t0 = np.arange(steps) * h
     # (B, N, m, m) at each Gauss point
-    A1, A2 = (frozen_matrices(model, *coefficients(t0 + g * h)) for g in GAUSS_NODES)
+    A1, A2 = (model.frozen_state_matrix(*coefficients(t0 + g * h)) for g in GAUSS_NODES)
     return product_of_steps(expm_stack(magnus4_omega(A1, A2, h)))
 
 
@@ -140,7 +146,7 @@ class Floquet:
     exponents: ComplexArray
     steps: int
     error_estimate: float
-    verdict: str
+    verdict: Verdict
     frozen_mean: ComplexArray
     warnings: list[str] = field(default_factory=list)
 
@@ -158,7 +164,7 @@ class Floquet:
         upper = upper[np.argsort(upper.imag)]
         return {
             "period": self.period,
-            "verdict": self.verdict,
+            "verdict": str(self.verdict),
             "max_multiplier": self.max_multiplier,
             "growth_rate": self.growth_rate,
             "multipliers": {
@@ -187,13 +193,13 @@ class Floquet:
         }
 
 
-def _verdict(max_mod: float, err: float) -> str:
+def _verdict(max_mod: float, err: float) -> Verdict:
     band = max(1e-9, 100.0 * err)
     if max_mod > 1.0 + band:
-        return "unstable"
+        return Verdict.UNSTABLE
     if max_mod < 1.0 - band:
-        return "stable"
-    return "marginal"
+        return Verdict.STABLE
+    return Verdict.MARGINAL
 
 
 def _mean(profile: Profile) -> float:

@@ -19,12 +19,11 @@ from typing import Any
 import numpy as np
 
 from pipeflow import parallel
+from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, build_model
 from pipeflow.spectra import rounding_level
 from pipeflow.stability.core import (
-    FloatArray,
-    Progress,
     check_modes,
     check_range,
     eigenvalues,

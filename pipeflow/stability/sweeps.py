@@ -27,13 +27,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
+from pipeflow._types import ComplexArray, FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, build_model
 from pipeflow.spectra import follow, order_lowest, rounding_level
 from pipeflow.stability.core import (
-    ComplexArray,
-    FloatArray,
-    Progress,
     check_modes,
     check_range,
     damping_ratio,

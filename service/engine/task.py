@@ -9,12 +9,13 @@ that stops reporting is still held to the runtime limit: past it plus a grace pe
 heartbeat thread fails the job with the reason and kills its own worker process (the
 nanny starts a fresh one).
 
-The return value is small (the body goes to the store): ``(outcome, detail, seconds)``
-(``seconds`` [s]: how long the computation ran, None when it did not) with
-outcome ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
+The return value is small (the body goes to the store): an :class:`Outcome`, whose
+``status`` is ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
 already) | ``elsewhere`` (a live attempt holds the lease) | ``lost`` (another attempt took
-the lease) | ``storage`` (the store refused a write; detail = (message, full)).
-Errors travel as problem dicts, never as pickled exceptions.  A computation that fans out
+the lease) | ``storage`` (the store refused a write).  Errors travel as neutral
+:class:`pipeflow.errors.ErrorRecord` values (made by :func:`pipeflow.errors.classify`),
+never as pickled exceptions, and the job record stores them as such: only the HTTP layer
+turns a record into a problem document.  A computation that fans out
 (:mod:`pipeflow.parallel`) spreads its pieces over the cluster through
 :class:`service.engine.fanout.DaskHost`; the result's ``diagnostics.fan_out`` then counts
 the pieces and the workers that ran them.  The request arrives
@@ -35,14 +36,11 @@ import uuid
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from numpy.linalg import LinAlgError
-
 from pipeflow import parallel
-from pipeflow.errors import Cancelled, PipeflowError
+from pipeflow.errors import Cancelled, ErrorRecord, StorageError, classify
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
-from service.problems import pipeflow_problem, problem
-from service.store import StorageError, Store
+from service.store import Store
 from service.store.memo import StoreMemo
 
 log = logging.getLogger("service.engine.task")
@@ -52,7 +50,23 @@ work_log = logging.getLogger("service.worker")
 if TYPE_CHECKING:
     from pipeflow.schema.registry import Computation
 
-Outcome = tuple[str, Any, float | None]
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one run of :func:`run_job` reports to the replica that submitted it.
+
+    ``status``: see the module docstring (``exception``: the task itself failed to run,
+    made by the replica); ``error``: why it failed (``failed``: as the job record stores
+    it; ``storage``: the store's failure, ``data["full"]``); ``seconds`` [s]: how long the
+    computation ran (None when it did not); ``note``: the job's status (``done``,
+    ``elsewhere``), why it stopped (``cancelled``, ``lost``) or what went wrong
+    (``exception``).
+    """
+
+    status: str
+    error: ErrorRecord | None = None
+    seconds: float | None = None
+    note: str | None = None
 
 
 @dataclass(frozen=True)
@@ -122,7 +136,7 @@ class _Heartbeat(threading.Thread):
             self.store.finish_job(
                 self.key,
                 "failed",
-                runtime_problem(self.cfg.timeout_s, killed=True),
+                ErrorRecord.runtime_limit(self.cfg.timeout_s, killed=True).to_dict(),
                 owner=self.owner,
             )
         finally:
@@ -153,20 +167,20 @@ def _run_job(computation: Computation, request: Any, key: str, cfg: TaskConfig) 
     try:
         claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
     except StorageError as exc:
-        return ("storage", (str(exc), exc.full), None)
+        return Outcome("storage", classify(exc))
     if claim.outcome != "claimed":
-        return (claim.outcome, claim.job.status if claim.job else None, None)
+        return Outcome(claim.outcome, note=claim.job.status if claim.job else None)
     assert claim.job is not None
     try:
         if not claim.job.refresh and store.has_result(key):
             store.finish_job(key, "succeeded", owner=owner)  # computed by an earlier attempt
-            return ("succeeded", None, None)
+            return Outcome("succeeded")
         beat = _Heartbeat(store, key, owner, cfg)
         beat.start()
         started = time.perf_counter()
         work_log.info("computation started", extra={"key": key, "computation": computation.name})
         try:
-            status, payload = _compute(computation, request, beat, cfg)
+            status, payload, error = _compute(computation, request, beat, cfg)
         finally:
             beat.finish()
         seconds = time.perf_counter() - started
@@ -175,24 +189,27 @@ def _run_job(computation: Computation, request: Any, key: str, cfg: TaskConfig) 
             extra={"key": key, "outcome": status, "duration_ms": round(seconds * 1e3, 3)},
         )
         if status == "lost":
-            return ("lost", payload, None)
+            return Outcome("lost", note=str(payload))
         if status == "ok":
+            assert isinstance(payload, bytes)
             store.put_result(key, computation.name, payload)
             store.finish_job(key, "succeeded", owner=owner)
-            return ("succeeded", None, seconds)
+            return Outcome("succeeded", seconds=seconds)
         if status == "cancelled":
             store.release(key, owner)  # the record already says cancelled (by the request)
-            return ("cancelled", str(payload), seconds)
-        store.finish_job(key, "failed", payload, owner=owner)
-        return ("failed", payload, seconds)
+            return Outcome("cancelled", seconds=seconds, note=str(payload))
+        assert error is not None
+        store.finish_job(key, "failed", error.to_dict(), owner=owner)
+        return Outcome("failed", error, seconds)
     except StorageError as exc:
-        return ("storage", (str(exc), exc.full), None)
+        return Outcome("storage", classify(exc))
 
 
 def _compute(
     computation: Computation, request: Any, beat: _Heartbeat, cfg: TaskConfig
-) -> tuple[str, Any]:
-    """``("ok", json bytes)`` | ``("error", problem)`` | ``("cancelled" | "lost", why)``."""
+) -> tuple[str, bytes | str | None, ErrorRecord | None]:
+    """``("ok", json bytes, None)`` | ``("error", None, record)`` | ``("cancelled" | "lost",
+    why, None)``."""
 
     def progress(fraction: float) -> None:
         if time.monotonic() > beat.deadline:
@@ -209,54 +226,18 @@ def _compute(
             result = computation.execute(request, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:
-            return ("error", runtime_problem(cfg.timeout_s))
+            return ("error", None, ErrorRecord.runtime_limit(cfg.timeout_s))
         if beat.stop == "lost":
-            return ("lost", "another attempt took over the job")
-        return ("cancelled", str(exc) or "cancelled")
-    except PipeflowError as exc:
-        return ("error", pipeflow_problem(exc))
-    except (ArithmeticError, LinAlgError) as exc:
-        return ("error", out_of_range_problem(f"{type(exc).__name__}: {exc}"))
+            return ("lost", "another attempt took over the job", None)
+        return ("cancelled", str(exc) or "cancelled", None)
+    except StorageError as exc:  # a failed store is no failure of the computation
+        return ("error", None, ErrorRecord.internal(f"internal error: StorageError: {exc}"))
     except Exception as exc:
-        return (
-            "error",
-            problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
-        )
+        return ("error", None, classify(exc))
     fan_out = host.diagnostics() if host is not None else None
     if fan_out is not None and isinstance(result.get("diagnostics"), dict):
         result["diagnostics"] = {**result["diagnostics"], "fan_out": fan_out}
     try:
-        return ("ok", encoding.dumps(result))  # non-finite numbers -> null (the one rule)
+        return ("ok", encoding.dumps(result), None)  # non-finite numbers -> null (the one rule)
     except Exception as exc:
-        return (
-            "error",
-            problem(500, f"internal error: {type(exc).__name__}: {exc}", slug="internal"),
-        )
-
-
-def runtime_problem(timeout_s: float, *, killed: bool = False) -> dict[str, Any]:
-    how = " and stopped reporting, so its worker was restarted" if killed else ""
-    return problem(
-        422,
-        f"the computation exceeded the runtime limit of {timeout_s:g} s{how}; ask for fewer "
-        "modes, samples or a shorter t_end",
-        slug="runtime-limit",
-        title="Runtime limit exceeded",
-    )
-
-
-def out_of_range_problem(cause: str) -> dict[str, Any]:
-    """422 for inputs whose magnitudes take the numerics out of double precision.
-
-    Valid in type and sign but extreme (e.g. ``pipe.L`` = 1e308 m, ``omega0`` = 1e308
-    rad/s): the model overflows or divides by zero.  No single field can be blamed, so
-    the problem names the inputs whose magnitudes set the scales.
-    """
-    return problem(
-        422,
-        f"the inputs take the computation out of the range of double precision ({cause}); "
-        "check the magnitudes of pipe (E, I, L, M1, M2, damping, tip_mass, tip_inertia), "
-        "rotation.omega0, rotation.hub_radius and flow.velocity",
-        slug="numerical-range",
-        title="Inputs out of numerical range",
-    )
+        return ("error", None, ErrorRecord.internal(f"internal error: {type(exc).__name__}: {exc}"))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from fastapi import Response
 
-from service.problems import ProblemError
+from service.http.problems import ProblemError
 
 
 class AllowList:

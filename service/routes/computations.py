@@ -1,6 +1,7 @@
-"""The computing routes, generated from :data:`pipeflow.schema.registry.COMPUTATIONS`.
+"""The computing routes, generated from :data:`pipeflow.schema.registry.COMPUTATIONS` and
+the service's table of where each is asked for (:data:`service.routes.endpoints.ENDPOINTS`).
 
-Every endpoint of the registry gets ``POST /v1/<path>`` (the result, or a job when the
+Every endpoint gets ``POST /v1/<path>`` (the result, or a job when the
 endpoint only runs as jobs) and ``POST /v1/<path>/jobs`` (202 with a job,
 ``Location: /v1/jobs/{key}``), plus its aliases (``POST /v1/jobs`` for simulations).  The
 body is the computation's request model (a union told apart by ``kind`` where several
@@ -19,18 +20,19 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel
 
 from pipeflow.schema.registry import (
+    COMPUTATIONS,
     Computation,
-    Endpoint,
     computation_for,
-    computations_at,
     request_type,
     response_type,
 )
-from service.compute import CACHE_HEADERS, JOB_ACCEPTED, Refresh, accept_job, run_sync
 from service.deps import HitDep, RunnerDep, StoreDep
+from service.http.negotiation import JSON, accepts, json_body
+from service.http.problems import responses
+from service.http.responses import CACHE_HEADERS, JOB_ACCEPTED
 from service.keys import keyed
-from service.negotiation import JSON, accepts, json_body
-from service.problems import responses
+from service.orchestration import Refresh, accept_job, run_sync
+from service.routes.endpoints import Endpoint, computations_at
 from service.schemas import JobStatus
 
 #: problem documents every computing operation can answer
@@ -39,28 +41,32 @@ NEGOTIATION = [Depends(json_body), Depends(accepts(JSON))]
 
 
 def examples(endpoint: Endpoint) -> dict[str, Any]:
-    return {k: v for c in computations_at(endpoint) for k, v in c.examples.items()}
+    return {
+        k: v for name in computations_at(endpoint) for k, v in COMPUTATIONS[name].examples.items()
+    }
 
 
 def cost_note(endpoint: Endpoint) -> str:
     """The cost bound of each computation at ``endpoint``, for the operation's description."""
-    lines = [f"- ``{c.name}``: {c.cost}" for c in computations_at(endpoint)]
+    lines = [f"- ``{name}``: {COMPUTATIONS[name].cost}" for name in computations_at(endpoint)]
     return "\n\nCost bounds (a request beyond them is a 422 before any work):\n\n" + "\n".join(
         lines
     )
 
 
 def _computation(endpoint: Endpoint) -> Callable[[BaseModel], Computation]:
-    only = computations_at(endpoint)
-    if len(only) == 1:
-        return lambda _request: only[0]
+    names = computations_at(endpoint)
+    if len(names) == 1:
+        only = COMPUTATIONS[names[0]]
+        return lambda _request: only
     return computation_for
 
 
 def router_for(endpoint: Endpoint) -> APIRouter:
-    """The routes of one endpoint of the registry."""
+    """The routes of one endpoint (of :data:`~service.routes.endpoints.ENDPOINTS`)."""
     router = APIRouter(prefix="/v1", tags=[endpoint.tag])
-    body: Any = Annotated[request_type(endpoint), Body(openapi_examples=examples(endpoint))]
+    kinds = computations_at(endpoint)
+    body: Any = Annotated[request_type(kinds), Body(openapi_examples=examples(endpoint))]
     which = _computation(endpoint)
 
     async def run(
@@ -112,7 +118,7 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         operation_id=endpoint.run_operation,
         summary=endpoint.summary,
         description=endpoint.description + costs,
-        response_model=response_type(endpoint),
+        response_model=response_type(kinds),
         responses={200: {"headers": CACHE_HEADERS}, **responses(409, *PROBLEMS)},
         dependencies=NEGOTIATION,
     )

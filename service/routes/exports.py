@@ -1,11 +1,11 @@
 """Stored results as pictures and tables: plots (PNG/SVG), CSV and Parquet.
 
 - ``GET /v1/results/{key}/plots/{name}.{fmt}``: a figure of the stored result, drawn by
-  :mod:`pipeflow.plots` (the names a result supports are listed in its ``plots`` field).
+  :mod:`pipeflow.io.plots` (the names a result supports are listed in its ``plots`` field).
 - CSV or Parquet of ``GET /v1/results/{key}`` (``Accept: text/csv`` /
   ``application/vnd.apache.parquet`` or ``?format=csv|parquet``): the route in
   :mod:`service.routes.results` calls :func:`table_response` from here, so one module owns
-  the content negotiation and the tables of :mod:`pipeflow.export`.
+  the content negotiation and the tables of :mod:`pipeflow.io.export`.
 
 Drawing happens in a thread (not on the event loop) under a lock: matplotlib's figure
 objects are independent, but its rc settings used while saving are process-global.
@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Header, Path, Response
 
-from pipeflow import plots
-from pipeflow.export import (
+from pipeflow.io import plots
+from pipeflow.io.export import (
     CSV_MEDIA_TYPE,
     PARQUET_MEDIA_TYPE,
     TABLES,
@@ -31,8 +31,8 @@ from pipeflow.export import (
     to_parquet,
 )
 from service.deps import StoreDep
-from service.negotiation import accepts, media_ranges
-from service.problems import ProblemError, responses
+from service.http.negotiation import accepts, media_ranges
+from service.http.problems import ProblemError, responses
 from service.schemas import KEY_PATTERN
 
 router = APIRouter(prefix="/v1/results", tags=["results"])
@@ -48,7 +48,7 @@ BINARY = {"type": "string", "format": "binary"}
 
 if TYPE_CHECKING:
     Table = str
-else:  # the names of pipeflow.export.TABLES (one list), for the query's schema
+else:  # the names of pipeflow.io.export.TABLES (one list), for the query's schema
     Table = Literal[tuple(TABLES)]
 TABLE_DESCRIPTION = (
     "CSV/Parquet table (default: the result's first, 'history' for a simulation, 'study' "

@@ -6,8 +6,8 @@ from fastapi import APIRouter, Depends
 
 from pipeflow import __version__
 from service.deps import RunnerDep
-from service.negotiation import JSON, accepts
-from service.problems import ProblemError, responses
+from service.http.negotiation import JSON, accepts
+from service.http.problems import ProblemError, responses
 from service.schemas import Health, Readiness
 
 router = APIRouter(tags=["health"], dependencies=[Depends(accepts(JSON))])

@@ -11,10 +11,10 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Path
 from fastapi.responses import JSONResponse
 
-from service.compute import job_response
 from service.deps import RunnerDep, StoreDep
-from service.negotiation import JSON, accepts
-from service.problems import ProblemError, responses
+from service.http.negotiation import JSON, accepts
+from service.http.problems import ProblemError, responses
+from service.http.responses import job_response
 from service.schemas import KEY_PATTERN, JobStatus
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[Depends(accepts(JSON))])

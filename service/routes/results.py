@@ -7,11 +7,17 @@ from typing import Annotated, Any, Literal, Union
 
 from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
-from pipeflow.schema.registry import COMPUTATIONS
-from service.compute import CACHE_HEADERS, encoded_hit, entity_tag, result_response, sends_gzip
 from service.deps import HitDep, RunnerDep, StoreDep
-from service.negotiation import JSON, accepts
-from service.problems import ProblemError, responses
+from service.http.negotiation import JSON, accepts
+from service.http.problems import ProblemError, responses
+from service.http.responses import (
+    CACHE_HEADERS,
+    encoded_hit,
+    entity_tag,
+    result_response,
+    sends_gzip,
+)
+from service.routes.endpoints import served
 from service.routes.exports import (
     TABLE_CONTENT,
     TABLE_DESCRIPTION,
@@ -30,7 +36,7 @@ router = APIRouter(
 
 #: what a stored result can be: one model per result shape of the registry
 ResultDocument: Any = Union[  # noqa: UP007
-    tuple(dict.fromkeys(c.response for c in COMPUTATIONS.values() if c.endpoint is not None))
+    tuple(dict.fromkeys(c.response for c in served()))
 ]
 
 

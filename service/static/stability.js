@@ -2,7 +2,7 @@
 // form generated from the request schemas in /openapi.json (SchemaForm).  Sweeps run as
 // jobs: progress is polled from GET /v1/jobs/{key} until the result is ready.  Results
 // show a summary, a table of every crossing (stability boundary, sigma = 0 of a tracked
-// branch, Campbell excitation lines) and the server's figures (pipeflow.plots, SVG).
+// branch, Campbell excitation lines) and the server's figures (pipeflow.io.plots, SVG).
 "use strict";
 
 (function () {

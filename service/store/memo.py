@@ -1,6 +1,6 @@
 """The service's :class:`pipeflow.parallel.Memo`: results of pieces in the result store.
 
-A study keeps one summary per case (:mod:`pipeflow.study`) under a memo key
+A study keeps one summary per case (:mod:`pipeflow.schema.study_runner`) under a memo key
 ``<kind>:<key>`` (``study_case:<the case's own key>``); here each is a row of the results
 table of that kind, JSON compressed like every result, read and written in batches (one
 query per look-up, one transaction per write).  The memo keys never match a result's key

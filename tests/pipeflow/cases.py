@@ -7,25 +7,16 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from pipeflow.model import PAPER_PIPE
-from pipeflow.profiles import Constant, Profile, polynomial
+from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_PIPE_JSON, PAPER_SPIN
+from pipeflow.profiles import Profile
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import Options
-
-#: the paper's flow cases (section 5), a = 0.4 m/s
-PAPER_FLOWS: dict[str, Profile] = {
-    "v=0.4": Constant(0.4),
-    "v=0.4t": polynomial(0, 0.4),
-    "v=0.4t^2": polynomial(0, 0, 0.4),
-    "v=-0.4": Constant(-0.4),
-    "v=-0.4t": polynomial(0, -0.4),
-}
 
 
 def paper_sim(flow: Profile, method: str = "cma", **kw: object) -> Simulation:
     """The paper's pipe at w0 = 100 rad/s; 4 modes and 0.25 s unless overridden."""
     base: dict[str, object] = dict(
-        flow=flow, spin=Constant(100.0), modes=4, t_end=0.25, samples=501, method=method
+        flow=flow, spin=PAPER_SPIN, modes=4, t_end=0.25, samples=501, method=method
     )
     base.update(kw)
     return Simulation(PAPER_PIPE, **base)  # type: ignore[arg-type]
@@ -46,7 +37,7 @@ def reference_run(case: str, modes: int = 4, t_end: float = 0.25) -> Result:
 
 
 #: the paper's pipe as JSON
-PIPE: dict[str, Any] = {k: getattr(PAPER_PIPE, k) for k in ("E", "I", "L", "M1", "M2")}
+PIPE: dict[str, Any] = dict(PAPER_PIPE_JSON)
 #: a tiny real request of every computation
 TINY: dict[str, dict[str, Any]] = {
     "simulation": {"pipe": PIPE, "modes": 2, "time": {"t_end": 0.01, "samples": 11}},

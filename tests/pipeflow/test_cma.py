@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from pipeflow.model import PAPER_PIPE, Loading, build_model
+from pipeflow.model import Loading, build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Harmonic, Profile, polynomial
 from pipeflow.simulation import simulate
 from pipeflow.solvers import Options, Problem

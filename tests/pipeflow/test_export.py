@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from pipeflow.export import (
+from pipeflow.io.export import (
     SIMULATION_TABLES,
     ExportError,
     available_tables,
@@ -17,7 +17,7 @@ from pipeflow.export import (
     to_csv,
     to_parquet,
 )
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from pipeflow.model import GROUPS, PAPER_PIPE, Pipe
-from pipeflow.schema.registry import STABILITY, computation_for, parse
-from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
+from pipeflow.model import GROUPS, Pipe
+from pipeflow.paper import PAPER_PIPE
+from pipeflow.schema.registry import STABILITY, SWEEP_KINDS, computation_for, parse
 from pipeflow.schema.results import StabilityDimensionless
 from pipeflow.schema.simulation import SimulationSpec
 from pipeflow.schema.stability import PAPER_PIPE_JSON, BetaMapSweep, StabilitySpec
@@ -24,7 +24,7 @@ from pipeflow.stability.maps import beta_map
 
 
 def parse_sweep(body: Any) -> Any:
-    return parse(SWEEP_ENDPOINT, body)
+    return parse(SWEEP_KINDS, body)
 
 
 def run_sweep(spec: Any, progress: Any = None) -> dict[str, Any]:

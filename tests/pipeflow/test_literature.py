@@ -5,13 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from pipeflow.model import Coefficients, Pipe, build_model
+from pipeflow.model import Pipe, build_model
 
 
 def spectrum(pipe: Pipe, n: int, v: float, w0: float) -> np.ndarray:
     model = build_model(pipe, n)
-    c = Coefficients(np.array([v]), np.zeros(1), np.array([w0 * w0]), np.zeros(1))
-    return np.linalg.eigvals(model.state_matrix(c)[0])
+    return np.linalg.eigvals(model.frozen_state_matrix(v, 0.0, w0 * w0))
 
 
 @pytest.mark.parametrize(

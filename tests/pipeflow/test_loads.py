@@ -35,7 +35,8 @@ from pipeflow.loads import (
     load_to_dict,
     project_loads,
 )
-from pipeflow.model import PAPER_PIPE, Loading, build_model
+from pipeflow.model import Loading, build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Harmonic, polynomial, table
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.results import SimulationResponse
@@ -231,7 +232,7 @@ def test_superposition_and_scaling(method: str, flow: Any, tol: float) -> None:
 
     both, a, b = tip(LOAD_A, LOAD_B), tip(LOAD_A), tip(LOAD_B)
     assert relative_difference(both, a + b) < tol
-    tripled = tip(PointForce(LOAD_A.position, LOAD_A.force.scaled(3.0)))
+    tripled = tip(PointForce(LOAD_A.position, Harmonic(0.0, 3 * FORCE, 900.0, 0.3)))
     assert relative_difference(tripled, 3.0 * a) < tol
 
 
@@ -243,12 +244,13 @@ def test_base_acceleration_is_the_inertial_load(method: str) -> None:
     for magnus (steps chosen per run).  The result says displacements are relative."""
     pipe = replace(PAPER_PIPE, tip_mass=0.2 * PAPER_PIPE.mass * L)
     acc = Harmonic(0.5, 2.0, 600.0)
+    m, mt = pipe.mass, pipe.tip_mass
     base = _sim(pipe=pipe, method=method, loads=(BaseAcceleration(acc),))
     equivalent = replace(
         base,
         loads=(
-            DistributedForce(acc.scaled(-pipe.mass)),
-            PointForce(L, acc.scaled(-pipe.tip_mass)),
+            DistributedForce(Harmonic(-0.5 * m, -2.0 * m, 600.0)),
+            PointForce(L, Harmonic(-0.5 * mt, -2.0 * mt, 600.0)),
         ),
     )
     r, e = simulate(base), simulate(equivalent)

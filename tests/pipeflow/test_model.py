@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from pipeflow.basis import cantilever_roots
-from pipeflow.model import PAPER_PIPE, Coefficients, Integrals, Pipe, build_model
+from pipeflow.model import Integrals, Pipe, build_model
+from pipeflow.paper import PAPER_PIPE
 
 
 def frozen_spectrum(pipe: Pipe, n: int, v: float, w0: float) -> np.ndarray:
     model = build_model(pipe, n)
-    c = Coefficients(np.array([v]), np.zeros(1), np.array([w0 * w0]), np.zeros(1))
-    return np.linalg.eigvals(model.state_matrix(c)[0])
+    return np.linalg.eigvals(model.frozen_state_matrix(v, 0.0, w0 * w0))
 
 
 def test_natural_frequencies_without_flow_or_spin() -> None:
@@ -97,8 +97,7 @@ def test_state_matrix_and_its_integral_from_the_pieces() -> None:
     to rounding (1e-12 relative); the stacked pieces are read-only."""
     model = build_model(PAPER_PIPE, 3)
     v, vd, w2 = np.array([0.0, 1.5, -2.0]), np.array([0.3, 0.0, -1.0]), np.array([0.0, 4.0, 9.0])
-    c = Coefficients(v, vd, w2, np.zeros(3))
-    S = model.state_matrix(c)
+    S = model.frozen_state_matrix(v, vd, w2)
     for k in range(3):
         expected = (
             model.S_0 + v[k] * model.S_v + vd[k] * model.S_vdot + v[k] ** 2 * model.S_v2

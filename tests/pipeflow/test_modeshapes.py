@@ -8,9 +8,10 @@ import pytest
 
 from pipeflow.basis import mode_shapes as cantilever_shapes
 from pipeflow.errors import InvalidInput
-from pipeflow.export import to_csv
-from pipeflow.model import PAPER_PIPE, Loading, build_model
-from pipeflow.plots import available_plots, render
+from pipeflow.io.export import to_csv
+from pipeflow.io.plots import available_plots, render
+from pipeflow.model import Loading, build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 

@@ -1,4 +1,4 @@
-"""Result.to_xarray / to_dataframe / plot (pipeflow.notebook): the arrays of the result,
+"""Result.to_xarray / to_dataframe / plot (pipeflow.io.notebook): the arrays of the result,
 bit for bit, with SI units in the attributes; a clear error without the extras."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import sys
 import numpy as np
 import pytest
 
-from pipeflow.export import SIMULATION_TABLES, table
-from pipeflow.model import PAPER_PIPE
-from pipeflow.plots import PLOTS
+from pipeflow.io.export import SIMULATION_TABLES, table
+from pipeflow.io.plots import PLOTS
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Result, Simulation, simulate
 
@@ -93,6 +93,16 @@ def test_dataframes_are_the_export_tables(result: Result, name: str) -> None:
     for col, values in zip(frame.columns, columns[1:], strict=True):
         assert frame[col].tolist() == values
     assert frame.attrs["table"] == name
+
+
+def test_the_io_functions_take_a_result_or_its_json(result: Result) -> None:
+    """pipeflow.io.notebook's functions are the views; the Result methods are shorthands."""
+    from pipeflow.io import notebook
+
+    doc = result.to_dict()
+    for arg in (result, doc):
+        assert notebook.to_xarray(arg).identical(result.to_xarray())
+        assert notebook.to_dataframe(arg, "eigenvalues").equals(result.to_dataframe("eigenvalues"))
 
 
 def test_plot_returns_a_labelled_figure(result: Result) -> None:

@@ -21,13 +21,29 @@ def test_library_imports_no_extra() -> None:
     code = (
         "import sys, json\n"
         "import pipeflow, pipeflow.simulation, pipeflow.compare, pipeflow.stability\n"
-        "import pipeflow.schema.registry, pipeflow.export, pipeflow.plots, pipeflow.cli\n"
+        "import pipeflow.schema.registry, pipeflow.io.export, pipeflow.io.plots, pipeflow_cli\n"
         f"print(json.dumps([m for m in {list(EXTRAS)!r} if m in sys.modules]))\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
     )
     assert json.loads(out.stdout) == []
+
+
+def test_results_do_not_load_the_presentation_layer() -> None:
+    """A simulation's result is plain: running one loads no exporter, plot or notebook module
+    (pipeflow.io.json, the non-finite rule of its JSON form, is the one io module it uses)."""
+    code = (
+        "import sys, json\n"
+        "from pipeflow.paper import PAPER_PIPE\n"
+        "from pipeflow.simulation import Simulation, simulate\n"
+        "simulate(Simulation(PAPER_PIPE, modes=2, t_end=0.01, samples=11)).to_dict()\n"
+        "print(json.dumps(sorted(m for m in sys.modules if m.startswith('pipeflow.io'))))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    assert json.loads(out.stdout) == ["pipeflow.io", "pipeflow.io.json"]
 
 
 def test_dependencies_and_extras() -> None:

@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-from pipeflow.model import PAPER_PIPE
-from pipeflow.plots import PlotError, available_plots, figure, render, to_bytes
+from pipeflow.io.plots import PlotError, available_plots, figure, render, to_bytes
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate
 
@@ -123,7 +123,7 @@ def test_paper_figures_example_script(tmp_path: Path) -> None:
 
 def test_stability_plots() -> None:
     """Argand/Campbell sweeps and the stability maps of pipeflow.schema.stability draw."""
-    from pipeflow.schema.registry import SWEEPS, computation_for, parse
+    from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
     from pipeflow.schema.stability import PAPER_PIPE_JSON
 
     cases = {
@@ -190,7 +190,7 @@ def test_stability_plots() -> None:
         ),
     }
     for data, names, xlabel in cases.values():
-        request = parse(SWEEPS, data)
+        request = parse(SWEEP_KINDS, data)
         result = computation_for(request).execute(request)
         assert available_plots(result) == names
         text = _svg_text(render(result, names[-1], "svg"))
@@ -216,11 +216,11 @@ def test_campbell_and_argand_mark_the_crossings() -> None:
     """The Campbell figure draws one dashed line per excitation order (legend "1x", "2x"),
     the crossings and a damping-ratio colour bar; the Argand figure marks the critical point
     (the paper pipe at 100 rad/s: 27.69 m/s, mode 3, as in the README)."""
-    from pipeflow.schema.registry import SWEEPS, computation_for, parse
+    from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
     from pipeflow.schema.stability import PAPER_PIPE_JSON
 
     def parse_sweep(body: dict[str, Any]) -> Any:
-        return parse(SWEEPS, body)
+        return parse(SWEEP_KINDS, body)
 
     def run_sweep(request: Any) -> dict[str, Any]:
         return computation_for(request).execute(request)

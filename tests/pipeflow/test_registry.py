@@ -8,33 +8,47 @@ import typing
 import pytest
 
 from pipeflow.errors import InvalidInput
-from pipeflow.plots import available_plots
+from pipeflow.io.plots import available_plots
 from pipeflow.schema import registry
-from pipeflow.schema.registry import COMPUTATIONS, SIMULATION, SWEEP_KINDS, SWEEPS
+from pipeflow.schema.registry import COMPUTATIONS, SIMULATION, SWEEP_KINDS
 from pipeflow.schema.simulation import PAPER_EXAMPLE, MethodOptions, SimulationSpec
 from pipeflow.solvers import Options
 from tests.pipeflow.cases import TINY, tiny_request
 
-SERVED = [c for c in COMPUTATIONS.values() if c.endpoint is not None]
+#: the computations pipeflow answers (the tests register their own kinds too)
+SERVED = [COMPUTATIONS[n] for n in ("simulation", "compare", "stability", *SWEEP_KINDS, "study")]
 
 
 def test_every_served_computation_is_complete() -> None:
-    names = {c.name for c in SERVED}
-    assert {"simulation", "compare", "stability", *SWEEP_KINDS} <= names
     for c in SERVED:
         assert c.cost and c.examples, c.name
-        for example in c.examples.values():  # every OpenAPI example is a valid request
-            request = registry.parse(c.endpoint, example["value"])  # type: ignore[arg-type]
+        for example in c.examples.values():  # every example is a valid request of its own
+            request = registry.parse(c.name, example["value"])
             assert registry.computation_for(request) is c
+            if c.name in SWEEP_KINDS:  # and of the sweep kinds, told apart by kind
+                assert registry.computation_for(registry.parse(SWEEP_KINDS, example["value"])) is c
+
+
+def test_parse_refuses_an_unknown_name_naming_the_known_ones() -> None:
+    with pytest.raises(KeyError, match=r"'nope'.*simulation, compare, stability"):
+        registry.parse("nope", {})
+
+
+def test_study_bases_declare_their_summary() -> None:
+    """Every computation a study can vary declares its own summary columns and function."""
+    from pipeflow.schema.study import BASE_MODELS
+
+    for name, model in BASE_MODELS.items():
+        c = COMPUTATIONS[name]
+        assert c.request is model and c.summary_columns and c.summarize is not None, name
 
 
 def test_sweep_kinds_are_the_kind_tags_of_the_sweep_models() -> None:
     tags = {
         typing.get_args(c.request.model_fields["kind"].annotation)[0]
-        for c in registry.computations_at(SWEEPS)
+        for c in (COMPUTATIONS[n] for n in SWEEP_KINDS)
     }
     assert tags == set(SWEEP_KINDS)
-    assert len(registry.endpoints()) == 5  # simulations, compare, stability, sweeps, studies
 
 
 def test_method_options_are_the_library_options() -> None:
@@ -70,7 +84,7 @@ def test_execute_adds_the_plots_the_entry_names() -> None:
 
 @pytest.mark.parametrize("name", sorted(TINY))
 def test_every_plot_a_result_can_have_is_named_by_its_entry(name: str) -> None:
-    """execute() keeps the plots its entry names: a plot kind added to pipeflow.plots for a
+    """execute() keeps the plots its entry names: a plot kind added to pipeflow.io.plots for a
     computation must be added to the entry too, or this fails (it would be dropped)."""
     c = COMPUTATIONS[name]
     raw = c.run(tiny_request(name), None)

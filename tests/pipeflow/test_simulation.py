@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 from pipeflow.errors import PipeflowError
-from pipeflow.model import PAPER_PIPE, Loading, build_model
+from pipeflow.io.json import json_safe
+from pipeflow.model import Loading, build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial, table
 from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
-from pipeflow.simulation import Simulation, json_safe, simulate
+from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
 from tests.pipeflow.cases import paper_sim
 

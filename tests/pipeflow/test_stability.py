@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from pipeflow.errors import InvalidInput
-from pipeflow.model import PAPER_PIPE, Pipe, build_model
+from pipeflow.model import Pipe, build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.stability import critical_velocities, eigenvalues
 from pipeflow.stability.core import nondimensional_pipe
 

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from pipeflow.model import PAPER_PIPE
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.stability import critical_velocities
 from pipeflow.stability.core import nondimensional_pipe
 from pipeflow.stability.maps import beta_map, spin_map

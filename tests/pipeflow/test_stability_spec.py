@@ -9,13 +9,12 @@ from pydantic import ValidationError
 
 from pipeflow.errors import Cancelled
 from pipeflow.schema.registry import STABILITY as STABILITY_COMPUTATION
-from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
-from pipeflow.schema.registry import computation_for, parse
+from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 
 
 def parse_sweep(body):
-    return parse(SWEEP_ENDPOINT, body)
+    return parse(SWEEP_KINDS, body)
 
 
 def run_sweep(spec, progress=None):

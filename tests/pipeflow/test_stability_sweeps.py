@@ -9,7 +9,8 @@ import pytest
 from scipy.optimize import brentq
 
 from pipeflow.errors import InvalidInput
-from pipeflow.model import PAPER_PIPE, build_model
+from pipeflow.model import build_model
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.spectra import track
 from pipeflow.stability.core import eigenvalues, growth_rate, nondimensional_pipe, state_matrices
 from pipeflow.stability.sweeps import sweep

@@ -1,4 +1,4 @@
-"""Design studies (pipeflow.schema.study, pipeflow.study): expansion, validation, summaries.
+"""Design studies (pipeflow.schema.study and .study_runner): expansion, validation, summaries.
 
 The summaries are checked against the standalone computations of the same cases, built
 here by hand from the base dict (not by the study's override code) and run through the
@@ -19,11 +19,11 @@ import pytest
 from pydantic import ValidationError
 
 from pipeflow import parallel
-from pipeflow import study as study_module
 from pipeflow.errors import Cancelled
-from pipeflow.export import available_tables, to_csv
-from pipeflow.model import PAPER_PIPE
+from pipeflow.io.export import available_tables, to_csv
+from pipeflow.paper import PAPER_PIPE
 from pipeflow.schema import registry
+from pipeflow.schema import study_runner as study_module
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.results import StudyResponse
@@ -63,7 +63,7 @@ def test_case_check_is_separate_from_model_validation_and_parse_runs_both() -> N
         spec.check()
     assert [tuple(e["loc"]) for e in info.value.errors()] == [("cases", 1, "pipe.E")]
     with pytest.raises(ValidationError):
-        registry.parse(registry.STUDIES, bad)
+        registry.parse("study", bad)
 
 
 class DictMemo:
@@ -89,9 +89,9 @@ def counted(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
     calls: list[Any] = []
     run_case = study_module.run_case
 
-    def counting(kind: str, request: Any) -> dict[str, Any]:
+    def counting(base: Any, request: Any) -> dict[str, Any]:
         calls.append(request)
-        return run_case(kind, request)
+        return run_case(base, request)
 
     monkeypatch.setattr(study_module, "run_case", counting)
     return calls
@@ -373,7 +373,7 @@ def test_csv_table_of_a_study() -> None:
 
 def test_parquet_table_of_a_study_keeps_text_flags_and_floats() -> None:
     pq = pytest.importorskip("pyarrow.parquet")  # in the dev extra: CI runs this
-    from pipeflow.export import to_parquet
+    from pipeflow.io.export import to_parquet
 
     result = COMPUTATIONS["study"].execute(study(cases=[{"pipe.E": 7e9}, {"pipe.E": 8e9}]))
     t = pq.read_table(io.BytesIO(to_parquet(result, "study")))

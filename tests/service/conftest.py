@@ -13,10 +13,11 @@ from fastapi.testclient import TestClient
 
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from pipeflow_client import Client
-from service.compute import job_document, run_sync, submit_job
 from service.deps import RunnerDep, StoreDep
+from service.http.responses import job_document
 from service.keys import keyed
 from service.main import create_app
+from service.orchestration import run_sync, submit_job
 from service.settings import Settings
 from tests.service.kinds_for_tests import SLEEP, SleepSpec
 

@@ -56,7 +56,7 @@ class FakeRunner(Runner):
         def task() -> Outcome:
             self.store.put_result(job.key, name, self.results[name])
             self.store.finish_job(job.key, "succeeded")
-            return ("succeeded", None, 0.0)
+            return Outcome("succeeded", seconds=0.0)
 
         return asyncio.ensure_future(asyncio.to_thread(task))
 

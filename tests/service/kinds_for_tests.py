@@ -12,8 +12,8 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from pipeflow._types import Progress
 from pipeflow.schema.registry import Computation, register
-from pipeflow.solvers.base import ProgressCallback
 
 
 class SleepResult(BaseModel):
@@ -30,7 +30,7 @@ class SleepSpec(BaseModel):
     tag: str = Field("", description="Makes otherwise equal specs distinct.")
 
 
-def sleep(spec: SleepSpec, progress: ProgressCallback | None) -> dict[str, Any]:
+def sleep(spec: SleepSpec, progress: Progress | None) -> dict[str, Any]:
     """Sleep ``spec.seconds``, reporting progress unless told not to."""
     start = time.monotonic()
     while (elapsed := time.monotonic() - start) < spec.seconds:
@@ -40,6 +40,4 @@ def sleep(spec: SleepSpec, progress: ProgressCallback | None) -> dict[str, Any]:
     return {"slept": spec.seconds, "tag": spec.tag}
 
 
-SLEEP = register(
-    Computation("test-sleep", SleepSpec, SleepResult, sleep, endpoint=None, budget="seconds <= 120")
-)
+SLEEP = register(Computation("test-sleep", SleepSpec, SleepResult, sleep, budget="seconds <= 120"))

@@ -306,10 +306,10 @@ def test_health_and_ready(client: TestClient) -> None:
 
 
 def test_workers_pin_blas_threads(client: TestClient) -> None:
-    from service.engine import worker
+    from service.engine import preload
 
     runner = client.app.state.runner  # type: ignore[attr-defined]
-    info = client.portal.call(runner.call, worker.ping)  # type: ignore[union-attr]
+    info = client.portal.call(runner.call, preload.ping)  # type: ignore[union-attr]
     assert info["threads"]["OMP_NUM_THREADS"] == "1"
     assert info["threads"]["OPENBLAS_NUM_THREADS"] == "1"
     assert info["numpy_loaded"]
@@ -347,3 +347,48 @@ def test_step_too_small_for_the_budget_is_422_not_cached(client: TestClient) -> 
             assert doc["type"].endswith("budget-exceeded")
             assert doc["smallest_step"] > 0
             assert f"{doc['smallest_step']:.3g} s" in doc["detail"]
+
+
+def test_validation_field_comes_from_the_error_not_its_text() -> None:
+    """A validator names its field as data (InvalidField.loc); the message text is shown as
+    is and never parsed: a plain ValueError whose text starts with a field name points at
+    the model it was raised on."""
+    import pickle
+
+    from fastapi.exceptions import RequestValidationError
+    from pydantic import BaseModel, ValidationError, model_validator
+
+    from pipeflow.errors import InvalidField
+    from service.http.problems import validation_errors
+
+    class Inner(BaseModel):
+        a: float = 0.0
+        b: float = 0.0
+
+        @model_validator(mode="after")
+        def _check(self) -> Inner:
+            if self.a > 1:
+                raise InvalidField("b must follow a", "b")
+            if self.a < 0:
+                raise ValueError("b must follow a")
+            return self
+
+    class Outer(BaseModel):
+        inner: Inner
+
+    def errors(body: dict[str, Any]) -> list[dict[str, Any]]:
+        with pytest.raises(ValidationError) as caught:
+            Outer.model_validate(body)
+        errs = [{**e, "loc": ("body", *e["loc"])} for e in caught.value.errors()]
+        return validation_errors(RequestValidationError(errs, body=body))
+
+    [named] = errors({"inner": {"a": 2, "b": 0}})
+    assert (named["field"], named["pointer"]) == ("inner.b", "#/inner/b")
+    assert named["message"] == "Value error, b must follow a"
+    [plain] = errors({"inner": {"a": -1, "b": 0}})
+    assert (plain["field"], plain["message"]) == ("inner", "Value error, b must follow a")
+    # a location given for a field the body lacks stays at the model (as for one part)
+    [absent] = errors({"inner": {"a": 2}})
+    assert absent["field"] == "inner"
+    again = pickle.loads(pickle.dumps(InvalidField("x: bad", "x.y")))
+    assert (str(again), again.loc) == ("x: bad", ("x", "y"))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import pipeflow_client
-from pipeflow.cli import main as cli_main
+from pipeflow_cli.cli import main as cli_main
 from pipeflow_client import Client, JobFailed, ServiceError, SimulationResult
 from tests.service.conftest import SMALL
 

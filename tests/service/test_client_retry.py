@@ -150,9 +150,9 @@ def test_async_client_retries_and_runs_every_kind_of_call(url: str) -> None:
 
 def test_client_result_offers_the_notebook_views(url: str) -> None:
     """The client's result gives the same DataFrame and Dataset as the library's functions
-    on the same JSON (one implementation: pipeflow.notebook)."""
+    on the same JSON (one implementation: pipeflow.io.notebook)."""
     pytest.importorskip("xarray")
-    from pipeflow.notebook import to_dataframe
+    from pipeflow.io.notebook import to_dataframe
 
     with Client(url) as client:
         r = client.simulate(dict(SMALL, output={"mode_shapes": {"times": [0.1], "points": 11}}))

@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 
 import pipeflow_client
-from pipeflow.cli import main as cli_main
 from pipeflow.schema.stability import PAPER_PIPE_JSON, ArgandSweep, StabilitySpec
+from pipeflow_cli.cli import main as cli_main
 from pipeflow_client import Client, ServiceError
 
 #: beta = 0.2 non-dimensional pipe (E = I = L = 1, M1 + M2 = 1): u = v sqrt(beta)

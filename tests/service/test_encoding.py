@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 
+from pipeflow.io.json import json_safe
 from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.simulation import SimulationSpec
-from pipeflow.simulation import json_safe
 from service import encoding
 from tests.service.conftest import SMALL
 

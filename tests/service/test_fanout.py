@@ -152,6 +152,7 @@ def _job_worker(prefix: str, dask_scheduler: Any = None) -> dict[str, Any]:
     return {"job": on, "workers": sorted(dask_scheduler.workers)}
 
 
+@pytest.mark.slow  # a killed worker / a runtime limit, 10-15 s
 def test_a_piece_whose_worker_dies_is_rerun(two: TestClient) -> None:
     """SIGKILL of the worker that does not hold the job's task, while the big map's pieces
     run: the scheduler reruns its pieces elsewhere, the job succeeds in its first attempt,
@@ -188,6 +189,7 @@ def test_a_piece_whose_worker_dies_is_rerun(two: TestClient) -> None:
         assert doc["stable_at_start"][row] == stable[i]
 
 
+@pytest.mark.slow  # a killed worker / a runtime limit, 10-15 s
 def test_runtime_limit_stops_a_fanned_out_job(tmp_path: Path) -> None:
     """With a 2 s runtime limit the big map (about 8 s on 2 workers) fails with the
     runtime-limit problem, checked between pieces, and its remaining pieces are cancelled."""

@@ -54,6 +54,7 @@ def _running(job: dict[str, Any]) -> bool:
     return job["status"] == "running" and job["progress"] > 0
 
 
+@pytest.mark.slow  # real processes killed, 15-25 s
 def test_sigkill_one_worker_retries_only_its_job(tmp_path: Path) -> None:
     with make_client(
         tmp_path, workers=2, queue_size=2, progress_interval_s=0.1, stale_after_s=2.0
@@ -80,6 +81,7 @@ def test_sigkill_one_worker_retries_only_its_job(tmp_path: Path) -> None:
         assert c.get(f"/v1/results/{victim.key}").json()["slept"] == 4
 
 
+@pytest.mark.slow  # real processes killed, 15-25 s
 def test_sigkill_server_leaves_no_worker_and_job_finishes(tmp_path: Path) -> None:
     log = tmp_path / "server.log"
     overrides = {"PIPEFLOW_DATA_DIR": str(tmp_path), "PIPEFLOW_WORKERS": "2", **FAST_RECOVERY}
@@ -101,6 +103,7 @@ def test_sigkill_server_leaves_no_worker_and_job_finishes(tmp_path: Path) -> Non
         assert httpx.get(f"{url}/v1/results/{key}", timeout=30).json()["method"] == "rk4"
 
 
+@pytest.mark.slow  # real processes killed, 15-25 s
 def test_two_replicas_on_one_sqlite_file(tmp_path: Path) -> None:
     """Replicas share one file safely (leases): the same spec sent to both computes once,
     and a job whose replica is SIGKILLed (with its workers) is finished by the other."""

@@ -11,8 +11,9 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from service.compute import Encoded, HitCache, accepts_gzip, encode, envelope
-from service.engine import worker
+from service.engine import preload
+from service.http.negotiation import accepts_gzip
+from service.http.responses import Encoded, HitCache, encode, envelope
 from tests.service.conftest import SMALL, make_client, wait_ready
 
 
@@ -140,13 +141,13 @@ def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
     worker's store, glibc's malloc trims as by default, and a first real job (here a
     simulation, a stability analysis and a failing run answered with a problem) imports no
     module of the heavy packages that the worker had not imported before it
-    (service.problems, i.e. FastAPI, once cost ~1 s)."""
+    (service.http.problems, i.e. FastAPI, once cost ~1 s)."""
     stab = {"pipe": SMALL["pipe"], "modes": 4, "velocity_range": [0, 40], "points": 41}
     bad_step = dict(SMALL, method="rk4", options={"step": 0.01})  # unstable: 422 problem
     with make_client(tmp_path, workers=1) as c:
         wait_ready(c)
         call = c.app.state.runner.call  # type: ignore[attr-defined]
-        before = c.portal.call(call, worker.ping)
+        before = c.portal.call(call, preload.ping)
         assert before["registry_loaded"] and before["warmed_up"]
         # the warm-up task opened the worker's store of the service's database
         assert before["stores"] == [c.app.state.settings.db_url]  # type: ignore[attr-defined]
@@ -155,7 +156,7 @@ def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
         assert c.post("/v1/simulations", json=SMALL).status_code == 200
         assert c.post("/v1/stability", json=stab).status_code == 200
         assert c.post("/v1/simulations", json=bad_step).status_code == 422
-        after = c.portal.call(call, worker.ping)
+        after = c.portal.call(call, preload.ping)
     assert after["pid"] == before["pid"]
     new = set(after["modules"]) - set(before["modules"])
     assert not {m for m in new if m.split(".")[0] in HEAVY}

@@ -53,3 +53,19 @@ def test_operations_errors_and_example() -> None:
     assert example == PAPER_EXAMPLE
     assert "404" in ops[("GET", "/v1/results/{key}")]["responses"]
     assert "304" in ops[("GET", "/v1/results/{key}")]["responses"]
+
+
+def test_the_client_paths_are_the_services_endpoint_table() -> None:
+    """The client's name -> path table (it cannot import the service) agrees with the
+    service's, and both cover the registry's served computations."""
+    from pipeflow.schema.registry import SWEEP_KINDS
+    from pipeflow_client.client import PATHS
+    from pipeflow_client.client import SWEEP_KINDS as CLIENT_SWEEP_KINDS
+    from service.routes.endpoints import ENDPOINTS, endpoints
+
+    assert CLIENT_SWEEP_KINDS == SWEEP_KINDS
+    assert set(PATHS) == set(ENDPOINTS)
+    for name, (path, sync) in PATHS.items():
+        assert path == f"/v1/{ENDPOINTS[name].path}", name
+        assert sync == (ENDPOINTS[name].run_operation is not None), name
+    assert len(endpoints()) == 5  # simulations, compare, stability, sweeps, studies

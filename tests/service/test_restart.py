@@ -13,9 +13,13 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
+import pytest
 
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from tests.service.processes import kill_group, server
+
+#: slow (SIGKILL and restart of a real server, about 20 s): run by .ci/run's second pytest step
+pytestmark = pytest.mark.slow
 
 #: about 5 s of RK4 on this machine: still queued or running when the server is killed
 SLOW_JOB = {

@@ -10,7 +10,7 @@ from typing import Any, get_args
 
 import pytest
 
-from pipeflow.export import TABLES
+from pipeflow.io.export import TABLES
 from service.routes.exports import Table, wanted_format
 from tests.service.conftest import SMALL, make_client, wait_ready
 
@@ -128,7 +128,7 @@ def test_plot_errors(tc: Any, stored: dict[str, Any]) -> None:
 
 
 def test_table_parameter_lists_every_export_table() -> None:
-    """The ``table`` query Literal repeats :data:`pipeflow.export.TABLES` (a Literal cannot
+    """The ``table`` query Literal repeats :data:`pipeflow.io.export.TABLES` (a Literal cannot
     be built from a dict for the type checker): keep them equal, so no table is refused
     with 422 and none is advertised that the exporter lacks."""
     assert list(get_args(Table)) == list(TABLES)

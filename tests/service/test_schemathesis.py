@@ -22,6 +22,9 @@ from pathlib import Path
 import httpx
 import pytest
 
+#: slow (a fuzz run of the whole API, about 100 s): run by .ci/run's second pytest step
+pytestmark = pytest.mark.slow
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
 #: examples per operation and phase (schemathesis' -n); with every phase ~5000 cases

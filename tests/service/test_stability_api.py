@@ -15,8 +15,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from pipeflow.schema.registry import COMPUTATIONS, STABILITY, parse
-from pipeflow.schema.registry import SWEEPS as SWEEP_ENDPOINT
+from pipeflow.schema.registry import COMPUTATIONS, STABILITY, SWEEP_KINDS, parse
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 from service.keys import keyed
 from tests.service.conftest import make_client, wait_job, wait_ready
@@ -261,7 +260,7 @@ def test_every_sweep_kind_runs_as_a_job_with_plots(api: TestClient, kind: str) -
     key = job["key"]
     assert r.headers["location"] == f"/v1/jobs/{key}"
     assert job["kind"] == kind and job["status"] in ("queued", "running", "succeeded")
-    assert key == keyed(COMPUTATIONS[kind], parse(SWEEP_ENDPOINT, body)).key
+    assert key == keyed(COMPUTATIONS[kind], parse(SWEEP_KINDS, body)).key
     done = wait_job(api, key)
     assert done["status"] == "succeeded", done
     result = api.get(f"/v1/results/{key}", headers={"Accept-Encoding": "identity"})
@@ -411,7 +410,7 @@ def test_openapi_documents_the_new_operations(api: TestClient) -> None:
     examples = sweeps["requestBody"]["content"]["application/json"]["examples"]
     assert set(examples) == set(SWEEPS)
     for name, ex in examples.items():
-        assert getattr(parse(SWEEP_ENDPOINT, ex["value"]), "kind", None) == name
+        assert getattr(parse(SWEEP_KINDS, ex["value"]), "kind", None) == name
     schemas = doc["components"]["schemas"]
     assert "[m/s]" in schemas["StabilityResponse"]["properties"]["critical_velocity"]["description"]
     result = doc["paths"]["/v1/results/{key}"]["get"]["responses"]["200"]["content"]

@@ -33,6 +33,9 @@ from sqlalchemy import create_engine, text
 from tests.service.conftest import SMALL
 from tests.service.processes import free_port, kill_group, server, spawn, wait_http, wait_job
 
+#: slow (PostgreSQL, a scheduler, workers and two replicas; about 75 s): .ci/run's -m slow step
+pytestmark = pytest.mark.slow
+
 PG_BIN = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
 #: about 2 s of RK4 on this machine (unloaded): running when the fault strikes
 SLOW_JOB = {**SMALL, "modes": 10, "method": "rk4", "time": {"t_end": 6.0, "samples": 101}}
@@ -87,7 +90,7 @@ class Topology:
         return spawn(
             [
                 *(sys.executable, "-m", "distributed.cli.dask_worker", address),
-                *("--nthreads", "1", "--preload", "service.engine.worker"),
+                *("--nthreads", "1", "--preload", "service.engine.preload"),
                 *("--no-dashboard", "--name", f"w{i}"),
             ],
             self.logs / f"worker{i}.log",

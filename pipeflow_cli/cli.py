@@ -2,10 +2,10 @@
 
 Installed as the ``pipeflow`` console script.  Every subcommand reads and writes the same
 JSON as the HTTP service (a request of :mod:`pipeflow.schema` in, the result dictionary
-out), and local runs go through the same registry of computations.  Web libraries are
-imported only inside the subcommands that talk HTTP (``serve``, which is the service's own
-``python -m service``, and ``--server``), so ``import pipeflow.cli`` keeps the library free
-of them.
+out), and local runs go through the same registry of computations.  The command line never
+imports the service: ``serve`` runs ``python -m service`` in a child process, and the HTTP
+client is imported only inside the subcommands that talk HTTP (``--server``), so the
+command works with the library alone (``pip install -e .``) for local runs.
 
 Exit status: 0 success, 2 invalid input (the message names the field), 1 other failures.
 """
@@ -33,7 +33,8 @@ the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s
   pipeflow plot result.json --name tip_displacement --out tip.png
   pipeflow plot spec.json --name frequency --out freq.svg        # runs the spec, then plots
   pipeflow stability stab.json                  # critical flow velocity, sweeps, maps
-  pipeflow serve --port 8000                    # the HTTP service and viewer at /
+  pipeflow serve --port 8000                    # the HTTP service and viewer at / (it
+                                                # runs: python -m service --port 8000)
   pipeflow run spec.json --server http://localhost:8000          # run on a server
 """
 
@@ -121,64 +122,93 @@ def _is_result(data: Any) -> bool:
     return data.get("kind") in (*_sweep_kinds(), "stability") and "diagnostics" in data
 
 
-def _is_stability_spec(data: Any) -> bool:
-    """A /v1/sweeps body (has a sweep ``kind``) or a /v1/stability body (velocity_range)."""
-    return isinstance(data, dict) and (
-        data.get("kind") in _sweep_kinds() or ("velocity_range" in data and "time" not in data)
-    )
+def _kinds() -> tuple[str, ...]:
+    from pipeflow.schema.registry import COMPUTATIONS
+
+    return tuple(COMPUTATIONS)
+
+
+def _tagged_kinds() -> tuple[str, ...]:
+    """The computations whose request model carries its name as ``kind``."""
+    from pipeflow.schema.registry import COMPUTATIONS
+
+    return tuple(n for n, c in COMPUTATIONS.items() if "kind" in c.request.model_fields)
+
+
+def _kind(args: argparse.Namespace, data: Any, default: str, allowed: Sequence[str]) -> str:
+    """The computation to run: ``--kind``, else the spec's own ``kind`` where its request
+    model has one, else ``default``; refused (naming the allowed names) unless in
+    ``allowed``.  Never guessed from the spec's other fields."""
+    given = data.get("kind") if isinstance(data, dict) else None
+    if given is not None and given not in _tagged_kinds():
+        raise PipeflowError(
+            f"the spec's kind {given!r} names no computation; its kind is one of: "
+            f"{', '.join(_tagged_kinds())} (or give no kind and --kind NAME)",
+            parameter="kind",
+        )
+    kind = getattr(args, "kind", None) or given or default
+    if kind not in allowed:
+        raise PipeflowError(
+            f"unknown kind {kind!r}; choose one of: {', '.join(allowed)}", parameter="--kind"
+        )
+    if given is not None and given != kind:
+        raise PipeflowError(f"--kind {kind} but the spec's kind is {given!r}", parameter="--kind")
+    return kind
 
 
 def _progress(args: argparse.Namespace, label: str) -> ProgressBar:
     return ProgressBar(label, enabled=True if args.progress else (False if args.quiet else None))
 
 
-def _run_local(endpoint: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
-    """Validate ``spec_data`` as a body of the registry's endpoint ``endpoint`` and run it."""
+def _run_local(kind: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
+    """Validate ``spec_data`` as a request of the registry's computation ``kind``; run it."""
+    from pydantic import ValidationError
+
     from pipeflow.schema import registry
 
-    endpoint_of = {e.path: e for e in registry.endpoints()}
-    request = registry.parse(endpoint_of[endpoint], spec_data)
+    try:
+        request = registry.parse(kind, spec_data)
+    except ValidationError:
+        print(
+            f"error: not a valid {kind!r} request (choose the computation with --kind: "
+            f"{', '.join(_kinds())})",
+            file=sys.stderr,
+        )
+        raise
     try:
         return registry.computation_for(request).execute(request, bar)
     finally:
         bar.close()
 
 
-def _run_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
+def _run_remote(kind: str, spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
     from pipeflow_client import Client  # imported here: the library has no web imports
 
     with Client(server) as client:
         try:
-            return client.simulate_raw(spec_data, progress=bar)
+            return dict(client.compute(kind, spec_data, progress=bar))
         finally:
             bar.close()
 
 
-def _stability_remote(spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
-    from pipeflow_client import Client  # imported here: the library has no web imports
-
-    with Client(server) as client:
-        try:
-            if "kind" in spec_data:
-                return dict(client.sweep(spec_data, progress=bar))
-            return dict(client.stability(spec_data, progress=bar))
-        finally:
-            bar.close()
-
-
-def _result_for(args: argparse.Namespace, data: Any) -> dict[str, Any]:
+def _result_for(
+    args: argparse.Namespace, data: Any, default: str = "simulation", allowed: Sequence[str] = ()
+) -> dict[str, Any]:
+    """``data`` itself when it is a result, else the result of running it as the
+    computation :func:`_kind` names."""
     data = _unwrap(data)
     if _is_result(data):
         return data
-    if _is_stability_spec(data):
-        bar = _progress(args, "analysing")
-        if getattr(args, "server", None):
-            return _stability_remote(data, args.server, bar)
-        return _run_local("sweeps" if "kind" in data else "stability", data, bar)
-    bar = _progress(args, "simulating")
+    kind = _kind(args, data, default, allowed or _kinds())
+    bar = _progress(
+        args,
+        {"simulation": "simulating", "compare": "comparing", "study": "studying"}.get(
+            kind, "analysing"
+        ),
+    )
     if getattr(args, "server", None):
-        return _run_remote(data, args.server, bar)
-    return _run_local("simulations", data, bar)
+        return _run_remote(kind, data, args.server, bar)
+    return _run_local(kind, data, bar)
 
 
 def _write(out: str | None, payload: str | bytes) -> None:
@@ -215,7 +245,7 @@ def cmd_example(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     result = _result_for(args, _read_json(args.spec))
     if args.format in ("csv", "parquet"):
-        from pipeflow.export import to_csv, to_parquet
+        from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
         _write(args.output, export(result, args.table))
@@ -226,12 +256,12 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from pipeflow.plots import PlotError, render
+    from pipeflow.io.plots import PlotError, render
 
     fmt = args.format or Path(args.out).suffix.lstrip(".").lower()
     if fmt not in ("png", "svg"):
         raise PlotError("give --out a .png or .svg file name, or --format", field="--out")
-    from pipeflow.plots import available_plots
+    from pipeflow.io.plots import available_plots
 
     result = _result_for(args, _read_json(args.input))
     names = available_plots(result)
@@ -249,13 +279,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
 def cmd_stability(args: argparse.Namespace) -> int:
     data = _unwrap(_read_json(args.spec))
-    if not _is_stability_spec(data):
-        raise PipeflowError(
-            "not a stability spec: give 'velocity_range' (critical velocity) or a sweep "
-            f"'kind' ({', '.join(_sweep_kinds())}); see 'pipeflow stability --help'",
-            parameter="kind",
-        )
-    result = _result_for(args, data)
+    result = _result_for(args, data, "stability", ("stability", *_sweep_kinds()))
     _write_json(args, result)
     if result.get("kind") == "stability":
         v = result.get("critical_velocity")
@@ -266,21 +290,34 @@ def cmd_stability(args: argparse.Namespace) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    try:  # the service is an extra: pip install 'pipeflow[service]'
-        from service.__main__ import serve
-    except ImportError as exc:
-        raise PipeflowError(
-            f"the service is not installed ({exc}); pip install -e '.[service]'",
-            parameter="serve",
-        ) from None
-    serve(args.host, args.port, workers=args.workers, data_dir=args.data_dir)
-    return 0
+    """Run ``python -m service`` with the same flags in a child process and return its exit
+    status: the service (an extra, ``pip install 'pipeflow[service]'``) is not imported by
+    the command line.  Ctrl-C reaches the child through the terminal's process group."""
+    import importlib.util
+    import subprocess
+
+    for module in ("service", "uvicorn"):
+        if importlib.util.find_spec(module) is None:
+            raise PipeflowError(
+                f"the service is not installed (no module {module!r}); pip install -e '.[service]'",
+                parameter="serve",
+            )
+    argv = [sys.executable, "-m", "service", "--host", args.host, "--port", str(args.port)]
+    if args.workers is not None:
+        argv += ["--workers", str(args.workers)]
+    if args.data_dir is not None:
+        argv += ["--data-dir", str(args.data_dir)]
+    child = subprocess.Popen(argv)
+    try:
+        return child.wait()
+    except KeyboardInterrupt:  # the child got the same interrupt: let it shut down
+        return child.wait()
 
 
 def build_parser() -> argparse.ArgumentParser:
     from pipeflow import __version__
-    from pipeflow.export import TABLES
-    from pipeflow.plots import PLOTS
+    from pipeflow.io.export import TABLES
+    from pipeflow.io.plots import PLOTS
 
     p = argparse.ArgumentParser(
         prog="pipeflow",
@@ -308,6 +345,14 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--compact", action="store_true", help="JSON on one line")
         progress_flags(sp)
 
+    def kind_flag(sp: argparse.ArgumentParser, default: str, names: Sequence[str] = ()) -> None:
+        sp.add_argument(
+            "--kind",
+            metavar="NAME",
+            help=f"the computation to run a spec as: {', '.join(names or _kinds())} "
+            f"(default: the spec's own 'kind' where it has one, else {default})",
+        )
+
     sp = sub.add_parser(
         "example",
         help="print the paper's example spec (JSON)",
@@ -327,6 +372,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("spec", help="simulation spec JSON file ('-': stdin); see 'pipeflow example'")
+    kind_flag(sp, "simulation")
     sp.add_argument(
         "--format",
         choices=("json", "csv", "parquet"),
@@ -361,6 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--format", choices=("png", "svg"), help="image format (default: from --out)")
     sp.add_argument("--title", help="figure title (default: the plot's name)")
     sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
+    kind_flag(sp, "simulation")
     progress_flags(sp)
     sp.set_defaults(func=cmd_plot)
 
@@ -378,15 +425,17 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("spec", help="stability or sweep spec JSON file ('-': stdin)")
+    kind_flag(sp, "stability", ("stability", *_sweep_kinds()))
     json_output_flags(sp)
     sp.set_defaults(func=cmd_stability)
 
     sp = sub.add_parser(
         "serve",
         help="run the HTTP service (API and viewer)",
-        description="Run the pipeflow HTTP service (python -m service) with uvicorn; the "
-        "viewer is at /.  One server process per data directory: its worker pool "
-        "(PIPEFLOW_WORKERS) gives the parallelism.",
+        description="Run the pipeflow HTTP service with uvicorn, as 'python -m service' with "
+        "the same flags (in a child process; or 'uvicorn service.main:app', configured by "
+        "the environment); the viewer is at /.  One server process per data directory: its "
+        "worker pool (PIPEFLOW_WORKERS) gives the parallelism.",
     )
     sp.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1)")
     sp.add_argument("--port", type=int, default=8000, help="TCP port (default 8000)")

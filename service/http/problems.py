@@ -9,7 +9,6 @@ reaches that path because it is validated first.
 from __future__ import annotations
 
 import logging
-import re
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -18,8 +17,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from pipeflow.errors import PipeflowError
-from service.store.errors import StorageError
+from pipeflow.errors import ErrorRecord, PipeflowError, StorageError, classify
 
 log = logging.getLogger("service")
 
@@ -137,25 +135,63 @@ def problem(
     return doc
 
 
-def pipeflow_problem(exc: PipeflowError) -> dict[str, Any]:
-    """422 problem for a refusal by the library, pointing at the request field (``exc.field``,
-    set by the schema layer; the library's ``exc.parameter`` if it set none)."""
-    slug = exc.slug
-    field = exc.field if exc.field is not None else exc.parameter
+#: the one table from an engine's (or the library's) :class:`ErrorRecord` to a problem:
+#: per record kind, ``(status, slug, title)``; a slug of None is the record's own type (a
+#: refusal's, e.g. ``budget-exceeded``), a title of None the status's
+RECORD_PROBLEMS: dict[str, tuple[int, str | None, str | None]] = {
+    "refused": (422, None, None),
+    "numerical-range": (422, "numerical-range", "Inputs out of numerical range"),
+    "runtime-limit": (422, "runtime-limit", "Runtime limit exceeded"),
+    "storage": (503, "storage", None),  # 507 when the disk is full
+    "cancelled": (409, "cancelled", None),
+    "internal": (500, "internal", None),
+}
+
+#: what the detail of a numerical-range problem adds: the inputs whose magnitudes set the
+#: scales (no single field can be blamed)
+NUMERICAL_RANGE_ADVICE = (
+    "check the magnitudes of pipe (E, I, L, M1, M2, damping, tip_mass, tip_inertia), "
+    "rotation.omega0, rotation.hub_radius and flow.velocity"
+)
+
+
+def record_problem(record: ErrorRecord) -> dict[str, Any]:
+    """The problem document of ``record`` (see :data:`RECORD_PROBLEMS`).
+
+    A refusal points at the request field (``record.field``, set by the schema layer; the
+    library's parameter if it set none) and carries the step bounds the library gave."""
+    status, slug, title = RECORD_PROBLEMS.get(record.kind, RECORD_PROBLEMS["internal"])
+    slug = slug or record.type
+    data = record.data
+    if record.kind == "storage" and data.get("full"):
+        status = 507
+    detail = record.message
+    if record.kind == "numerical-range":
+        detail = f"{detail}; {NUMERICAL_RANGE_ADVICE}"
+    if record.kind != "refused":
+        return problem(status, detail, slug=slug, title=title)
+    field = record.field if record.field is not None else data.get("parameter")
     err: dict[str, Any] = {
         "field": field,
         "pointer": _pointer(field.split(".")) if field else None,
         "location": "body",
-        "message": exc.message,
+        "message": record.message,
         "type": slug,
     }
-    doc = problem(422, exc.message, slug=slug, errors=[err])
-    if hasattr(exc, "largest_stable_step"):
-        doc["largest_stable_step"] = exc.largest_stable_step
-    smallest = getattr(exc, "smallest_step", None)
-    if smallest is not None:
-        doc["smallest_step"] = smallest
+    doc = problem(status, detail, slug=slug, title=title, errors=[err])
+    if "largest_stable_step" in data:
+        doc["largest_stable_step"] = data["largest_stable_step"]
+    if data.get("smallest_step") is not None:
+        doc["smallest_step"] = data["smallest_step"]
     return doc
+
+
+def stored_problem(error: dict[str, Any]) -> dict[str, Any]:
+    """The problem document of a job record's stored ``error``: the record's mapping, or
+    the stored document itself when it is not a record (a cancellation's note, or a record
+    written before the engine stored records)."""
+    record = ErrorRecord.from_dict(error)
+    return record_problem(record) if record is not None else error
 
 
 def response(doc: dict[str, Any], headers: dict[str, str] | None = None) -> JSONResponse:
@@ -222,25 +258,25 @@ def _walk(body: Any, loc: tuple[Any, ...]) -> list[Any]:
     return path
 
 
-_LEADING_FIELD = re.compile(r"^(?:Value error, )?([A-Za-z_]\w*(?:\.\w+)*)")
+def _named_field(body: Any, base: list[Any], err: dict[str, Any]) -> list[Any]:
+    """A validator's refusal names its field as data (:class:`pipeflow.errors.InvalidField`,
+    ``loc`` below the model or field it checks, the error's ``ctx["error"]``); resolve it.
 
-
-def _field_from_message(body: Any, base: list[Any], msg: str) -> list[Any]:
-    """Model-level validators name the field at the start of their message; resolve it.
-
-    ``"output.eigen_modes cannot exceed modes"`` raised on the whole body points at
-    ``output.eigen_modes``; ``"M1 + M2 must be > 0"`` raised on ``pipe`` at ``pipe.M1``;
-    ``"methods.1: unknown method"`` raised on ``methods`` at ``methods.1``.
+    ``InvalidField(..., "output.eigen_modes")`` raised on the whole body points at
+    ``output.eigen_modes``; ``"M1"`` raised on ``pipe`` at ``pipe.M1`` when the body gives
+    ``pipe.M1`` (a one-part location that the body lacks stays at ``base``); ``"methods"``
+    raised by the validator of ``methods`` at ``methods`` (its own field, not
+    ``methods.methods``).  A refusal without a location stays at ``base``.
     """
-    m = _LEADING_FIELD.match(msg)
-    if not m:
+    loc = getattr((err.get("ctx") or {}).get("error"), "loc", None)
+    if not loc:
         return base
+    parts = [str(p) for p in loc]
     node = body
     for part in base:
         node = node[part] if isinstance(node, dict | list) else None
-    parts = m.group(1).split(".")
     if base and parts[0] == str(base[-1]):
-        # a field validator naming its own field: "methods.1: ..." raised on ``methods``
+        # a field validator naming its own field: ("methods", ...) raised on ``methods``
         return base + parts[1:]
     if len(parts) > 1 or (isinstance(node, dict) and parts[0] in node):
         return base + parts
@@ -257,7 +293,7 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
         if where == "body":
             path = _walk(body, rest)
             if err.get("type") == "value_error" or err.get("type") == "assertion_error":
-                path = _field_from_message(body, path, str(err.get("msg", "")))
+                path = _named_field(body, path, err)
             if err.get("type") == "json_invalid":
                 path = []
             if not path and err.get("type") in ("union_tag_invalid", "union_tag_not_found"):
@@ -334,7 +370,7 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(PipeflowError)
     async def _pipeflow(request: Request, exc: PipeflowError) -> JSONResponse:
-        doc = pipeflow_problem(exc)
+        doc = record_problem(classify(exc))
         doc["instance"] = request.url.path
         return response(doc)
 

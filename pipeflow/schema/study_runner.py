@@ -1,38 +1,39 @@
-"""Design studies: many cases of one simulation or stability analysis, as one table.
+"""Running a design study: many cases of one simulation or stability analysis, as one table.
 
-:func:`run_study` takes a validated :class:`~pipeflow.schema.study.StudySpec`, expands it
-into its cases (each a standalone request of the base kind, keyed by
+:func:`run_study` takes a validated :class:`~pipeflow.schema.study.StudySpec` and its base
+computation (the registry's entry for ``spec.base_kind``: passed in, so this module never
+imports the registry, which registers the study computation that runs it), expands the
+spec into its cases (each a standalone request of the base kind, keyed by
 :func:`~pipeflow.schema.keys.canonical_key` exactly as that request would be on its own),
 and runs the cases the current memo (:func:`pipeflow.parallel.current_memo`) does not
 already hold, in chunks of at most :data:`CHUNK_CASES` cases fanned out on the current
 host (:func:`pipeflow.parallel.fan_out`); cases with the same key are computed once.
-Each case is run by its base computation's ``execute`` (the registry's, the same call as
-a standalone request) and reduced on the spot to a summary (a few numbers, not its time
-histories), which is what the memo stores.  One failing case does not fail the study: its
-row says ``failed`` with the problem's type, field and detail.
+Each case is run by its base computation's ``execute`` (the same call as a standalone
+request) and reduced on the spot to a summary by the base computation's own
+``summarize`` (a few numbers, not its time histories, under its ``summary_columns``),
+which is what the memo stores.  One failing case does not fail the study: its row says
+``failed`` with the problem's type, field and detail.
 
 Progress is exact: the fraction of cases done (served by the memo or computed), reported
 after the memo look-up and after each chunk.
 
 The result is a table (``columns`` with their units, one ``row`` per case in case order)
-and ``counts``; :mod:`pipeflow.export` writes it as the ``study`` CSV table.
+and ``counts``; :mod:`pipeflow.io.export` writes it as the ``study`` CSV table.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
-from numpy.linalg import LinAlgError
 from pydantic import BaseModel
 
 from pipeflow import parallel
-from pipeflow.errors import PipeflowError
+from pipeflow._types import Progress
+from pipeflow.errors import classify
 from pipeflow.schema.keys import canonical_key
-from pipeflow.schema.study import BASE_MODELS, StudySpec, field_unit
-
-Progress = Callable[[float], None]
+from pipeflow.schema.study import StudySpec, field_unit
 
 #: most cases in one fanned-out piece (amortises a dispatch of ~10 ms over several cases,
 #: and bounds the cases between two progress reports) [-]
@@ -82,102 +83,56 @@ TRAILING = (
     Column("error_field", "", "Failed cases: the field of the case's own request at fault."),
     Column("error_detail", "", "Failed cases: what went wrong."),
 )
-#: the summary columns of each base computation
-SUMMARY_COLUMNS: dict[str, tuple[Column, ...]] = {
-    "simulation": (
-        Column("peak_tip_displacement", "m", "max |u(L, t)| over the output times."),
-        Column(
-            "final_sigma_1",
-            "1/s",
-            "Damping sigma of the fundamental (branch 1 of the "
-            "frozen spectrum) at the last output time t_end; > 0: growing.",
-        ),
-        Column("final_omega_1", "rad/s", "Frequency omega of the fundamental at t_end."),
-        Column("method_used", "", "The solver that ran (what 'auto' chose)."),
-        Column("result_status", "", "The simulation's status: ok, diverging or overflow."),
-    ),
-    "stability": (
-        Column("critical_velocity", "m/s", "First loss of stability in the range (null: none)."),
-        Column("critical_mode", "-", "The mode that loses stability there."),
-        Column("critical_kind", "", "flutter or divergence."),
-        Column("stable_throughout", "", "Stable over the whole v >= 0 part of the range."),
-    ),
-}
 
 
-def _computation(kind: str) -> Any:
-    # deferred: the registry registers the study computation, which runs this module
-    from pipeflow.schema.registry import COMPUTATIONS
+class BaseComputation(Protocol):
+    """What a study needs of its base computation (a registry entry, see
+    :class:`~pipeflow.schema.registry.Computation`): its name (the cases' key kind), how
+    to run one case, and how to reduce a case's result to its summary columns."""
 
-    return COMPUTATIONS[kind]
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def summary_columns(self) -> tuple[Column, ...]: ...
+
+    @property
+    def summarize(self) -> Callable[[dict[str, Any]], dict[str, Any]] | None: ...
+
+    def execute(self, request: BaseModel, progress: Progress | None = None) -> dict[str, Any]: ...
 
 
-def _peak(values: Sequence[float | None]) -> float | None:
-    finite = [abs(v) for v in values if v is not None]
-    return max(finite) if finite else None
+def _summarize(base: BaseComputation, result: dict[str, Any]) -> dict[str, Any]:
+    if base.summarize is None:
+        raise TypeError(f"the {base.name} computation has no study summary")
+    return base.summarize(result)
 
 
-def _last(values: Sequence[float | None]) -> float | None:
-    return values[-1] if values else None
-
-
-def summarise(kind: str, result: dict[str, Any]) -> dict[str, Any]:
-    """The summary of a case's result (the JSON of its ``execute``), by column name."""
-    if kind == "simulation":
-        fundamental = result["fundamental"]
-        return {
-            "peak_tip_displacement": _peak(result["tip_displacement"]),
-            "final_sigma_1": _last(fundamental["sigma"]),
-            "final_omega_1": _last(fundamental["omega"]),
-            "method_used": result["method_used"],
-            "result_status": result["status"],
-        }
-    critical = result["critical_velocity"]
-    first = next(
-        (c for c in result["crossings"] if c["direction"] == "loss" and c["velocity"] == critical),
-        None,
-    )
-    return {
-        "critical_velocity": critical,
-        "critical_mode": first["mode"] if first else None,
-        "critical_kind": first["kind"] if first else None,
-        "stable_throughout": result["stable_throughout"],
-    }
+#: failures of a case that say nothing lasting about its request (a bug, or the case
+#: stopped or could not be stored): reported in the row, never memoised
+UNLASTING = ("internal", "cancelled", "runtime-limit", "storage")
 
 
 def _failure(error_type: str, field: str | None, detail: str) -> dict[str, Any]:
     return {"error_type": error_type, "error_field": field, "error_detail": detail}
 
 
-def run_case(kind: str, request: BaseModel) -> dict[str, Any]:
+def run_case(base: BaseComputation, request: BaseModel) -> dict[str, Any]:
     """Run one case through its base computation and summarise it: ``{"status": "ok",
     **summary}`` or ``{"status": "failed", error_type, error_field, error_detail}``."""
     try:
-        result = _computation(kind).execute(request)
-    except PipeflowError as exc:
-        return {"status": "failed", **_failure(exc.slug, exc.field, exc.message)}
-    except (ArithmeticError, LinAlgError) as exc:
-        return {
-            "status": "failed",
-            **_failure(
-                "numerical-range",
-                None,
-                f"the inputs take the computation out of the range of double precision "
-                f"({type(exc).__name__}: {exc})",
-            ),
-        }
-    except Exception as exc:  # a bug: reported in the row, not memoised (see run_study)
-        return {
-            "status": "failed",
-            **_failure("internal", None, f"internal error: {type(exc).__name__}: {exc}"),
-        }
-    return {"status": "ok", **summarise(kind, result)}
+        result = base.execute(request)
+    except Exception as exc:  # an internal one is a bug: in the row, not memoised (run_study)
+        record = classify(exc)  # the failure as the service's jobs record it
+        return {"status": "failed", **_failure(record.type, record.field, record.message)}
+    return {"status": "ok", **_summarize(base, result)}
 
 
-def run_cases(piece: tuple[str, Sequence[BaseModel]]) -> list[dict[str, Any]]:
-    """The fanned-out piece: ``(kind, requests)`` -> their summaries (:func:`run_case`)."""
-    kind, requests = piece
-    return [run_case(kind, r) for r in requests]
+def run_cases(piece: tuple[BaseComputation, Sequence[BaseModel]]) -> list[dict[str, Any]]:
+    """The fanned-out piece: ``(base computation, requests)`` -> their summaries
+    (:func:`run_case`)."""
+    base, requests = piece
+    return [run_case(base, r) for r in requests]
 
 
 def _memoised(memo: parallel.Memo | None, keys: Sequence[str]) -> dict[str, dict[str, Any]]:
@@ -200,9 +155,14 @@ def _closing(it: Iterator[Any]) -> Iterator[Any]:
             close()  # abandon the pieces not yet finished (cancel, runtime limit)
 
 
-def run_study(spec: StudySpec, progress: Progress | None = None) -> dict[str, Any]:
-    """Every case of ``spec`` summarised, as a table (see the module docstring)."""
-    kind = spec.base_kind
+def run_study(
+    spec: StudySpec, base: BaseComputation, progress: Progress | None = None
+) -> dict[str, Any]:
+    """Every case of ``spec`` summarised, as a table (see the module docstring); ``base``
+    is the computation named by ``spec.base_kind`` (the registry's entry)."""
+    if base.name != spec.base_kind or base.summarize is None:
+        raise ValueError(f"a {spec.base_kind} study cannot run cases of {base.name!r}")
+    kind = base.name
     cases = spec.expand()
     total = len(cases)
     keys = [canonical_key(kind, case.request.canonical()) for case in cases]
@@ -222,7 +182,7 @@ def run_study(spec: StudySpec, progress: Progress | None = None) -> dict[str, An
 
     todo = [k for k in first if k not in cached]
     chunks = parallel.split(len(todo), max_size=CHUNK_CASES)
-    pieces = [(kind, [cases[first[todo[j]]].request for j in chunk]) for chunk in chunks]
+    pieces = [(base, [cases[first[todo[j]]].request for j in chunk]) for chunk in chunks]
     for c, results in _closing(parallel.fan_out(run_cases, pieces)):
         chunk_keys = [todo[j] for j in chunks[c]]
         summaries.update(zip(chunk_keys, results, strict=True))
@@ -230,38 +190,39 @@ def run_study(spec: StudySpec, progress: Progress | None = None) -> dict[str, An
             keep = {
                 memo_key(k): s
                 for k, s in zip(chunk_keys, results, strict=True)
-                if s.get("error_type") != "internal"
+                if s.get("error_type") not in UNLASTING
             }
             if keep:
                 memo.put_many(keep)
         done += sum(multiplicity[k] for k in chunk_keys)
         if progress is not None:
             progress(done / total)
-    return _table(spec, cases, keys, summaries, cached, computed=len(todo))
+    return _table(spec, base, cases, keys, summaries, cached, computed=len(todo))
 
 
-def columns(spec: StudySpec) -> list[Column]:
-    """The columns of ``spec``'s table: leading, one per overridden field, the summary of
-    the base kind, then the error columns."""
-    model = BASE_MODELS[spec.base_kind]
+def columns(spec: StudySpec, base: BaseComputation) -> list[Column]:
+    """The columns of ``spec``'s table: leading, one per overridden field, the summary
+    columns of the base computation, then the error columns."""
+    model = type(spec.base.spec)
     overrides = [
         Column(path, field_unit(model, path), f"The case's {path} (null: the base's).")
         for path in spec.paths()
     ]
-    return [*LEADING, *overrides, *SUMMARY_COLUMNS[spec.base_kind], *TRAILING]
+    return [*LEADING, *overrides, *base.summary_columns, *TRAILING]
 
 
 def _table(
     spec: StudySpec,
+    base: BaseComputation,
     cases: Sequence[Any],
     keys: Sequence[str],
     summaries: dict[str, dict[str, Any]],
     cached: set[str],
     computed: int,
 ) -> dict[str, Any]:
-    cols = columns(spec)
+    cols = columns(spec, base)
     paths = spec.paths()
-    metrics = [c.name for c in (*SUMMARY_COLUMNS[spec.base_kind], *TRAILING)]
+    metrics = [c.name for c in (*base.summary_columns, *TRAILING)]
     rows = []
     for case, key in zip(cases, keys, strict=True):
         s = summaries[key]

@@ -6,13 +6,14 @@ import io
 import json
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from pipeflow.cli import ProgressBar, main
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
+from pipeflow_cli.cli import ProgressBar, main
 
 
 @pytest.fixture
@@ -136,22 +137,80 @@ def test_stability_refuses_a_simulation_spec(
     small_spec: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert main(["stability", str(small_spec)]) == 2
-    assert "not a stability spec" in capsys.readouterr().err
+    assert "not a valid 'stability' request" in capsys.readouterr().err
+    assert main(["stability", str(small_spec), "--kind", "simulation"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown kind 'simulation'; choose one of: stability, argand, campbell" in err
 
 
-def test_serve_runs_one_server_process_with_n_compute_workers(
+def test_a_wrong_kind_names_the_allowed_ones(
+    tmp_path: Path, small_spec: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", str(small_spec), "--kind", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown kind 'nope'; choose one of: simulation, compare, stability, argand" in err
+    tagged = tmp_path / "bogus.json"
+    tagged.write_text(json.dumps({"kind": "bogus", "pipe": PIPE}))
+    assert main(["run", str(tagged)]) == 2
+    assert "the spec's kind 'bogus' names no computation" in capsys.readouterr().err
+    sweep = tmp_path / "argand.json"
+    sweep.write_text(json.dumps({"kind": "argand", "pipe": PIPE}))
+    assert main(["stability", str(sweep), "--kind", "campbell"]) == 2
+    assert "--kind campbell but the spec's kind is 'argand'" in capsys.readouterr().err
+
+
+def test_kind_selects_the_computation_of_a_spec_without_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    spec = tmp_path / "argand.json"
+    spec.write_text(json.dumps({"pipe": PIPE, "modes": 4, "velocity_range": [0, 40], "points": 11}))
+    out = tmp_path / "out.json"
+    assert main(["run", str(spec), "--kind", "argand", "-o", str(out), "--quiet"]) == 0
+    assert json.loads(out.read_text())["kind"] == "argand"
+
+
+def test_serve_runs_python_m_service_with_the_same_flags(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """``pipeflow serve`` imports no service module: it runs ``python -m service`` with its
+    flags in a child process and returns the child's exit status."""
+    calls: list[list[str]] = []
+
+    class Child:
+        def __init__(self, argv: list[str]) -> None:
+            calls.append(argv)
+
+        def wait(self) -> int:
+            return 2
+
+    monkeypatch.setattr(subprocess, "Popen", Child)
+    before = {m for m in sys.modules if m == "service" or m.startswith("service.")}
+    argv = ["serve", "--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]
+    assert main(argv) == 2
+    head = [sys.executable, "-m", "service", "--host", "127.0.0.1"]
+    assert calls == [[*head, "--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]]
+    calls.clear()
+    assert main(["serve"]) == 2
+    assert calls == [[*head, "--port", "8000"]]
+    assert {m for m in sys.modules if m == "service" or m.startswith("service.")} == before
+
+
+def test_python_m_service_runs_one_server_process_with_n_compute_workers(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """--workers is the compute pool (PIPEFLOW_WORKERS), never uvicorn's server processes:
     N servers on one data directory is what the store forbids."""
     import uvicorn
 
+    from service.__main__ import main as service_main
+
     calls: list[tuple[Any, dict[str, Any]]] = []
     monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append((app, kw)))
     monkeypatch.setenv("PIPEFLOW_WORKERS", "2")
     monkeypatch.setenv("PIPEFLOW_QUEUE_SIZE", "7")
     monkeypatch.setenv("PIPEFLOW_DATA_DIR", str(tmp_path / "env"))
-    assert main(["serve", "--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]) == 0
+    argv = ["--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]
+    assert service_main(argv) == 0
     ((app, kw),) = calls
     assert kw == {"host": "127.0.0.1", "port": 8123}  # no "workers": one server process
     settings = app.state.settings
@@ -160,9 +219,9 @@ def test_serve_runs_one_server_process_with_n_compute_workers(
 
     # without the flags the environment decides, as for uvicorn service.main:app
     calls.clear()
-    assert main(["serve"]) == 0
+    assert service_main([]) == 0
     settings = calls[0][0].state.settings
     assert (settings.workers, settings.data_dir) == (2, tmp_path / "env")
 
-    assert main(["serve", "--workers", "0"]) == 2
+    assert service_main(["--workers", "0"]) == 2
     assert "workers: Input should be greater than or equal to 1" in capsys.readouterr().err

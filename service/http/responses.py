@@ -1,36 +1,26 @@
-"""What every computing endpoint does, for any computation: cache, single flight, jobs.
+"""The answers of the computing endpoints: a result (cache hit or fresh, JSON or gzip),
+the hit cache of pre-encoded answers, and a job record as JSON.
 
-Routes stay thin: they validate the body once (FastAPI + the computation's request model),
-key it once (:func:`service.keys.keyed`) and call :func:`run_sync` (answer with the
-result) or :func:`accept_job` (answer 202 with a job); the OpenAPI pieces they share
-(:data:`Refresh`, :data:`CACHE_HEADERS`, :data:`JOB_ACCEPTED`) are here too.
+The OpenAPI pieces the routes share (:data:`CACHE_HEADERS`, :data:`JOB_ACCEPTED`) are here
+too; what the endpoints do (cache, single flight, jobs) is :mod:`service.orchestration`.
 """
 
 from __future__ import annotations
 
 import asyncio
 import gzip
-import re
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import Query, Response
-from fastapi.exceptions import RequestValidationError
+from fastapi import Response
 from fastapi.responses import JSONResponse
-from pydantic import ValidationError
 
-from service.engine import ComputationCancelled, ComputationFailed, QueueFull, Runner
-from service.keys import Keyed
-from service.problems import ProblemError
+from service.http.problems import stored_problem
 from service.schemas import JobStatus
-from service.store import Job, Store
-
-Refresh = Annotated[
-    bool, Query(description="Recompute even if the result is cached (and replace it).")
-]
+from service.store import Job
 
 #: OpenAPI headers of a result answered by :func:`result_response`
 CACHE_HEADERS: dict[str, Any] = {
@@ -127,27 +117,6 @@ class HitCache:
         return len(self._items)
 
 
-_CODING = re.compile(r"\s*([A-Za-z0-9*_-]+)\s*(?:;\s*q\s*=\s*([0-9.]+))?\s*")
-
-
-def accepts_gzip(accept_encoding: str | None) -> bool:
-    """RFC 9110 section 12.5.3: gzip (or ``*``) listed with a q-value above 0."""
-    if not accept_encoding:
-        return False
-    q_of: dict[str, float] = {}
-    for part in accept_encoding.split(","):
-        m = _CODING.fullmatch(part)
-        if m is None:
-            continue
-        try:
-            q = float(m.group(2)) if m.group(2) is not None else 1.0
-        except ValueError:
-            continue
-        q_of[m.group(1).lower()] = q
-    q = q_of.get("gzip", q_of.get("x-gzip", q_of.get("*", 0.0)))
-    return q > 0
-
-
 @dataclass(frozen=True)
 class Hit:
     """The per-request part of the hit path: the app's :class:`HitCache` and whether the
@@ -208,85 +177,6 @@ async def hit_response(key: str, body: bytes, hit: Hit | None) -> Response:
     return result_response(key, True, encoded, hit is not None and hit.gzip)
 
 
-def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
-    return ProblemError(
-        503,
-        f"all {runner.capacity} computation slots are taken ({exc}); retry later",
-        slug="saturated",
-        headers={"Retry-After": str(runner.settings.retry_after_s)},
-    )
-
-
-async def check_request(job: Keyed) -> None:
-    """The computation's validation too costly for the event loop
-    (:attr:`~pipeflow.schema.registry.Computation.check`, e.g. every case of a study), in a
-    thread; a failure is answered as the body's own validation errors are (422 naming the
-    field)."""
-    check = job.computation.check
-    if check is None:
-        return
-    try:
-        await asyncio.to_thread(check, job.request)
-    except ValidationError as exc:
-        errors = [{**e, "loc": ("body", *e["loc"])} for e in exc.errors()]
-        body = job.request.model_dump(mode="json", exclude_unset=True)
-        raise RequestValidationError(errors, body=body) from None
-
-
-async def run_sync(
-    runner: Runner, store: Store, job: Keyed, refresh: bool, hit: Hit | None = None
-) -> Response:
-    """Serve the result of ``job``: from the cache, or computed now (once per key).
-
-    With ``hit`` (the app's hit cache, see :class:`Hit`), a hit is answered from memory as
-    its pre-encoded bytes, gzip when the client accepts it."""
-    key = job.key
-    cache = hit.cache if hit is not None else None
-    if not refresh:
-        encoded = cache.get(key) if cache is not None else None
-        if encoded is not None:
-            return result_response(key, True, encoded, hit is not None and hit.gzip)
-        body = await asyncio.to_thread(store.get_result, key)
-        if body is not None:
-            return await hit_response(key, body, hit)
-    if cache is not None:
-        cache.pop(key)  # a recomputation replaces the stored result
-    if not runner.is_active(key):
-        await check_request(job)
-    try:
-        task = await runner.submit(job, force=refresh)
-        body = await asyncio.shield(task)
-    except QueueFull as exc:
-        raise _saturated(runner, exc) from None
-    except ComputationFailed as exc:
-        raise ProblemError.from_document(exc.problem) from None
-    except ComputationCancelled as exc:
-        raise ProblemError(409, f"the computation was cancelled: {exc}", slug="cancelled") from None
-    return result_response(key, False, body)
-
-
-async def submit_job(runner: Runner, store: Store, job: Keyed, refresh: bool) -> Job:
-    """Accept ``job`` (idempotent: the id is the parameter hash) and return its record."""
-    key = job.key
-    if not refresh and not runner.is_active(key) and await asyncio.to_thread(store.has_result, key):
-        await asyncio.to_thread(store.mark_succeeded, key, job.computation.name, job.canonical)
-    else:
-        if not runner.is_active(key):
-            await check_request(job)
-        try:
-            await runner.submit(job, force=refresh)
-        except QueueFull as exc:
-            raise _saturated(runner, exc) from None
-    record = await asyncio.to_thread(store.get_job, key)
-    assert record is not None
-    return record
-
-
-async def accept_job(runner: Runner, store: Store, job: Keyed, refresh: bool) -> JSONResponse:
-    """:func:`submit_job`, answered 202 with the job and ``Location: /v1/jobs/{key}``."""
-    return job_response(await submit_job(runner, store, job, refresh), 202)
-
-
 def job_response(job: Job, status: int = 200) -> JSONResponse:
     """The job as :class:`service.schemas.JobStatus` JSON; a 202 carries its ``Location``."""
     body = JobStatus.model_validate(job_document(job)).model_dump(mode="json")
@@ -309,7 +199,7 @@ def job_document(job: Job) -> dict[str, Any]:
         "started": _time(job.started),
         "finished": _time(job.finished),
         "updated": _time(job.updated),
-        "error": job.error,
+        "error": stored_problem(job.error) if job.error is not None else None,
         "result": f"/v1/results/{job.key}" if job.status == "succeeded" else None,
         "attempts": job.attempts,
         "last_retry_reason": job.last_retry_reason,

@@ -9,12 +9,13 @@ read as JSON.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Coroutine
 from typing import Any
 
 from fastapi import Request
 
-from service.problems import PROBLEM_MEDIA_TYPE, ProblemError
+from service.http.problems import PROBLEM_MEDIA_TYPE, ProblemError
 
 JSON = "application/json"
 
@@ -91,3 +92,24 @@ async def json_body(request: Request) -> None:
                 {"field": "Content-Type", "location": "header", "message": "not application/json"}
             ],
         )
+
+
+_CODING = re.compile(r"\s*([A-Za-z0-9*_-]+)\s*(?:;\s*q\s*=\s*([0-9.]+))?\s*")
+
+
+def accepts_gzip(accept_encoding: str | None) -> bool:
+    """RFC 9110 section 12.5.3: gzip (or ``*``) listed with a q-value above 0."""
+    if not accept_encoding:
+        return False
+    q_of: dict[str, float] = {}
+    for part in accept_encoding.split(","):
+        m = _CODING.fullmatch(part)
+        if m is None:
+            continue
+        try:
+            q = float(m.group(2)) if m.group(2) is not None else 1.0
+        except ValueError:
+            continue
+        q_of[m.group(1).lower()] = q
+    q = q_of.get("gzip", q_of.get("x-gzip", q_of.get("*", 0.0)))
+    return q > 0

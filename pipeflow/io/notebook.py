@@ -1,10 +1,11 @@
 """A simulation result in a notebook: xarray Dataset, pandas DataFrame, matplotlib Figure.
 
 Works on the JSON form of a result (:meth:`pipeflow.simulation.Result.to_dict`, which is
-also what the service returns), so a local :class:`~pipeflow.simulation.Result` and the
-client's :class:`pipeflow_client.SimulationResult` give the same objects through
-:class:`NotebookViews`.  xarray and pandas are the optional ``notebook`` extra
-(``pip install 'pipeflow[notebook]'``), imported on first use.
+also what the service returns): every function takes that dictionary, a local
+:class:`~pipeflow.simulation.Result` or the client's :class:`pipeflow_client.SimulationResult`
+and gives the same objects (``to_xarray(result)``; the result classes offer them as methods
+too, the client's through :class:`NotebookViews`).  xarray and pandas are the optional
+``notebook`` extra (``pip install 'pipeflow[notebook]'``), imported on first use.
 
 Dataset layout (:func:`to_xarray`), every variable with ``units`` (SI) and ``long_name``:
 
@@ -18,19 +19,32 @@ Dataset layout (:func:`to_xarray`), every variable with ``units`` (SI) and ``lon
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from pipeflow.export import split_header, table
+from pipeflow.io.export import split_header, table
 from pipeflow.optional import require
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
-def to_xarray(result: dict[str, Any]) -> Any:
+def document(result: Any) -> dict[str, Any]:
+    """The JSON form of ``result``: a dictionary as it is, else the object's ``to_dict()``
+    (a :class:`~pipeflow.simulation.Result`) or ``_document()`` (a :class:`NotebookViews`)."""
+    if isinstance(result, Mapping):
+        return dict(result)
+    if isinstance(result, NotebookViews):
+        return result._document()
+    return dict(result.to_dict())
+
+
+def to_xarray(result: Any) -> Any:
     """The result as an :class:`xarray.Dataset` (see the module docstring for its layout)."""
     xr = require("xarray", "notebook", "to_xarray()")
     import numpy as np
+
+    result = document(result)
 
     def var(dims: tuple[str, ...], data: Any, units: str, long_name: str) -> Any:
         return xr.Variable(dims, np.asarray(data), {"units": units, "long_name": long_name})
@@ -95,12 +109,12 @@ def to_xarray(result: dict[str, Any]) -> Any:
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
-def to_dataframe(result: dict[str, Any], name: str = "history") -> Any:
-    """Table ``name`` of :data:`pipeflow.export.TABLES` as a :class:`pandas.DataFrame`:
+def to_dataframe(result: Any, name: str = "history") -> Any:
+    """Table ``name`` of :data:`pipeflow.io.export.TABLES` as a :class:`pandas.DataFrame`:
     bare column names, indexed by its first column (``t`` [s], or ``x`` [m] for
     ``mode_shapes``), units in ``df.attrs["units"]`` (``{"tip_displacement": "m", ...}``)."""
     pd = require("pandas", "notebook", "to_dataframe()")
-    header, columns = table(result, name)
+    header, columns = table(document(result), name)
     names, units = zip(*(split_header(h) for h in header), strict=True)
     frame = pd.DataFrame(dict(zip(names, columns, strict=True))).set_index(names[0])
     frame.attrs["units"] = dict(zip(names, units, strict=True))
@@ -108,12 +122,12 @@ def to_dataframe(result: dict[str, Any], name: str = "history") -> Any:
     return frame
 
 
-def plot(result: dict[str, Any], name: str = "tip_displacement", **kwargs: Any) -> Figure:
-    """Figure ``name`` of :data:`pipeflow.plots.PLOTS` (a matplotlib Figure, which a
-    notebook displays); ``kwargs`` go to :func:`pipeflow.plots.figure` (``title``, ``size``)."""
-    from pipeflow.plots import figure
+def plot(result: Any, name: str = "tip_displacement", **kwargs: Any) -> Figure:
+    """Figure ``name`` of :data:`pipeflow.io.plots.PLOTS` (a matplotlib Figure, which a
+    notebook displays); ``kwargs`` go to :func:`pipeflow.io.plots.figure` (``title``, ``size``)."""
+    from pipeflow.io.plots import figure
 
-    return figure(name, [(None, result)], **kwargs)
+    return figure(name, [(None, document(result))], **kwargs)
 
 
 class NotebookViews:
@@ -125,7 +139,7 @@ class NotebookViews:
 
     def to_xarray(self) -> Any:
         """The result as an :class:`xarray.Dataset` (coordinates t, eigen_t, mode; units in
-        attrs); see :mod:`pipeflow.notebook`."""
+        attrs); see :mod:`pipeflow.io.notebook`."""
         return to_xarray(self._document())
 
     def to_dataframe(self, table: str = "history") -> Any:
@@ -134,5 +148,5 @@ class NotebookViews:
         return to_dataframe(self._document(), table)
 
     def plot(self, name: str = "tip_displacement", **kwargs: Any) -> Figure:
-        """A matplotlib Figure of plot ``name`` (see :data:`pipeflow.plots.PLOTS`)."""
+        """A matplotlib Figure of plot ``name`` (see :data:`pipeflow.io.plots.PLOTS`)."""
         return plot(self._document(), name, **kwargs)

@@ -13,10 +13,11 @@ from fastapi import HTTPException
 from starlette.datastructures import MutableHeaders
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from service import negotiation, observability
-from service.compute import accepts_gzip, result_response
-from service.negotiation import JSON
-from service.problems import problem, response
+from service import observability
+from service.http import negotiation
+from service.http.negotiation import JSON, accepts_gzip
+from service.http.problems import problem, response
+from service.http.responses import result_response
 
 access_log = logging.getLogger("service.access")
 #: the key at the start of a result's ETag (``"<key>"``, ``"<key>-gzip"``, ``"<key>-t.csv"``)
@@ -156,12 +157,12 @@ class HitFastPath:
     """Answer a repeated cache hit of a computing route before FastAPI runs.
 
     A ``POST`` to one of ``paths`` (the registry's result routes) without a query string
-    (so no ``refresh``), with a JSON body (:func:`service.negotiation.json_declared`), an
+    (so no ``refresh``), with a JSON body (:func:`service.http.negotiation.json_declared`), an
     ``Accept`` that admits JSON and a declared Content-Length of at most
     :data:`FAST_BODY_MAX` bytes is read whole.  The SHA-256 of its bytes (with the path)
     looks up the key that the route computed for the same bytes before; if the app's
-    :class:`~service.compute.HitCache` holds that key's answer, it is sent as the route
-    would send it (:func:`service.compute.result_response`), without parsing, validating
+    :class:`~service.http.responses.HitCache` holds that key's answer, it is sent as the route
+    would send it (:func:`service.http.responses.result_response`), without parsing, validating
     or keying the body again.  Anything else (first sight of a body, a miss, an error,
     another route) goes to the app with the body replayed, and a 200 result answer
     teaches the memo its key (``Content-Location: /v1/results/<key>``).

@@ -23,8 +23,8 @@ Tables
     time t and branch j, ``real_j(t=<t>) [-]`` and ``imag_j(t=<t>) [-]`` of the normalised
     complex shape (:mod:`pipeflow.modeshapes`).
 ``study``
-    A design study's table (:mod:`pipeflow.study`): one row per case, its columns as the
-    result names them, each number's unit in brackets (``pipe.E [Pa]``,
+    A design study's table (:mod:`pipeflow.schema.study_runner`): one row per case, its
+    columns as the result names them, each number's unit in brackets (``pipe.E [Pa]``,
     ``peak_tip_displacement [m]``); text and flag columns (``key``, ``status``) have none.
 
 Parquet (:func:`to_parquet`, needs the optional ``pyarrow``: ``pip install

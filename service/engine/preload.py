@@ -3,7 +3,7 @@
 The service's workers run with one thread and one BLAS thread each
 (:data:`THREAD_VARIABLES` set to 1 in the worker's environment before numpy loads): two
 computations on two cores must not fight over BLAS threads.  ``dask worker --preload
-service.engine.worker`` (and the embedded cluster) import the numerical stack at start,
+service.engine.preload`` (and the embedded cluster) import the numerical stack at start,
 and warm up (:func:`warm_up`: a tiny run of each solver through the task's compute path
 and the encoder), so the first request does not pay for them.  The worker's log lines go
 to stdout in the service's format (``PIPEFLOW_LOG_LEVEL``, ``PIPEFLOW_LOG_FORMAT``).
@@ -62,13 +62,13 @@ def warm_up() -> None:
     the job would then pay (and report) it."""
     started = time.perf_counter()
     try:
+        from pipeflow.errors import ErrorRecord, classify
         from pipeflow.schema.registry import COMPUTATIONS
         from pipeflow.schema.simulation import PAPER_EXAMPLE
         from service import encoding
-        from service.engine.task import out_of_range_problem, runtime_problem
 
-        runtime_problem(1.0)
-        out_of_range_problem("warm-up")
+        ErrorRecord.runtime_limit(1.0).to_dict()
+        classify(OverflowError("warm-up")).to_dict()
         small = dict(PAPER_EXAMPLE, modes=2, time={"t_end": 0.01, "samples": 11})
         simulation = COMPUTATIONS["simulation"]
         specs = [dict(small, method=method) for method in _WARM_UP_METHODS]

@@ -1,0 +1,620 @@
+"""Frequency response functions of the pipe at a frozen operating point (issue 18).
+
+Linearised about a constant flow velocity v [m/s] and spin w0 [rad/s], the Galerkin model
+(:mod:`pipeflow.model`) is, with every field of :class:`~pipeflow.model.Pipe` (damping, tip
+body, hub radius, plane)::
+
+    M q'' + C q' + K q = f(t),   C = C_0 + v C_v,   K = K_0 + v^2 K_v2 + w0^2 K_w2
+
+(the K_vdot term vanishes at constant v; the model has no spin gyroscopic term: the
+Coriolis coupling with the axial motion is neglected, ``docs/model.md`` sec. 1).  For a
+harmonic load f e^(i W t) the steady state is q e^(i W t) with
+
+    (K - W^2 M + i W C) q = f,            u(x) = sum_j q_j phi_j(x/L).
+
+Method: modal superposition over the complex modes of the first-order form.  The model's
+state matrix A = S(v, w0) acts on the *balanced* state z = (q'_j / w_j, q_j)
+(``PipeModel.state_matrix``; y = (q', q) = T z with T = diag(omega_ref, 1)), so a load
+enters as b = (M^-1 f / omega_ref, 0) and the displacement is the lower half of z.  One
+eigen-decomposition A = V diag(xi) V^-1 then gives every frequency at once::
+
+    H(W) = Phi_out V_low diag(1 / (i W - xi)) V^-1 b
+
+a (positions x 2n) @ (2n x frequencies) product (physics notes sec. 5).  Each response
+carries a check: the direct solve of (K - W^2 M + i W C) q = f, from the second-order
+arrays (not the state matrix), at a few frequencies (:class:`Diagnostics`).  Where the
+eigenvectors are ill-conditioned (coalescing eigenvalues: flutter onset, critical damping)
+and the two disagree, the response falls back to direct solves at every frequency.
+
+Loads (physics notes sec. 5) are :class:`PointForce` (f_j = F phi_j(a)) and
+:class:`BaseAcceleration` of the clamp (f_j = -(M1+M2) A int_0^L phi_j dx - m_t A phi_j(L);
+the response is then the motion *relative to the clamp*).  Quantities: ``"displacement"``
+(receptance), ``"velocity"`` (mobility, i W H) and ``"acceleration"`` (accelerance,
+-W^2 H), per unit load; units in :data:`UNITS`.
+
+Past the critical velocity some Re xi > 0: there is no steady state and H is only a
+formal quantity; the response says so (``stable``, ``warnings``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pipeflow.basis import MAX_MODES, mode_shapes
+from pipeflow.errors import InvalidInput
+from pipeflow.model import (
+    REVERSE_FLOW_CAVEAT,
+    Coefficients,
+    Pipe,
+    PipeModel,
+    basis_caveats,
+    build_model,
+    mode_integrals,
+)
+from pipeflow.spectra import max_growth_rates, mode_numbers, rounding_level
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+#: the response quantities and their units per unit load: (point force, base acceleration)
+UNITS: dict[str, tuple[str, str]] = {
+    "displacement": ("m/N", "s^2"),
+    "velocity": ("m/(N s)", "s"),
+    "acceleration": ("1/kg", "-"),
+}
+QUANTITIES = tuple(UNITS)
+#: the largest ``count`` of :func:`frequency_grid`
+MAX_GRID_POINTS = 20_000
+#: the most frequencies one response takes: a full grid plus 3 points per resonance
+MAX_FREQUENCIES = MAX_GRID_POINTS + 3 * MAX_MODES
+#: the most output positions of one response
+MAX_POSITIONS = 1_000
+#: the most operating points of :func:`frequency_responses`
+MAX_OPERATING_POINTS = 64
+#: frequencies [-] at which :class:`Diagnostics` checks the modal sum by direct solves
+DIAGNOSTIC_POINTS = 5
+#: modal sum vs direct solve: above this relative difference the direct solves are used
+FALLBACK_RTOL = 1e-6
+
+
+# -- loads ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PointForce:
+    """A transverse harmonic point force F e^(i W t) at ``position`` a [m], 0 < a <= L.
+
+    H is per unit force [N]; at a = L the force acts on the tip body, if any.
+    """
+
+    position: float
+
+
+@dataclass(frozen=True)
+class BaseAcceleration:
+    """A transverse harmonic acceleration A e^(i W t) [m/s^2] of the clamp.
+
+    H is per unit base acceleration; the response is relative to the clamp (the absolute
+    acceleration is 1 + H for ``quantity="acceleration"``).  In the Galerkin equations it is
+    the inertial load -(M1+M2) A per unit length and -m_t A on the tip mass.
+    """
+
+
+Load = PointForce | BaseAcceleration
+
+
+# -- results ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Resonance:
+    """One mode of the frozen state matrix at the operating point.
+
+    ``xi`` = sigma + i omega [1/s] the eigenvalue (omega >= 0); ``frequency`` [rad/s] the
+    damped natural frequency omega = Im xi (where |H| peaks for light damping);
+    ``natural_frequency`` [rad/s] |xi|; ``damping_ratio`` [-] zeta = -Re xi / |xi|
+    (negative for a growing mode); ``mode`` [-] the mode number
+    (:func:`pipeflow.spectra.mode_numbers`).
+    """
+
+    xi: complex
+    frequency: float
+    natural_frequency: float
+    damping_ratio: float
+    mode: int
+
+    @property
+    def half_power(self) -> tuple[float, float]:
+        """omega -+ zeta |xi| [rad/s], the half-power points of a lightly damped peak."""
+        bw = self.damping_ratio * self.natural_frequency
+        return self.frequency - bw, self.frequency + bw
+
+
+@dataclass(frozen=True)
+class Peak:
+    """A resonance inside the frequency range of a response.
+
+    ``frequency`` [rad/s] = Im xi, ``natural_frequency`` [rad/s] = |xi|, ``damping_ratio``
+    [-], ``mode`` [-] as in :class:`Resonance`; ``magnitude`` |H| at ``frequency`` at each
+    output position, in the response's unit (inf for an undamped mode: the response is
+    unbounded there).
+    """
+
+    frequency: float
+    natural_frequency: float
+    damping_ratio: float
+    mode: int
+    magnitude: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    """The check of a response against direct solves of (K - W^2 M + i W C) q = f.
+
+    ``check_frequencies`` [rad/s]: where it was made (spread over the range, one near the
+    first peak); ``max_relative_difference`` [-]: the largest ||H_modal - H_direct|| /
+    ||H_direct|| over them (norms over the positions); ``eigenvector_condition`` [-] the
+    1-norm condition number of V (unit columns); ``method``: ``"modal"``, or ``"direct"``
+    when the modal sum disagreed by more than :data:`FALLBACK_RTOL` and every frequency
+    was solved directly.
+    """
+
+    check_frequencies: tuple[float, ...]
+    max_relative_difference: float
+    eigenvector_condition: float
+    method: str
+
+
+@dataclass(frozen=True, eq=False)
+class FrequencyResponse:
+    """Frequency response at one operating point.
+
+    ``frequencies`` [rad/s] W; ``positions`` [m] where the response is given; ``H``
+    complex, shape ``(len(positions), len(frequencies))``, per unit load in ``unit``
+    (:data:`UNITS`: receptance m/N, mobility m/(N s), accelerance 1/kg; per unit base
+    acceleration s^2, s, -); ``velocity`` [m/s] and ``omega0`` [rad/s] the operating point;
+    ``eigenvalues`` [1/s] every xi of the frozen state matrix; ``peaks`` the resonances
+    within the range; ``stable`` False when some Re xi > 0 (no steady state: H is formal),
+    ``max_growth_rate`` [1/s] the largest Re xi (0 within rounding); ``warnings`` plain text.
+    """
+
+    frequencies: FloatArray
+    positions: FloatArray
+    H: ComplexArray
+    quantity: str
+    unit: str
+    load: Load
+    velocity: float
+    omega0: float
+    modes: int
+    eigenvalues: ComplexArray = field(repr=False)
+    peaks: tuple[Peak, ...]
+    stable: bool
+    max_growth_rate: float
+    diagnostics: Diagnostics
+    warnings: tuple[str, ...]
+
+    @property
+    def magnitude(self) -> FloatArray:
+        """|H| in ``unit``."""
+        return np.abs(self.H)
+
+    @property
+    def phase(self) -> FloatArray:
+        """arg H [rad] in (-pi, pi]: the response lags the load by -phase."""
+        return np.angle(self.H)
+
+
+@dataclass(frozen=True, eq=False)
+class DeflectionShape:
+    """Operating deflection shape: the response along the pipe at one frequency.
+
+    ``positions`` [m], ``frequency`` [rad/s], ``response`` complex H at each position (unit
+    of the quantity per unit load), ``amplitude`` = |H|, ``phase`` [rad] = arg H; the
+    physical motion is ``amplitude cos(W t + phase)`` per unit load amplitude.
+    """
+
+    positions: FloatArray
+    frequency: float
+    response: ComplexArray
+    amplitude: FloatArray
+    phase: FloatArray
+    quantity: str
+    unit: str
+
+
+# -- validation -------------------------------------------------------------------------
+def _check_operating_point(velocity: float, omega0: float) -> tuple[float, float]:
+    v, w0 = float(velocity), float(omega0)
+    if not math.isfinite(v):
+        raise InvalidInput(f"velocity must be finite, got {velocity} m/s", parameter="velocity")
+    if not math.isfinite(w0):
+        raise InvalidInput(f"omega0 must be finite, got {omega0} rad/s", parameter="omega0")
+    return v, w0
+
+
+def _check_modes(modes: int) -> int:
+    if int(modes) != modes or not 1 <= modes <= MAX_MODES:
+        raise InvalidInput(f"modes must be an integer between 1 and {MAX_MODES}", "modes")
+    return int(modes)
+
+
+def _check_positions(pipe: Pipe, positions: ArrayLike, name: str = "positions") -> FloatArray:
+    x = np.atleast_1d(np.asarray(positions, dtype=float))
+    if x.ndim != 1 or x.size == 0:
+        raise InvalidInput(f"{name} must be a non-empty list of positions [m]", name)
+    if x.size > MAX_POSITIONS:
+        raise InvalidInput(f"at most {MAX_POSITIONS} {name}, got {x.size}", name)
+    bad = np.flatnonzero(~(np.isfinite(x) & (x > 0.0) & (x <= pipe.L * (1 + 1e-12))))
+    if bad.size:
+        i = int(bad[0])
+        raise InvalidInput(f"{name}[{i}] = {x[i]} m is outside (0, L = {pipe.L} m]", name)
+    return np.minimum(x, pipe.L)
+
+
+def _check_load(pipe: Pipe, load: object) -> Load:
+    if isinstance(load, BaseAcceleration):
+        return load
+    if isinstance(load, PointForce):
+        a = float(load.position)
+        if not (math.isfinite(a) and 0.0 < a <= pipe.L * (1 + 1e-12)):
+            raise InvalidInput(f"load.position = {a} m is outside (0, L = {pipe.L} m]", "load")
+        return PointForce(min(a, pipe.L))
+    raise InvalidInput("load must be a PointForce or a BaseAcceleration", "load")
+
+
+def _check_frequencies(frequencies: ArrayLike) -> FloatArray:
+    W = np.atleast_1d(np.array(frequencies, dtype=float))  # a copy: returned read-only
+    if W.ndim != 1 or W.size == 0:
+        raise InvalidInput("frequencies must be a non-empty list [rad/s]", "frequencies")
+    if W.size > MAX_FREQUENCIES:
+        raise InvalidInput(f"at most {MAX_FREQUENCIES} frequencies, got {W.size}", "frequencies")
+    if not np.all(np.isfinite(W)) or np.any(W < 0):
+        raise InvalidInput("frequencies must be finite and >= 0 rad/s", "frequencies")
+    return W
+
+
+def _check_quantity(quantity: str) -> str:
+    if quantity not in UNITS:
+        raise InvalidInput(
+            f"unknown quantity {quantity!r}; use one of {', '.join(QUANTITIES)}", "quantity"
+        )
+    return quantity
+
+
+# -- the operating point ----------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class _Operator:
+    """The frozen model at (v, w0): second-order matrices and the eigen-decomposition."""
+
+    model: PipeModel
+    M: FloatArray
+    C: FloatArray
+    K: FloatArray
+    xi: ComplexArray
+    V_low: ComplexArray  # displacement rows of the right eigenvectors, (n, 2n)
+    W_left: ComplexArray  # V^-1, (2n, 2n)
+    condition: float
+
+
+def _operator(pipe: Pipe, v: float, w0: float, modes: int) -> _Operator:
+    model = build_model(pipe, modes)
+    c = Coefficients(np.array([v]), np.zeros(1), np.array([w0 * w0]), np.zeros(1))
+    A = model.state_matrix(c)[0]
+    xi, V = np.linalg.eig(A)
+    V = V / np.linalg.norm(V, axis=0, keepdims=True)
+    with np.errstate(all="ignore"):
+        W_left = np.linalg.solve(V, np.eye(V.shape[0], dtype=complex))
+        cond = float(np.linalg.norm(V, 1) * np.linalg.norm(W_left, 1))
+    n = modes
+    C = model.C_0 + v * model.C_v
+    K = model.K_0 + v * v * model.K_v2 + w0 * w0 * model.K_w2
+    return _Operator(model, model.M, C, K, xi, V[n:], W_left, cond)
+
+
+def _generalised_force(model: PipeModel, load: Load, shape: FloatArray | None = None) -> FloatArray:
+    """f_j per unit load: [N/N] for a point force, [kg] per unit base acceleration.
+    ``shape``: phi_j(a) when already evaluated."""
+    pipe, n = model.pipe, model.n
+    if isinstance(load, PointForce):
+        if shape is not None:
+            return shape
+        return mode_shapes(n, np.array([load.position / pipe.L]))[:, 0]
+    f = -pipe.mass * pipe.L * mode_integrals(n, model.quadrature_order).f
+    if pipe.tip_mass:
+        f = f - pipe.tip_mass * model.tip
+    return np.asarray(f)
+
+
+def _quantity_factor(quantity: str, W: FloatArray) -> ComplexArray:
+    """1, i W or -W^2 [1, 1/s, 1/s^2]: displacement to the quantity."""
+    iw = np.asarray(1j * W, dtype=np.complex128)
+    if quantity == "displacement":
+        return np.ones_like(iw)
+    return iw if quantity == "velocity" else iw * iw
+
+
+def resonances(pipe: Pipe, velocity: float, omega0: float, *, modes: int = 10) -> list[Resonance]:
+    """The modes of the frozen state matrix at v = ``velocity`` [m/s], w0 = ``omega0``
+    [rad/s], in mode order: one per conjugate pair (omega > 0); over-damped real roots
+    have no resonance and are left out.  For :func:`frequency_grid`."""
+    v, w0 = _check_operating_point(velocity, omega0)
+    op = _operator(pipe, v, w0, _check_modes(modes))
+    return _resonances(op.xi, pipe.damped)
+
+
+def _resonances(xi: ComplexArray, damped: bool) -> list[Resonance]:
+    tol = 1e-9 * float(np.max(np.abs(xi)))
+    numbers = mode_numbers(xi, damped)
+    level = float(rounding_level(xi))
+    out = []
+    for i in np.flatnonzero(xi.imag > tol):
+        mag = float(abs(xi[i]))
+        zeta = -float(xi[i].real) / mag
+        if abs(float(xi[i].real)) <= level:
+            zeta = 0.0
+        out.append(Resonance(complex(xi[i]), float(xi[i].imag), mag, zeta, int(numbers[i])))
+    return sorted(out, key=lambda r: (r.mode, r.frequency))
+
+
+# -- frequency grids --------------------------------------------------------------------
+def frequency_grid(
+    w_min: float,
+    w_max: float,
+    count: int,
+    spacing: str = "linear",
+    resonances: Sequence[float | Resonance] = (),
+) -> FloatArray:
+    """Frequencies [rad/s] from ``w_min`` to ``w_max``, ``count`` points (2 .. 20,000),
+    ``spacing`` "linear" or "log" (then w_min > 0), sorted and without duplicates.
+
+    ``resonances`` (frequencies [rad/s] or :class:`Resonance` objects, e.g. from
+    :func:`resonances`) inside the range are added so that no peak falls between two grid
+    points: a :class:`Resonance` adds its damped frequency Im xi and its two half-power
+    points; an undamped one (zeta = 0) adds nothing, its response being unbounded there.
+    At most ``count + 3 * len(resonances)`` points.
+    """
+    lo, hi = float(w_min), float(w_max)
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo < hi):
+        raise InvalidInput(f"need 0 <= w_min < w_max, got {w_min}, {w_max} rad/s", "w_min")
+    if int(count) != count or not 2 <= count <= MAX_GRID_POINTS:
+        raise InvalidInput(f"count must be an integer in 2 .. {MAX_GRID_POINTS}", "count")
+    if spacing == "linear":
+        grid = np.linspace(lo, hi, int(count))
+    elif spacing == "log":
+        if lo <= 0:
+            raise InvalidInput("a log grid needs w_min > 0 rad/s", "w_min")
+        grid = np.geomspace(lo, hi, int(count))
+    else:
+        raise InvalidInput(f"unknown spacing {spacing!r}; use 'linear' or 'log'", "spacing")
+    extra: list[float] = []
+    for r in resonances:
+        if isinstance(r, Resonance):
+            if r.damping_ratio > 0:
+                extra += [r.frequency, *r.half_power]
+        else:
+            extra.append(float(r))
+    pts = np.array([w for w in extra if math.isfinite(w) and lo <= w <= hi])
+    return np.unique(np.concatenate([grid, pts]))
+
+
+# -- responses --------------------------------------------------------------------------
+def _modal_sum(op: _Operator, out: FloatArray, b: ComplexArray, W: FloatArray) -> ComplexArray:
+    """Phi_out V_low diag(1/(iW - xi)) V^-1 b for all W: (p x 2n) @ (2n x nW)."""
+    left = (out @ op.V_low) * (op.W_left @ b)[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):  # W on an undamped pole
+        return np.asarray(left @ (1.0 / (1j * W[None, :] - op.xi[:, None])))
+
+
+def _direct(op: _Operator, out: FloatArray, f: FloatArray, W: FloatArray) -> ComplexArray:
+    """Phi_out (K - W^2 M + i W C)^-1 f, one batched solve per frequency."""
+    D = op.K[None] - (W**2)[:, None, None] * op.M[None] + (1j * W)[:, None, None] * op.C[None]
+    rhs = np.broadcast_to(f.astype(complex), (W.size, f.size))[..., None]
+    q = np.linalg.solve(D, rhs)[..., 0]
+    return np.asarray(out @ q.T)
+
+
+def _check_points(W: FloatArray, peaks: list[Resonance]) -> FloatArray:
+    """Up to five of the (sorted, pole-free) frequencies ``W`` spread over them, one of them
+    the nearest to the first peak inside (0.1 % above it when undamped)."""
+    if W.size == 0:
+        return W
+    idx = set(np.linspace(0, W.size - 1, min(DIAGNOSTIC_POINTS - 1, W.size)).astype(int))
+    inside = [r for r in peaks if W[0] <= r.frequency <= W[-1]]
+    if inside:
+        r = inside[0]
+        near = r.frequency * (1.0 + (1e-3 if r.damping_ratio == 0.0 else 0.0))
+        idx.add(int(np.argmin(np.abs(W - near))))
+    return np.sort(W[sorted(idx)])
+
+
+def frequency_response(
+    pipe: Pipe,
+    velocity: float,
+    omega0: float,
+    *,
+    load: Load,
+    positions: ArrayLike,
+    frequencies: ArrayLike,
+    quantity: str = "displacement",
+    modes: int = 10,
+) -> FrequencyResponse:
+    """Frequency response of ``pipe`` at constant flow ``velocity`` v [m/s] and spin
+    ``omega0`` w0 [rad/s] (the pipe's damping, tip body, hub radius and plane included).
+
+    Parameters
+    ----------
+    load : :class:`PointForce` (per unit force [N]) or :class:`BaseAcceleration` (per unit
+        clamp acceleration [m/s^2]).
+    positions : where the response is wanted, x [m] in (0, L].
+    frequencies : W [rad/s] >= 0, answered at exactly these values (see
+        :func:`frequency_grid`; at most :data:`MAX_FREQUENCIES`).
+    quantity : "displacement" (receptance), "velocity" (mobility i W H) or "acceleration"
+        (accelerance -W^2 H), relative to the clamp; units in :data:`UNITS`.
+    modes : Galerkin (cantilever) modes n, 1 .. 40.
+
+    Returns a :class:`FrequencyResponse`, H of shape (positions, frequencies).
+    """
+    v, w0 = _check_operating_point(velocity, omega0)
+    n = _check_modes(modes)
+    load = _check_load(pipe, load)
+    x = _check_positions(pipe, positions)
+    W = _check_frequencies(frequencies)
+    quantity = _check_quantity(quantity)
+
+    op = _operator(pipe, v, w0, n)
+    model = op.model
+    a: list[float] = [load.position] if isinstance(load, PointForce) else []
+    shapes = mode_shapes(n, np.concatenate([x, a]) / pipe.L)  # (n, p [+ 1])
+    out = shapes[:, : x.size].T  # (p, n)
+    f = _generalised_force(model, load, shapes[:, -1] if a else None)
+    b = np.concatenate([np.linalg.solve(model.M, f) / model.omega_ref, np.zeros(n)])
+    b = b.astype(complex)
+    H = _modal_sum(op, out, b, W)
+
+    # frequencies on an undamped pole (|i W - xi| at rounding): H is unbounded there
+    on_pole = np.zeros(W.size, dtype=bool)
+    level = float(rounding_level(op.xi))
+    for pole in op.xi[np.abs(op.xi.real) <= level]:
+        on_pole |= np.abs(W - pole.imag) <= max(level, 1e-12 * abs(pole))
+    res = _resonances(op.xi, pipe.damped)
+    checks = _check_points(np.sort(W[~on_pole]), sorted(res, key=lambda r: r.frequency))
+    Hd = _direct(op, out, f, checks)
+    with np.errstate(all="ignore"):
+        rel = np.linalg.norm(_modal_sum(op, out, b, checks) - Hd, axis=0)
+        rel = rel / np.linalg.norm(Hd, axis=0)
+    rel = np.where(np.isfinite(rel), rel, np.inf)
+    max_rel = float(rel.max()) if rel.size else 0.0
+    warnings: list[str] = []
+    method = "modal"
+    if not max_rel <= FALLBACK_RTOL:
+        method = "direct"
+        H[:, ~on_pole] = _direct(op, out, f, W[~on_pole])
+        warnings.append(
+            f"the modal sum differed from direct solves by {max_rel:.2g} (relative; eigenvector "
+            f"condition number {op.condition:.2g}: coalescing eigenvalues), so every "
+            "frequency was solved directly"
+        )
+    H[:, on_pole] = 0.0
+    H = H * _quantity_factor(quantity, W)[None, :]
+    if on_pole.any():
+        H[:, on_pole] = complex(math.inf, 0.0)
+        warnings.append(
+            f"{int(on_pole.sum())} frequencies (the first {W[on_pole][0]:.6g} rad/s) fall on "
+            "an undamped resonance, where the response is unbounded: H is inf there"
+        )
+
+    growth = float(max_growth_rates(op.xi[None])[0])
+    stable = growth <= 0.0
+    if not stable:
+        warnings.append(
+            f"unstable operating point: the largest growth rate Re xi is {growth:.4g} 1/s > 0 "
+            f"(v = {v} m/s, w0 = {w0} rad/s beyond the critical velocity), so there is no "
+            "steady state; H is a formal quantity only"
+        )
+    if v < 0:
+        warnings.append(REVERSE_FLOW_CAVEAT)
+    warnings += basis_caveats(pipe)
+
+    inside = [r for r in res if W.min() <= r.frequency <= W.max()]
+    Wp = np.array([r.frequency for r in inside if r.damping_ratio != 0.0])
+    hp = _modal_sum(op, out, b, Wp) if method == "modal" else _direct(op, out, f, Wp)
+    hp = np.abs(hp * _quantity_factor(quantity, Wp)[None, :])
+    peaks, k = [], 0
+    for r in inside:
+        if r.damping_ratio == 0.0:
+            mag = tuple(math.inf for _ in x)
+        else:
+            mag, k = tuple(float(m) for m in hp[:, k]), k + 1
+        peaks.append(Peak(r.frequency, r.natural_frequency, r.damping_ratio, r.mode, mag))
+
+    unit = UNITS[quantity][0 if isinstance(load, PointForce) else 1]
+    for arr in (W, x, H, op.xi):
+        arr.setflags(write=False)
+    return FrequencyResponse(
+        frequencies=W,
+        positions=x,
+        H=H,
+        quantity=quantity,
+        unit=unit,
+        load=load,
+        velocity=v,
+        omega0=w0,
+        modes=n,
+        eigenvalues=op.xi,
+        peaks=tuple(peaks),
+        stable=stable,
+        max_growth_rate=growth,
+        diagnostics=Diagnostics(tuple(float(c) for c in checks), max_rel, op.condition, method),
+        warnings=tuple(warnings),
+    )
+
+
+def frequency_responses(
+    pipe: Pipe,
+    velocity: ArrayLike,
+    omega0: ArrayLike,
+    *,
+    load: Load,
+    positions: ArrayLike,
+    frequencies: ArrayLike,
+    quantity: str = "displacement",
+    modes: int = 10,
+) -> tuple[FrequencyResponse, ...]:
+    """:func:`frequency_response` at several operating points: ``velocity`` [m/s] and
+    ``omega0`` [rad/s] broadcast together (at most :data:`MAX_OPERATING_POINTS` points),
+    one response per point in broadcast (C) order, all at the same ``frequencies`` [rad/s].
+    ``np.stack([r.H for r in ...])`` gives H with a leading operating-point axis."""
+    try:
+        v, w = np.broadcast_arrays(np.asarray(velocity, float), np.asarray(omega0, float))
+    except ValueError as exc:
+        raise InvalidInput(f"velocity and omega0 do not broadcast: {exc}", "omega0") from exc
+    if v.size > MAX_OPERATING_POINTS:
+        raise InvalidInput(
+            f"at most {MAX_OPERATING_POINTS} operating points, got {v.size}", "velocity"
+        )
+    return tuple(
+        frequency_response(
+            pipe,
+            float(vi),
+            float(wi),
+            load=load,
+            positions=positions,
+            frequencies=frequencies,
+            quantity=quantity,
+            modes=modes,
+        )
+        for vi, wi in zip(v.ravel(), w.ravel(), strict=True)
+    )
+
+
+def deflection_shape(
+    pipe: Pipe,
+    velocity: float,
+    omega0: float,
+    *,
+    load: Load,
+    frequency: float,
+    positions: ArrayLike | None = None,
+    quantity: str = "displacement",
+    modes: int = 10,
+) -> DeflectionShape:
+    """Operating deflection shape at one ``frequency`` W [rad/s]: the response along the
+    pipe (``positions`` x [m] in (0, L]; default 100 points from L/100 to L) to ``load`` at
+    v = ``velocity`` [m/s], w0 = ``omega0`` [rad/s], as amplitude and phase [rad]."""
+    x = np.linspace(pipe.L / 100, pipe.L, 100) if positions is None else positions
+    r = frequency_response(
+        pipe,
+        velocity,
+        omega0,
+        load=load,
+        positions=x,
+        frequencies=[frequency],
+        quantity=quantity,
+        modes=modes,
+    )
+    h = np.asarray(r.H[:, 0])
+    return DeflectionShape(
+        r.positions, float(r.frequencies[0]), h, np.abs(h), np.angle(h), quantity, r.unit
+    )

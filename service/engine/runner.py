@@ -1,0 +1,571 @@
+"""The replica's side of the engine: computations as Dask tasks, driven to a terminal job record.
+
+Embedded mode (default): the app's lifespan starts a ``distributed.LocalCluster`` of
+``PIPEFLOW_WORKERS`` worker processes (one thread and one BLAS thread each).  Distributed
+mode: ``PIPEFLOW_SCHEDULER_ADDRESS=tcp://host:8786`` makes the service a client of an
+existing cluster (``dask scheduler`` + ``dask worker --nthreads 1 --preload
+service.engine.preload``).
+
+One computation is one Dask task (:func:`service.engine.task.run_job`) keyed by the
+parameter hash (plus the job's generation and attempt): identical requests from any
+replica share it.  The task owns the job record while it runs (a lease in the store), so
+the replica that submitted it may die.  Here, per replica:
+
+- :meth:`Runner.submit` writes the job record, then returns the one in-flight
+  :class:`asyncio.Task` per key that drives it to a terminal state (single flight);
+- a monitor loop wakes flights whose job finished or was cancelled, keeps the heartbeat
+  of queued jobs this replica waits for, probes a failed store until it is writable
+  again, and resubmits any job whose heartbeat went stale (its worker, its replica or the
+  scheduler died): nothing accepted is lost.
+
+Limits: at most ``workers + queue_size`` distinct computations are in flight per replica
+(:class:`QueueFull` beyond, answered with 503); a job whose computation started
+:data:`MAX_ATTEMPTS` times without finishing is failed with the reason.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import logging
+import time
+import uuid
+from collections.abc import Awaitable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from pipeflow.errors import ErrorRecord, StorageError
+from pipeflow.schema.registry import COMPUTATIONS
+from service import observability
+from service.engine.preload import WORKER_ENV
+from service.engine.task import Outcome, TaskConfig, run_job
+from service.keys import Keyed
+from service.settings import Settings
+from service.store import Job, Store
+
+log = logging.getLogger("service.engine")
+
+#: extra time past the runtime limit before a silent computation's worker is killed [s]
+WATCHDOG_GRACE_S = 5.0
+#: starts of one computation (worker deaths under it) before its job is failed
+MAX_ATTEMPTS = 3
+#: Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in the workers' environment by default
+#: (to hand freed memory back to the OS); glibc then trims after every large free and the
+#: paper example's many temporaries ran 1.3-1.7x slower (pipeflow's own measurement): the
+#: embedded workers keep glibc's default, adaptive threshold
+NANNY_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+#: bound on the warm-up tasks of the workers at start [s]
+WARM_UP_TIMEOUT_S = 60.0
+
+
+class QueueFull(Exception):
+    """No room for another computation."""
+
+
+class ComputationFailed(Exception):
+    """The computation ended in a failure; ``error`` is what its job record says (an
+    :class:`~pipeflow.errors.ErrorRecord` as JSON, see :meth:`ErrorRecord.to_dict`)."""
+
+    def __init__(self, error: dict[str, Any]) -> None:
+        record = ErrorRecord.from_dict(error)
+        super().__init__(record.message if record is not None else error.get("detail", "failed"))
+        self.error = error
+
+
+class ComputationCancelled(Exception):
+    """The computation was cancelled (DELETE on its job)."""
+
+
+@dataclass
+class Flight:
+    job: Keyed
+    task: asyncio.Task[bytes] | None = None
+    accepted: asyncio.Event = field(default_factory=asyncio.Event)
+    changed: asyncio.Event = field(default_factory=asyncio.Event)
+    resubmits: int = 0
+    #: a DELETE asked this run to stop: a resubmission waits for it and starts a new run
+    cancelled: bool = False
+    #: how long the last finished attempt computed [s] (for the computation metrics)
+    seconds: float | None = None
+
+    @property
+    def key(self) -> str:
+        return self.job.key
+
+
+def _internal(message: str) -> dict[str, Any]:
+    """A job record's error: the engine failed (not the computation)."""
+    return ErrorRecord.internal(message).to_dict()
+
+
+class Runner:
+    """The replica's side of the engine (the name is the routes' seam: ``RunnerDep``)."""
+
+    def __init__(self, settings: Settings, store: Store) -> None:
+        self.settings = settings
+        self.store = store
+        self.capacity = settings.workers + settings.queue_size
+        self.computations = 0  # Dask tasks this replica submitted (tests check single flight)
+        self.ready = False
+        self.watchdog_grace_s = WATCHDOG_GRACE_S
+        self.client: Any = None
+        self._cluster: Any = None
+        self._connected = asyncio.Event()
+        self._flights: dict[str, Flight] = {}
+        self._background: set[asyncio.Task[Any]] = set()
+        # jobs to fail with their storage error once the store takes writes again
+        self._pending_failures: dict[str, dict[str, Any]] = {}
+        self.poll_s = min(settings.progress_interval_s, 0.5)
+
+    # -- lifecycle -----------------------------------------------------------------------
+
+    async def start(self) -> None:
+        """Start (or connect to) the cluster, then recover jobs left active."""
+        import dask
+        from distributed import Client, LocalCluster
+
+        address = self.settings.scheduler_address
+        if address:
+            self.client = await Client(address, asynchronous=True, timeout="60s")
+        else:
+            with dask.config.set(NANNY_ENVIRON):  # read by each nanny when it is created
+                self._cluster = await LocalCluster(
+                    n_workers=self.settings.workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    # the scheduler always serves HTTP (health, metrics); no dashboard, and a free
+                    # localhost port instead of 8787, which a second server on the host would hold
+                    dashboard_address="127.0.0.1:0",
+                    scheduler_kwargs={"dashboard": False},
+                    asynchronous=True,
+                    env=dict(
+                        WORKER_ENV,
+                        PIPEFLOW_LOG_LEVEL=self.settings.log_level,
+                        PIPEFLOW_LOG_FORMAT=self.settings.log_format,
+                    ),
+                    preload=["service.engine.preload"],
+                    silence_logs=logging.WARNING,
+                )
+            self.client = await Client(self._cluster, asynchronous=True)
+        self._connected.set()
+        pruned = await asyncio.to_thread(
+            self.store.prune_jobs, time.time() - self.settings.job_retention_s
+        )
+        if pruned:
+            log.info("pruned %d old job records", pruned)
+        for job in await asyncio.to_thread(self.store.active_jobs):
+            await self._recover(job)
+        self._spawn(self._warm_up())
+        self._spawn(self._monitor())
+
+    async def stop(self) -> None:
+        for task in list(self._background):
+            task.cancel()
+        for flight in list(self._flights.values()):
+            if flight.task is not None:
+                flight.task.cancel()  # records stay active: a live replica recovers them
+        self.ready = False
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self.client.close(), 10)
+        if self._cluster is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._cluster.close(), 10)
+
+    def _spawn(self, coro: Any) -> None:
+        task = asyncio.create_task(coro)
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
+
+    async def _warm_up(self) -> None:
+        """Ready once a worker is connected (the embedded cluster: all of them) and each
+        connected worker ran :func:`service.engine.preload.warm_task` (a failure there is
+        logged: the first job then pays for it)."""
+        wanted = 1 if self.settings.scheduler_address else self.settings.workers
+        await self.client.wait_for_workers(wanted)
+        try:
+            await asyncio.wait_for(self._warm_workers(), WARM_UP_TIMEOUT_S)
+        except Exception as exc:
+            log.warning("worker warm-up task failed: %s: %s", type(exc).__name__, exc)
+        self.ready = True
+
+    async def _warm_workers(self) -> None:
+        from service.engine.preload import warm_task
+
+        cfg = self._config()
+        identity = await self.client.scheduler.identity()  # not the client's cached copy
+        workers = list(identity.get("workers", {}))
+        futures = [
+            self.client.submit(
+                warm_task,
+                cfg,
+                workers=[address],
+                allow_other_workers=False,
+                pure=False,
+                key=f"warm-up-{uuid.uuid4().hex}",
+            )
+            for address in workers
+        ]
+        await self.client.gather(futures)
+
+    @property
+    def workers(self) -> int:
+        """Workers connected to the scheduler now."""
+        if self.client is None:
+            return 0
+        try:
+            return len(self.client.scheduler_info().get("workers", {}))
+        except Exception:
+            return 0
+
+    async def call(self, fn: Any, *args: Any) -> Any:
+        """Run a picklable function on a worker (tests and diagnostics)."""
+        return await self.client.submit(fn, *args, pure=False)
+
+    # -- state ---------------------------------------------------------------------------
+
+    @property
+    def in_flight(self) -> int:
+        return len(self._flights)
+
+    @property
+    def saturated(self) -> bool:
+        return len(self._flights) >= self.capacity
+
+    def is_active(self, key: str) -> bool:
+        return key in self._flights
+
+    # -- submission ----------------------------------------------------------------------
+
+    async def submit(
+        self, job: Keyed, *, force: bool = False, recover: bool = False
+    ) -> asyncio.Task[bytes]:
+        """The in-flight task for ``job.key``, started if needed, once its record is written.
+
+        ``force`` recomputes even if a result is stored; ``recover`` drives a record that
+        is already active and bypasses the bound.  A run that a DELETE asked to stop
+        (:meth:`cancel`) is never shared: the resubmission waits until it has stopped (its
+        task checks the flag at its next heartbeat), then starts a new run.
+        Raises :class:`QueueFull`, or :class:`StorageError` when the store is failing.
+        """
+        key = job.key
+        if not recover and not self.store.healthy:
+            raise self.store.unavailable()  # its result could not be stored either
+        while (old := self._flights.get(key)) is not None and old.cancelled:
+            assert old.task is not None
+            with contextlib.suppress(Exception, asyncio.CancelledError):
+                await asyncio.shield(old.task)
+            if self._flights.get(key) is old:  # its done-callback has not run yet
+                del self._flights[key]
+        flight = self._flights.get(key)
+        if flight is None and not recover and self.saturated:
+            await self._release_finished()
+            flight = self._flights.get(key)
+        if flight is None:
+            if not recover and self.saturated:
+                raise QueueFull(f"{self.in_flight} computations in flight")
+            flight = Flight(job)
+            self._flights[key] = flight
+            flight.task = asyncio.create_task(self._drive(flight, force, recover))
+            flight.task.add_done_callback(functools.partial(self._done, flight))
+        elif not recover:
+            # joining: a finished record is accepted again (a new generation)
+            name = job.computation.name
+            await asyncio.to_thread(self.store.enqueue_job, key, name, job.canonical, refresh=force)
+            flight.changed.set()
+        await flight.accepted.wait()
+        assert flight.task is not None
+        if flight.task.done() and not flight.task.cancelled():
+            exc = flight.task.exception()
+            if isinstance(exc, StorageError):
+                raise exc
+        return flight.task
+
+    async def _release_finished(self, wait_s: float = 1.0) -> None:
+        """Free the slots of flights whose job record has already ended (e.g. failed by a
+        worker's watchdog) without waiting for the monitor's next tick: wake them and give
+        them up to ``wait_s`` [s] to leave.  A store that cannot be read frees nothing."""
+        keys = list(self._flights)
+        try:
+            records = await asyncio.to_thread(self.store.jobs_by_key, keys)
+        except StorageError:
+            return
+        ended = []
+        for key in keys:
+            job, flight = records.get(key), self._flights.get(key)
+            if (
+                flight is not None
+                and flight.task is not None
+                and job is not None
+                and not job.active
+            ):
+                flight.changed.set()
+                ended.append(flight.task)
+        if ended:
+            await asyncio.wait(ended, timeout=wait_s)
+
+    def cancel(self, key: str) -> None:
+        """Mark the run of ``key`` (if any) as asked to stop; see :meth:`submit`.  The job
+        record's cancel flag, which the task reads, is set by the caller."""
+        flight = self._flights.get(key)
+        if flight is not None:
+            flight.cancelled = True
+            flight.changed.set()
+
+    def _done(self, flight: Flight, task: asyncio.Task[bytes]) -> None:
+        if self._flights.get(flight.key) is flight:
+            del self._flights[flight.key]
+        if not task.cancelled():
+            task.exception()  # retrieved here so an unobserved job failure is not logged twice
+
+    async def _recover(self, job: Job) -> None:
+        computation = COMPUTATIONS.get(job.kind)
+        try:
+            if computation is None:
+                raise LookupError(f"unknown job kind {job.kind!r} after restart")
+            # a stored request is validated like a new one (once, for this run)
+            request: BaseModel = computation.request.model_validate(job.spec)
+        except (LookupError, ValidationError) as exc:
+            await asyncio.to_thread(self.store.finish_job, job.key, "failed", _internal(str(exc)))
+            return
+        log.info("recovering %s job %s (%s)", job.kind, job.key, job.status)
+        await self.submit(Keyed(computation, request, job.spec, job.key), recover=True)
+
+    def _config(self) -> TaskConfig:
+        s = self.settings
+        return TaskConfig(
+            db_url=s.db_url,
+            cache_max_bytes=s.cache_max_bytes,
+            timeout_s=s.job_timeout_s,
+            progress_interval_s=s.progress_interval_s,
+            stale_after_s=s.stale_after_s,
+            grace_s=max(self.watchdog_grace_s, 0.1 * s.job_timeout_s),
+        )
+
+    def _submit_task(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
+        """Start the task of ``job`` (:func:`service.engine.task.run_job`) and count it;
+        the seam tests replace to run it elsewhere."""
+        self.computations += 1
+        return self._execute(flight, job)
+
+    def _execute(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
+        from distributed import fire_and_forget
+
+        dask_key = f"{job.kind}-{job.key}-g{job.generation}-a{job.attempts}"
+        if flight.resubmits:
+            dask_key += f"-r{flight.resubmits}"
+        fut = self.client.submit(
+            run_job,
+            flight.job.computation,
+            flight.job.request,
+            job.key,
+            self._config(),
+            observability.request_id(),
+            key=dask_key,
+            pure=False,
+        )
+        fire_and_forget(fut)  # runs to the end even if this replica goes away
+        awaitable: Awaitable[Outcome] = fut
+        return awaitable
+
+    async def _wait(self, flight: Flight, waiter: asyncio.Future[Any] | None) -> None:
+        """Until ``waiter`` is done, the monitor flags a change, or one poll interval."""
+        changed = asyncio.ensure_future(flight.changed.wait())
+        pending = {changed} | ({waiter} if waiter is not None else set())
+        timeout = None if waiter is not None else self.settings.stale_after_s / 4
+        try:
+            await asyncio.wait(pending, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            changed.cancel()
+        flight.changed.clear()
+
+    async def _drive(self, flight: Flight, force: bool, recover: bool) -> bytes:
+        started = time.perf_counter()
+        try:
+            body = await self._drive_once(flight, force, recover)
+        except ComputationCancelled:
+            self._record(flight, "cancelled", started, None)
+            raise
+        except ComputationFailed:
+            self._record(flight, "error", started, None)
+            raise
+        self._record(flight, "ok", started, body)
+        return body
+
+    def _record(self, flight: Flight, outcome: str, started: float, body: bytes | None) -> None:
+        """Count a computation this flight saw finish (not a result found stored)."""
+        if flight.seconds is None and outcome != "cancelled":
+            return
+        seconds = flight.seconds if flight.seconds is not None else time.perf_counter() - started
+        observability.record_computation(flight.job.computation.name, outcome, seconds, body)
+
+    async def _stopped(self, flight: Flight, waiter: asyncio.Future[Any] | None) -> None:
+        """A DELETE asked this run to stop: wait until its task has stopped (or never
+        took the lease), reading the record through the monitor's query only."""
+        while waiter is not None and not waiter.done():
+            records = await asyncio.to_thread(self.store.jobs_by_key, [flight.key])
+            record = records.get(flight.key)
+            if record is None or record.owner is None:
+                break  # not computing: the task finds the record cancelled when it starts
+            await self._wait(flight, waiter)
+        raise ComputationCancelled("cancelled by request")
+
+    async def _drive_once(self, flight: Flight, force: bool, recover: bool) -> bytes:
+        key, job_in = flight.key, flight.job
+        try:
+            if not recover:
+                await asyncio.to_thread(
+                    self.store.enqueue_job,
+                    key,
+                    job_in.computation.name,
+                    job_in.canonical,
+                    refresh=force,
+                )
+        finally:
+            flight.accepted.set()
+        await self._connected.wait()
+        waiter: asyncio.Future[Any] | None = None
+        tag: tuple[int, int] | None = None
+        while True:
+            if flight.cancelled:
+                await self._stopped(flight, waiter)
+            try:
+                job = await asyncio.to_thread(self.store.get_job, key)
+            except StorageError:
+                await asyncio.sleep(self.settings.retry_after_s)
+                continue
+            if job is None:
+                raise ComputationFailed(_internal(f"the record of job {key} disappeared"))
+            if not job.active:
+                if waiter is not None and job.started is not None and job.finished is not None:
+                    # our task finished it (its own answer may still be on the way)
+                    flight.seconds = job.finished - job.started
+                return await self._outcome(job)
+            if waiter is not None and not waiter.done():
+                await self._wait(flight, waiter)
+                continue
+            if waiter is not None:
+                outcome = waiter.result()
+                waiter = None
+                if outcome.seconds is not None:
+                    flight.seconds = outcome.seconds
+                if outcome.status == "storage":
+                    assert outcome.error is not None
+                    await self._storage_failure(key, outcome.error)
+                if outcome.status == "exception":
+                    log.warning("task of job %s ended abnormally: %s", key, outcome.note)
+                    flight.resubmits += 1  # a fresh Dask key: the old one may be erred
+                    tag = None
+                    await asyncio.sleep(self.poll_s)
+                    continue
+            stale = (
+                job.heartbeat is None or time.time() - job.heartbeat >= self.settings.stale_after_s
+            )
+            if job.owner is not None and not stale:
+                await self._wait(flight, None)  # a live attempt holds the lease
+                continue
+            if job.owner is not None and job.attempts >= MAX_ATTEMPTS:
+                await asyncio.to_thread(
+                    self.store.finish_job,
+                    key,
+                    "failed",
+                    _internal(
+                        f"the computation started {job.attempts} times and its worker died each "
+                        f"time (last: attempt {job.attempts} on {job.worker} stopped "
+                        "heartbeating)"
+                    ),
+                )
+                continue
+            if tag == (job.generation, job.attempts) and job.owner is None and not stale:
+                await self._wait(flight, None)  # our task ran and left it queued: wait
+                continue
+            tag = (job.generation, job.attempts)
+            waiter = asyncio.ensure_future(self._result_of(self._submit_task(flight, job)))
+
+    @staticmethod
+    async def _result_of(fut: Awaitable[Outcome]) -> Outcome:
+        try:
+            return await fut
+        except asyncio.CancelledError:
+            return Outcome("exception", note="cancelled by the scheduler (restarted or lost)")
+        except Exception as exc:
+            return Outcome("exception", note=f"{type(exc).__name__}: {exc}")
+
+    async def _storage_failure(self, key: str, failure: ErrorRecord) -> None:
+        """The task could not store its result: fail the job with the reason (if the store
+        takes that write) and answer the waiting request with the storage error."""
+        message, full = failure.message, bool(failure.data.get("full"))
+        doc = ErrorRecord(
+            "storage",
+            "storage",
+            f"the result could not be stored: {message}",
+            data={"full": full},
+        ).to_dict()
+        self.store.mark_failed(message, full=full)  # not ready until a probe write succeeds
+        try:
+            await asyncio.to_thread(self.store.finish_job, key, "failed", doc)
+        except StorageError:
+            self._pending_failures[key] = doc  # written by the monitor once writes work
+        raise StorageError(message, full=full)
+
+    async def _outcome(self, job: Job) -> bytes:
+        if job.status == "succeeded":
+            # sent once to the requests waiting for it, not kept in the store's memory
+            # front: a 60 s mixed load filled that to its 64 MB bound with fresh results
+            body = await asyncio.to_thread(
+                functools.partial(self.store.get_result, job.key, remember=False)
+            )
+            if body is None:
+                raise ComputationFailed(_internal(f"the result of job {job.key} was evicted"))
+            return body
+        if job.status == "cancelled":
+            raise ComputationCancelled(str((job.error or {}).get("detail", "cancelled")))
+        raise ComputationFailed(job.error or _internal("failed"))
+
+    # -- the monitor -----------------------------------------------------------------------
+
+    async def _monitor(self) -> None:
+        """Wake flights on changes, heartbeat queued jobs, probe the store, recover stale jobs."""
+        stale_after = self.settings.stale_after_s
+        last_touch = last_recovery = 0.0
+        while True:
+            await asyncio.sleep(self.poll_s)
+            try:
+                if not self.store.healthy:
+                    await asyncio.to_thread(self.store.probe)
+                    continue
+                while self._pending_failures:
+                    key, doc = next(iter(self._pending_failures.items()))
+                    await asyncio.to_thread(self.store.finish_job, key, "failed", doc)
+                    del self._pending_failures[key]
+                now = time.time()
+                keys = list(self._flights)
+                records = await asyncio.to_thread(self.store.jobs_by_key, keys)
+                for key in keys:
+                    job = records.get(key)
+                    flight = self._flights.get(key)
+                    if flight is None:
+                        continue
+                    lease_dead = (
+                        job is not None
+                        and job.owner is not None
+                        and (job.heartbeat is None or now - job.heartbeat >= stale_after)
+                    )
+                    if job is None or not job.active or lease_dead:
+                        flight.changed.set()
+                if now - last_touch >= stale_after / 3:
+                    last_touch = now
+                    queued = [k for k, j in records.items() if j.status == "queued"]
+                    await asyncio.to_thread(self.store.touch, queued)
+                if now - last_recovery >= stale_after / 2:
+                    last_recovery = now
+                    for job in await asyncio.to_thread(self.store.stale_jobs, stale_after):
+                        if job.key not in self._flights:
+                            await self._recover(job)
+            except StorageError:
+                continue
+            except Exception:
+                log.exception("engine monitor")

@@ -1,0 +1,276 @@
+"""The layers of the code base, read from the source with :mod:`ast` (nothing is imported).
+
+Three rules:
+
+1. no import circle among the modules of ``pipeflow``, ``service``, ``pipeflow_client`` and
+   ``pipeflow_cli``
+   (every import counts, deferred ones inside functions too: a circle broken only by
+   deferring an import is still a circle of responsibilities; imports under
+   ``if TYPE_CHECKING:`` do not count);
+2. the library (``pipeflow``) imports nothing of the service, of the client, nor of the web
+   and cluster stack (fastapi, starlette, uvicorn, distributed, sqlalchemy);
+3. the engine (``service.engine``) imports nothing of the HTTP layer (``service.http``, the
+   routes and what builds answers, fastapi, starlette): it returns plain outcomes and
+   neutral error records, which only the HTTP layer turns into problem documents.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("pipeflow", "service", "pipeflow_client", "pipeflow_cli")
+
+
+#: what the library must not import (rule 2)
+LIBRARY_FORBIDDEN = (
+    "service",
+    "pipeflow_client",
+    "fastapi",
+    "starlette",
+    "uvicorn",
+    "distributed",
+    "sqlalchemy",
+)
+
+#: the HTTP layer, which the engine must not import (rule 3)
+HTTP_LAYER = (
+    "service.http",
+    "service.routes",
+    "service.problems",
+    "service.orchestration",
+    "service.main",
+    "service.deps",
+    "fastapi",
+    "starlette",
+)
+
+
+@dataclass(frozen=True)
+class Import:
+    module: str  # the importing module
+    target: str  # the imported module (a submodule when ``from pkg import submodule``)
+    line: int
+    deferred: bool  # inside a function
+
+
+def module_name(root: Path, path: Path) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def source_files(root: Path, packages: Iterable[str]) -> Iterator[Path]:
+    for package in packages:
+        top = root / package
+        if top.is_dir():
+            yield from sorted(p for p in top.rglob("*.py") if "migrations" not in p.parts[:-1])
+
+
+def _type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def imports_of(root: Path, path: Path, modules: set[str]) -> list[Import]:
+    """Every import of the file at ``path`` (``modules``: the known modules, to tell a
+    submodule from a name in ``from package import name``)."""
+    name = module_name(root, path)
+    is_package = path.name == "__init__.py"
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    found: list[Import] = []
+
+    def visit(node: ast.AST, deferred: bool) -> None:
+        if isinstance(node, ast.If) and _type_checking(node):
+            for child in node.orelse:
+                visit(child, deferred)
+            return
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                found.append(Import(name, alias.name, node.lineno, deferred))
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = name.split(".")
+                keep = len(parts) - node.level + (1 if is_package else 0)
+                base = ".".join(parts[:keep] + ([base] if base else []))
+            for alias in node.names:
+                sub = f"{base}.{alias.name}"
+                target = sub if sub in modules else base
+                found.append(Import(name, target, node.lineno, deferred))
+        inner = deferred or isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda)
+        for child in ast.iter_child_nodes(node):
+            visit(child, inner)
+
+    visit(tree, False)
+    return found
+
+
+def all_imports(root: Path, packages: Iterable[str] = PACKAGES) -> list[Import]:
+    files = list(source_files(root, packages))
+    modules = {module_name(root, p) for p in files}
+    return [imp for p in files for imp in imports_of(root, p, modules)]
+
+
+def within(target: str, prefixes: Iterable[str]) -> bool:
+    return any(target == p or target.startswith(p + ".") for p in prefixes)
+
+
+def circles(imports: Iterable[Import]) -> list[frozenset[str]]:
+    """The import circles: strongly connected groups of two or more modules (Tarjan)."""
+    graph: dict[str, set[str]] = {}
+    for imp in imports:
+        graph.setdefault(imp.module, set())
+    for imp in imports:
+        if imp.target in graph and imp.target != imp.module:
+            graph[imp.module].add(imp.target)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[frozenset[str]] = []
+    counter = [0]
+
+    def connect(v: str) -> None:  # recursion depth: the longest import chain (small)
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = set()
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                group.add(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                found.append(frozenset(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            connect(v)
+    return found
+
+
+def violations(
+    imports: Iterable[Import],
+    layer: str,
+    forbidden: Iterable[str],
+) -> list[str]:
+    """``module:line imports target`` for each import of ``layer`` that is ``forbidden``"""
+    forbidden = tuple(forbidden)
+    return [
+        f"{imp.module}:{imp.line} imports {imp.target}"
+        for imp in imports
+        if within(imp.module, [layer]) and within(imp.target, forbidden)
+    ]
+
+
+# -- the rules, on the tree ----------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tree_imports() -> list[Import]:
+    return all_imports(ROOT)
+
+
+def test_no_import_circles(tree_imports: list[Import]) -> None:
+    found = circles(tree_imports)
+    assert not found, "import circles: " + "; ".join(" <-> ".join(sorted(c)) for c in found)
+
+
+def test_library_imports_no_service_client_or_web_stack(tree_imports: list[Import]) -> None:
+    bad = violations(tree_imports, "pipeflow", LIBRARY_FORBIDDEN)
+    assert not bad, "the library imports the service, the client or the web stack:\n" + "\n".join(
+        bad
+    )
+
+
+def test_client_and_command_line_stay_front_ends(tree_imports: list[Import]) -> None:
+    """The client speaks HTTP to the service and never imports it; nothing imports the
+    command line, which sits on top of the library and the client."""
+    bad = violations(tree_imports, "pipeflow_client", ("service", "pipeflow_cli"))
+    bad += [
+        f"{imp.module}:{imp.line} imports {imp.target}"
+        for imp in tree_imports
+        if within(imp.target, ["pipeflow_cli"]) and not within(imp.module, ["pipeflow_cli"])
+    ]
+    assert not bad, "a front end is imported the wrong way:\n" + "\n".join(bad)
+
+
+def test_engine_imports_no_http_layer(tree_imports: list[Import]) -> None:
+    bad = violations(tree_imports, "service.engine", HTTP_LAYER)
+    assert not bad, "the engine imports the HTTP layer:\n" + "\n".join(bad)
+
+
+def test_the_tree_is_read(tree_imports: list[Import]) -> None:
+    """The rules above see the code base (a wrong root would make them pass vacuously)."""
+    modules = {imp.module for imp in tree_imports}
+    assert {
+        "pipeflow.schema.study_runner",
+        "service.engine.task",
+        "service.http.problems",
+    } <= modules
+    assert "pipeflow_cli.cli" in modules
+    assert any(imp.target == "pipeflow.errors" for imp in tree_imports)
+
+
+# -- the rules catch violations (a synthetic tree) -----------------------------------------
+
+
+def _write(root: Path, files: dict[str, str]) -> None:
+    for rel, text in files.items():
+        path = root / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+
+
+def test_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
+    _write(
+        tmp_path,
+        {
+            "pipeflow/__init__.py": "",
+            "pipeflow/a.py": "from pipeflow import b\n",
+            "pipeflow/b.py": "def f():\n    from pipeflow.a import x  # deferred: still a circle\n",
+            "pipeflow/c.py": "import sqlalchemy\nfrom service.store import Store\n",
+            "pipeflow/d.py": (
+                "from typing import TYPE_CHECKING\n"
+                "if TYPE_CHECKING:\n    from service import engine  # typing only: allowed\n"
+            ),
+            "pipeflow/e.py": "def serve():\n    import fastapi  # deferred\n",
+            "service/__init__.py": "",
+            "service/http/__init__.py": "",
+            "service/http/problems.py": "from service.engine import task\n",
+            "service/engine/__init__.py": "",
+            "service/engine/task.py": "from ..http.problems import problem\n",
+            "service/engine/ok.py": "from pipeflow import a\n",
+        },
+    )
+    imports = all_imports(tmp_path, ("pipeflow", "service"))
+    assert set(circles(imports)) == {
+        frozenset({"pipeflow.a", "pipeflow.b"}),
+        frozenset({"service.engine.task", "service.http.problems"}),
+    }
+    assert violations(imports, "pipeflow", LIBRARY_FORBIDDEN) == [
+        "pipeflow.c:1 imports sqlalchemy",
+        "pipeflow.c:2 imports service.store",
+        "pipeflow.e:2 imports fastapi",
+    ]
+    assert violations(imports, "service.engine", HTTP_LAYER) == [
+        "service.engine.task:1 imports service.http.problems"
+    ]
