@@ -113,15 +113,27 @@ def modal_particular(
     owner, tau, wq = _nodes(t, rate, loads)
     inc = np.zeros((t.size - 1, lam.size), dtype=complex)
     chunk = max(256, _CHUNK_ENTRIES // max(lam.size, 1))
+    dt = np.diff(t)
+    per = tau.size // dt.size
+    uniform = np.allclose(dt, dt[0], rtol=1e-12, atol=0.0) and per * dt.size == tau.size
+    shared = uniform and np.array_equal(owner, np.repeat(np.arange(dt.size), per))
     with np.errstate(over="ignore", invalid="ignore"):
-        for s0 in range(0, tau.size, chunk):
+        if shared:
+            # the same pieces in every interval: one kernel table for all of them
+            offsets = t[1] - tau[:per]
+            kern = wq[:per, None] * np.exp(np.outer(offsets, lam))  # (nodes, modes)
+            rows = max(1, chunk // per)
+            for k0 in range(0, dt.size, rows):
+                k1 = min(k0 + rows, dt.size)
+                vals = loads.values(tau[k0 * per : k1 * per]) @ coef.T
+                inc[k0:k1] = np.einsum("knm,nm->km", vals.reshape(k1 - k0, per, -1), kern)
+        for s0 in range(0, 0 if shared else tau.size, chunk):
             sl = slice(s0, min(s0 + chunk, tau.size))
             own = owner[sl]
             modal_load = loads.values(tau[sl]) @ coef.T  # (nodes, modes)
             kern = np.exp(np.outer(t[own + 1] - tau[sl], lam))
             _accumulate(inc, own, (wq[sl, None] * kern) * modal_load)
         # a_{k+1} = e^{xi dt_k} a_k + I_k, a_0 = 0: a first-order filter per mode
-        dt = np.diff(t)
         a = np.empty_like(inc)
         if np.allclose(dt, dt[0], rtol=1e-12, atol=0.0):
             for i, r in enumerate(np.exp(lam * dt[0])):
