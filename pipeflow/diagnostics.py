@@ -122,7 +122,7 @@ def _yardstick(
     """A :data:`CHECK_METHOD` run of ``problem`` at the output times ``t`` [s], with a fixed
     ``step`` [s] or to ``tolerance`` [-]."""
     options = replace(problem.options, step=step, tolerance=tolerance)
-    sub = Problem(problem.model, problem.loading, problem.z0, t, options)
+    sub = Problem(problem.model, problem.loading, problem.z0, t, options, loads=problem.loads)
     return SOLVERS[CHECK_METHOD].solve(sub)
 
 

@@ -23,6 +23,14 @@ from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
 from pipeflow.io.json import json_safe
+from pipeflow.loads import (
+    BASE_ACCELERATION_NOTE,
+    BaseAcceleration,
+    Load,
+    load_to_dict,
+    project_loads,
+    validate_loads,
+)
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -72,6 +80,11 @@ class Simulation:
     mode_shape_times : times [s] (0..t_end) at which the complex mode shapes of the frozen
         spectrum are returned (:mod:`pipeflow.modeshapes`); empty: none.
     mode_shape_points : stations from x = 0 to L at which each mode shape is evaluated.
+    loads : external loads (:mod:`pipeflow.loads`: :class:`~pipeflow.loads.PointForce`,
+        :class:`~pipeflow.loads.DistributedForce`, :class:`~pipeflow.loads.BaseAcceleration`;
+        at most 16), each with its time history; every method honours them.  Empty (the
+        default): the free vibration, computed exactly as without the field.  With a base
+        acceleration the displacements are relative to the clamp.
     """
 
     pipe: Pipe
@@ -93,6 +106,7 @@ class Simulation:
     quadrature_order: int | None = None
     mode_shape_times: tuple[float, ...] = ()
     mode_shape_points: int = DEFAULT_SHAPE_POINTS
+    loads: tuple[Load, ...] = ()
 
 
 @dataclass
@@ -183,6 +197,9 @@ class Result:
         optional: dict[str, Any] = {}
         if self.mode_shapes is not None:
             optional["mode_shapes"] = json_safe(self.mode_shapes.to_dict())
+        if self.simulation.loads:  # the inputs echoed: only when there are loads
+            L = self.simulation.pipe.L
+            optional["loads"] = [load_to_dict(load, L) for load in self.simulation.loads]
         if modal:
             optional["modal"] = r.document(r.Modal, d=_finite(self.d), ddot=_finite(self.ddot))
         return r.document(
@@ -251,6 +268,7 @@ def validate(sim: Simulation) -> None:
                 f"table ends at {prof.domain_end()} s, before t_end = {sim.t_end} s",
                 parameter=name,
             )
+    validate_loads(tuple(sim.loads), sim.pipe.L, sim.t_end)
     for i, x in enumerate(sim.positions):
         if not 0.0 <= x <= sim.pipe.L:
             raise InvalidInput(f"positions[{i}] = {x} m is outside [0, L]", parameter="positions")
@@ -287,7 +305,8 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     t = np.linspace(0.0, sim.t_end, sim.samples)
     d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
     z0 = model.to_balanced(d0, v0)
-    problem = Problem(model, loading, z0, t, sim.options, progress)
+    forcing = project_loads(model, tuple(sim.loads))  # None without loads
+    problem = Problem(model, loading, z0, t, sim.options, progress, forcing)
     solver, reason = SOLVERS[sim.method].choose(problem)
     out = solver.solve(problem)
     add_error_estimate(solver, problem, out)  # how far to trust it (pipeflow.diagnostics)
@@ -358,6 +377,8 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     if np.any(sim.flow.value(eigen_t) < 0):
         warnings.append(REVERSE_FLOW_CAVEAT)
     warnings.extend(basis_caveats(sim.pipe))
+    if any(isinstance(load, BaseAcceleration) for load in sim.loads):
+        warnings.append(BASE_ACCELERATION_NOTE)
     diagnostics = {"method": sim.method, "method_used": solver.name, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,

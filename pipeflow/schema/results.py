@@ -20,6 +20,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from pipeflow.model import GROUPS
+from pipeflow.schema.simulation import LoadSpec
 
 #: the extended model's group names, for descriptions (definitions: pipeflow.model.GROUPS)
 GROUP_NAMES = ", ".join(GROUPS)
@@ -168,6 +169,12 @@ class SimulationResponse(BaseModel):
         None,
         description="Complex mode shapes of the frozen spectrum; present when "
         "output.mode_shapes is given.",
+    )
+    loads: list[LoadSpec] | None = Field(
+        None,
+        description="The request's external loads, echoed (a distributed load's end filled "
+        "in); present when the request has loads. With a base_acceleration every "
+        "displacement of this result is relative to the clamp.",
     )
     plots: list[str] = Field(
         default_factory=list,

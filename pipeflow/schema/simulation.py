@@ -23,6 +23,7 @@ from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import InvalidField, PipeflowError
+from pipeflow.loads import MAX_LOADS, BaseAcceleration, DistributedForce, Load, PointForce
 from pipeflow.model import Pipe
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -90,6 +91,7 @@ SIMULATION_FIELDS: dict[str, str] = {
     "divergence_bound": "output.divergence_bound",
     "mode_shape_times": "output.mode_shapes.times",
     "mode_shape_points": "output.mode_shapes.points",
+    "loads": "loads",
     **{f.name: f"options.{f.name}" for f in dataclasses.fields(Options)},
 }
 
@@ -348,6 +350,66 @@ class TimeSpec(StrictModel):
 _OPTIONS = Options()
 
 
+class PointForceLoad(StrictModel):
+    """A transverse point force F(t) at x = position, in the plane of motion."""
+
+    kind: Literal["point_force"]
+    position: float = Field(
+        gt=0,
+        le=1e4,
+        description="Station x of the force [m], 0 < x <= pipe.L (x = L: at the tip).",
+    )
+    force: ProfileSpec = Field(
+        description="Force F(t) [N] (profile values in N, polynomial coefficients in "
+        "N/s^k), transverse, in the plane of motion."
+    )
+
+    def to_load(self) -> Load:
+        return PointForce(self.position, self.force.to_profile())
+
+
+class DistributedForceLoad(StrictModel):
+    """A uniform transverse load q(t) per unit length on [start, end]."""
+
+    kind: Literal["distributed_force"]
+    intensity: ProfileSpec = Field(
+        description="Load per unit length q(t) [N/m] (profile values in N/m), transverse, "
+        "in the plane of motion, uniform on [start, end]."
+    )
+    start: float = Field(0.0, ge=0, le=1e4, description="Start x0 of the loaded span [m].")
+    end: float | None = Field(
+        None,
+        gt=0,
+        le=1e4,
+        description="End x1 of the loaded span [m], start < x1 <= pipe.L; null (default): "
+        "the tip, x1 = L.",
+    )
+
+    def to_load(self) -> Load:
+        return DistributedForce(self.intensity.to_profile(), self.start, self.end)
+
+
+class BaseAccelerationLoad(StrictModel):
+    """The transverse acceleration of the clamp; displacements are relative to it."""
+
+    kind: Literal["base_acceleration"]
+    acceleration: ProfileSpec = Field(
+        description="Transverse acceleration a(t) of the clamp [m/s^2] (profile values in "
+        "m/s^2), in the plane of motion. Acts as the inertial load -(M1 + M2) a(t) per unit "
+        "length plus -m_t a(t) on the tip mass; the returned displacements are relative to "
+        "the clamp."
+    )
+
+    def to_load(self) -> Load:
+        return BaseAcceleration(self.acceleration.to_profile())
+
+
+LoadSpec = Annotated[
+    PointForceLoad | DistributedForceLoad | BaseAccelerationLoad,
+    Field(discriminator="kind"),
+]
+
+
 class MethodOptions(StrictModel):
     """Solver options (:class:`pipeflow.solvers.Options`, field for field, with bounds and
     units); a method ignores the ones it does not read (and so does the cache key)."""
@@ -475,6 +537,14 @@ class SimulationSpec(StrictModel):
     )
     options: MethodOptions = Field(default_factory=MethodOptions)
     output: OutputSpec = Field(default_factory=OutputSpec)
+    loads: list[LoadSpec] = Field(
+        default_factory=list,
+        max_length=MAX_LOADS,
+        description="External loads, each with its time history (any profile kind): "
+        "'point_force' (N at position x [m]), 'distributed_force' (N/m on [start, end] [m]) "
+        "and 'base_acceleration' (m/s^2 of the clamp; displacements then stay relative to "
+        f"the clamp). At most {MAX_LOADS}; empty (default): free vibration.",
+    )
 
     @field_validator("method")
     @classmethod
@@ -508,7 +578,39 @@ class SimulationSpec(StrictModel):
                 raise InvalidField(
                     f"{name}: the table ends at {prof.t[-1]} s, before time.t_end", name
                 )
+        self._check_loads()
         return self
+
+    def _check_loads(self) -> None:
+        """Stations against the pipe's length, spans ordered, tables covering t_end; the
+        error names the field (``loads.0.position``)."""
+        L = self.pipe.L
+        for i, load in enumerate(self.loads):
+            if isinstance(load, PointForceLoad):
+                if load.position > L:
+                    where = f"loads.{i}.position"
+                    raise InvalidField(
+                        f"{where}: {load.position} m is beyond the tip, L = {L} m", where
+                    )
+                name, prof = "force", load.force
+            elif isinstance(load, DistributedForceLoad):
+                end = L if load.end is None else load.end
+                if end > L:
+                    where = f"loads.{i}.end"
+                    raise InvalidField(f"{where}: {end} m is beyond the tip, L = {L} m", where)
+                if load.start >= end:
+                    where = f"loads.{i}.start"
+                    raise InvalidField(
+                        f"{where}: {load.start} m must be below the end, {end} m", where
+                    )
+                name, prof = "intensity", load.intensity
+            else:
+                name, prof = "acceleration", load.acceleration
+            if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
+                where = f"loads.{i}.{name}"
+                raise InvalidField(
+                    f"{where}: the table ends at {prof.t[-1]} s, before time.t_end", where
+                )
 
     def to_simulation(self) -> Simulation:
         """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
@@ -530,6 +632,7 @@ class SimulationSpec(StrictModel):
             include_modal=self.output.modal,
             divergence_bound=self.output.divergence_bound,
             **self.output.mode_shape_arguments(),
+            loads=tuple(load.to_load() for load in self.loads),
         )
 
     def canonical(self) -> dict[str, Any]:
@@ -539,6 +642,8 @@ class SimulationSpec(StrictModel):
         data["options"] = {k: v for k, v in data["options"].items() if k in used}
         if data["output"]["mode_shapes"] is None:
             del data["output"]["mode_shapes"]  # requests from before the field keep their key
+        if not data["loads"]:
+            del data["loads"]  # no loads: the key of a request from before the field
         return data
 
 
@@ -587,4 +692,6 @@ class CompareSpec(StrictModel):
         """Normalised form for the cache key: every option kept (each method reads its own)."""
         data = self.simulation.model_dump(mode="json")
         data.pop("method")
+        if not data["loads"]:
+            del data["loads"]  # no loads: the key of a request from before the field
         return {"simulation": data, "methods": list(self.methods)}

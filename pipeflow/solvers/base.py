@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 
 from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
-from pipeflow.model import Loading, PipeModel
+from pipeflow.loads import ExternalForcing
+from pipeflow.model import Coefficients, Loading, PipeModel
 
 #: hard ceilings that no option may lift (they bound what one request can cost)
 MAX_STEPS_CEILING = 20_000_000
@@ -54,7 +55,11 @@ def given_step(options: Options) -> float | None:
 
 @dataclass(frozen=True)
 class Problem:
-    """One linear initial-value problem z' = S(t) z + f(t) in balanced coordinates."""
+    """One linear initial-value problem z' = S(t) z + f(t) in balanced coordinates.
+
+    f(t) = f_wdot dw0/dt (the spin-up load of the model) plus, with ``loads``, the external
+    loads sum_k g_k p_k(t) (:class:`pipeflow.loads.ExternalForcing`).
+    """
 
     model: PipeModel
     loading: Loading
@@ -62,6 +67,20 @@ class Problem:
     t: FloatArray  # output times [s], t[0] == 0, strictly increasing
     options: Options = field(default_factory=Options)
     progress: Progress | None = None
+    loads: ExternalForcing | None = None
+
+    @property
+    def forced(self) -> bool:
+        """True when f(t) is not identically zero (varying spin or external loads)."""
+        return self.loads is not None or not self.loading.spin.is_constant
+
+    def forcing(self, t: FloatArray, c: Coefficients | None = None) -> FloatArray:
+        """f(t) at the times ``t`` [s], shape ``(len(t), 2n)`` [1/s x m]: spin-up and loads
+        (``c``: the coefficients at ``t`` when the caller has them)."""
+        f = self.model.forcing(self.loading.coefficients(t) if c is None else c)
+        if self.loads is not None:
+            f = f + self.loads.vector(t)
+        return f
 
     def report(self, fraction: float) -> None:
         if self.progress is not None:

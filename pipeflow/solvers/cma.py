@@ -12,6 +12,17 @@ exact when the S(t) commute with each other (constant coefficients); otherwise i
 first term of the Magnus expansion and an approximation (physics notes, section 2).  The
 Duhamel term is written as in the notes (the paper's eq. 27 is loose): it is evaluated
 with Gauss-Legendre quadrature fine enough for the fastest retained mode.
+
+External loads (:mod:`pipeflow.loads`) enter through the particular integral of eq. (17),
+the convolution of the fundamental solution with the load.  Constant coefficients:
+:mod:`pipeflow.solvers.convolution` evaluates it in the eigenbasis of S, interval by
+output interval, exact up to a 16-point Gauss-Legendre rule on pieces of at most 20 rad
+(phase of the fastest mode plus the load frequency) split at table knots: a relative
+quadrature error below ~1e-12 (:data:`pipeflow.solvers.convolution.QUADRATURE_ERROR`), for
+every profile kind.  Time-variant coefficients: the loads join the Duhamel term above,
+exp(P(t)) integral_0^t exp(-P(tau)) f(tau) dtau, with the same quadrature (pieces of at
+most 20 rad of the spectral radius plus the load frequency); the result carries CMA's
+first-Magnus-term error (physics notes, section 2), which the error estimate measures.
 """
 
 from __future__ import annotations
@@ -32,6 +43,7 @@ from pipeflow.solvers.base import (
     SolverStats,
     spectral_radius,
 )
+from pipeflow.solvers.convolution import QUADRATURE_ERROR, dense_particular, modal_particular
 
 #: at most this many exp(-P) evaluations for the Duhamel integral
 MAX_DUHAMEL_NODES = 400_000
@@ -92,6 +104,8 @@ class CMA(Solver):
             z, cond, fallbacks = self._time_variant(problem, warnings)
             stats.eigendecompositions = 0
             stats.matrix_exponentials = int(t.size)
+        if problem.loads is not None and loading.is_time_invariant:
+            z = z + self._particular(problem, stats, diagnostics, bool(fallbacks))
         stats.matrix_exponentials += int(fallbacks)
         diagnostics["expm_fallbacks"] = int(fallbacks)
         if fallbacks:
@@ -108,6 +122,12 @@ class CMA(Solver):
         if not problem.loading.is_time_invariant:
             return None
         cond = float(out.diagnostics.get("eigenvector_condition_max", 1.0))
+        if problem.loads is not None:
+            return (
+                max(float(np.finfo(float).eps * max(cond, 1.0)), QUADRATURE_ERROR),
+                "exact for constant coefficients up to the load convolution's quadrature "
+                f"(bound {QUADRATURE_ERROR:g}) and rounding (eps x eigenvector condition)",
+            )
         return (
             float(np.finfo(float).eps * max(cond, 1.0)),
             "exact for constant coefficients: rounding only (eps x eigenvector condition)",
@@ -142,11 +162,36 @@ class CMA(Solver):
                 Z[sl] = ((E * coef) @ Vt).real
         return Z, np.array([cond]), 0
 
+    def _particular(
+        self,
+        problem: Problem,
+        stats: SolverStats,
+        diagnostics: dict[str, object],
+        fell_back: bool,
+    ) -> FloatArray:
+        """The loads' particular integral at constant coefficients (eq. 17's convolution,
+        :mod:`pipeflow.solvers.convolution`): in the eigenbasis of S, or with matrix
+        exponentials where the homogeneous solution fell back to them."""
+        assert problem.loads is not None
+        S = problem.model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
+        if fell_back:
+            Zp, exps = dense_particular(problem.t, problem.loads, S)
+            stats.matrix_exponentials += exps
+            how = "matrix exponentials at the quadrature nodes' offsets (ill-conditioned S)"
+        else:
+            w, V = np.linalg.eig(S)
+            stats.eigendecompositions += 1
+            Zp, nodes = modal_particular(problem.t, problem.loads, w, V)
+            diagnostics["load_quadrature_nodes"] = nodes
+            how = "modal convolution, 16-point Gauss-Legendre on pieces of <= 20 rad"
+        diagnostics["load_convolution"] = how
+        return Zp
+
     def _time_variant(
         self, problem: Problem, warnings: list[str]
     ) -> tuple[FloatArray, FloatArray, int]:
         model, loading, t = problem.model, problem.loading, problem.t
-        forced = not loading.spin.is_constant
+        forced = problem.forced  # varying spin or external loads
         base = np.broadcast_to(problem.z0, (t.size, model.size)).copy()
         if forced:
             base += self._duhamel(problem)
@@ -162,6 +207,8 @@ class CMA(Solver):
         """Cumulative integral_0^t_k exp(-P(tau)) f(tau) dtau at every output time."""
         model, loading, t = problem.model, problem.loading, problem.t
         rho = spectral_radius(model, loading, float(t[-1]))
+        if problem.loads is not None:
+            rho += problem.loads.rate  # the load's own oscillation on top of the modes'
         dt = np.diff(t)
         # Gauss-Legendre with q nodes resolves ~q/2 radians per node pair; split long intervals
         pieces = np.maximum(1, np.ceil(rho * dt / 20.0)).astype(int)
@@ -169,7 +216,7 @@ class CMA(Solver):
         total = int(pieces.sum()) * q
         if total > MAX_DUHAMEL_NODES:
             raise BudgetExceeded(
-                f"the Duhamel integral of this varying-spin run needs {total} matrix "
+                f"the Duhamel integral of this forced run needs {total} matrix "
                 f"exponentials (limit {MAX_DUHAMEL_NODES}); use fewer modes or the "
                 "'magnus' method",
                 parameter="modes",
@@ -187,7 +234,7 @@ class CMA(Solver):
         for s0 in range(0, nodes.size, chunk):
             sl = slice(s0, min(s0 + chunk, nodes.size))
             P = model.integrated_state_matrix(loading.integrals(nodes[sl]))
-            f = model.forcing(loading.coefficients(nodes[sl]))
+            f = problem.forcing(nodes[sl])
             g, _, _ = exp_apply(-P, f, problem.options.condition_limit)
             np.add.at(contrib, np.arange(sl.start, sl.stop) // q, weights[sl, None] * g)
         per_interval = np.zeros((dt.size, model.size))

@@ -80,6 +80,7 @@ from pipeflow.linalg import (
     magnus6_omega,
     product_of_steps,
 )
+from pipeflow.loads import ExternalForcing
 from pipeflow.model import Loading, PipeModel
 from pipeflow.solvers.base import (
     Problem,
@@ -116,28 +117,47 @@ _BLOCK_ENTRIES = 12_000
 class MagnusGenerator:
     """Builds the Magnus generators Omega (orders 4 and 6) of the (augmented) state matrix.
 
-    A(t) = sum_i c_i(t) B_i with c = (1, v, dv/dt, v^2, w0^2[, dw0/dt]) and constant B_i
-    (the balanced S_0, S_v, S_vdot, S_v2, S_w2, and f_wdot / c in the border column when
-    the spin varies), so A at many times is one matrix product.
+    A(t) = sum_i c_i(t) B_i with c = (1, v, dv/dt, v^2, w0^2[, dw0/dt][, p_1 .. p_K]) and
+    constant B_i (the balanced S_0, S_v, S_vdot, S_v2, S_w2, and in the border column
+    f_wdot / c when the spin varies and g_k / c for the external loads p_k(t),
+    :class:`pipeflow.loads.ExternalForcing`), so A at many times is one matrix product.
+    The border column's time function is the total forcing f(t)/c: the Magnus generator,
+    the order choice and the error control (on the state z) cover it like S(t).
     """
 
-    def __init__(self, model: PipeModel, loading: Loading, scale: float) -> None:
+    def __init__(
+        self,
+        model: PipeModel,
+        loading: Loading,
+        scale: float,
+        loads: ExternalForcing | None = None,
+    ) -> None:
         self.model = model
         self.loading = loading
-        self.forced = not loading.spin.is_constant
+        self.loads = loads
+        self.spin_forced = not loading.spin.is_constant
+        self.forced = self.spin_forced or loads is not None
+        #: A(t) constant: constant coefficients and no load varying in time
+        self.invariant = loading.is_time_invariant and (loads is None or loads.is_constant)
         self.scale = scale  # the constant c the state is augmented with [m]
         N = model.size
         self.size = N + (1 if self.forced else 0)
         pieces = model.state_pieces
-        basis = np.zeros((len(pieces) + (1 if self.forced else 0), self.size, self.size))
+        extra = (1 if self.spin_forced else 0) + (loads.count if loads is not None else 0)
+        basis = np.zeros((len(pieces) + extra, self.size, self.size))
         basis[: len(pieces), :N, :N] = pieces
-        if self.forced:
-            basis[-1, :N, N] = model.f_wdot / scale
+        if self.spin_forced:
+            basis[len(pieces), :N, N] = model.f_wdot / scale
+        if loads is not None:
+            basis[len(pieces) + extra - loads.count :, :N, N] = loads.columns / scale
         self.basis = basis.reshape(basis.shape[0], -1)
 
     def coefficients(self, times: FloatArray) -> FloatArray:
         c = self.loading.coefficients(times)
         w = c.weights()
+        if self.loads is not None:
+            parts = [w, c.wdot[:, None]] if self.spin_forced else [w]
+            return np.concatenate([*parts, self.loads.values(times)], axis=1)
         return np.concatenate([w, c.wdot[:, None]], axis=1) if self.forced else w
 
     def matrices(self, times: FloatArray) -> FloatArray:
@@ -263,8 +283,10 @@ class Magnus(Solver):
         t_end = float(t[-1])
         N = problem.model.size
         scale = float(np.linalg.norm(problem.z0)) or 1.0
-        gen = MagnusGenerator(problem.model, loading, scale)
-        invariant = loading.is_time_invariant
+        if problem.loads is not None:
+            scale = load_scale(problem)
+        gen = MagnusGenerator(problem.model, loading, scale, problem.loads)
+        invariant = gen.invariant
         budget = step_budget(opts)
         step = given_step(opts)
         if step is None and not (0 < opts.tolerance < 1):
@@ -365,7 +387,7 @@ def propagate(
         z = np.append(z, gen.scale)
     Zaug[0] = z
     dt = np.diff(t)
-    if problem.loading.is_time_invariant:
+    if gen.invariant:
         # exact: one exponential per distinct interval length (one for a uniform grid)
         if np.allclose(dt, dt[0], rtol=1e-12, atol=0.0):
             lengths, inverse = dt[:1], np.zeros(dt.size, dtype=np.int64)
@@ -400,6 +422,19 @@ def propagate(
         k = stop
         problem.report(k / dt.size)
     return Zaug, exps
+
+
+def load_scale(problem: Problem) -> float:
+    """The constant c [m] the state is augmented with when there are external loads:
+    max(|z0|, |f|_max / |S_0|_1), the initial state or the size of a quasi-static forced
+    response (so the border column f/c is no larger than the state matrix: the exponential's
+    scaling is set by S, not by the loads, also for a start at rest, z0 = 0); 1 when both
+    vanish."""
+    assert problem.loads is not None
+    z0 = float(np.linalg.norm(problem.z0))
+    norm_s = float(np.abs(problem.model.S_0).sum(axis=0).max())
+    forced = problem.loads.peak(float(problem.t[-1])) / norm_s if norm_s > 0 else 0.0
+    return max(z0, forced) or 1.0
 
 
 def _substeps(

@@ -55,6 +55,7 @@ class Reference(Solver):
             )
         A = model.state_pieces
         forced = not loading.spin.is_constant
+        loads = problem.loads
         budget = min(opts.max_steps * 12, MAX_EVALUATIONS_CEILING)
         t_end = float(t[-1])
         count = [0]
@@ -74,11 +75,14 @@ class Reference(Solver):
             if count[0] % 2000 == 0:
                 problem.report(s / t_end)
             if invariant:
-                return S_const @ z
-            c = loading.coefficients(np.array([s]))
-            out = (A @ z).T @ c.weights()[0]  # S(s) z without forming S(s)
-            if forced:
-                out = out + c.wdot[0] * model.f_wdot
+                out = S_const @ z
+            else:
+                c = loading.coefficients(np.array([s]))
+                out = (A @ z).T @ c.weights()[0]  # S(s) z without forming S(s)
+                if forced:
+                    out = out + c.wdot[0] * model.f_wdot
+            if loads is not None:  # external loads: sum_k g_k p_k(s)
+                out = out + loads.values(np.array([s]))[0] @ loads.columns
             return out
 
         implicit = opts.integrator in ("Radau", "BDF", "LSODA")

@@ -110,7 +110,7 @@ class RK4(Solver):
     def _integrate(self, problem: Problem, substeps: NDArray[np.int64]) -> FloatArray:
         model, loading, t = problem.model, problem.loading, problem.t
         A = model.state_pieces
-        forced = not loading.spin.is_constant
+        forced = problem.forced  # varying spin or external loads
         Z = np.empty((t.size, model.size))
         z = problem.z0.astype(float).copy()
         Z[0] = z
@@ -118,7 +118,7 @@ class RK4(Solver):
         done = 0
         report_every = max(1, total // 100)
 
-        invariant = loading.is_time_invariant
+        invariant = loading.is_time_invariant and problem.loads is None
         block = max(16, _BLOCK_ENTRIES // (3 * model.size**2))
         if invariant:
             S_const = model.state_matrix(loading.coefficients(np.zeros(1)))[0]
@@ -140,7 +140,7 @@ class RK4(Solver):
                     c = loading.coefficients(stage_t)
                     cs = c.weights().reshape(3, nb, -1)
                     fs = (
-                        model.forcing(c).reshape(3, nb, -1)
+                        problem.forcing(stage_t, c).reshape(3, nb, -1)
                         if forced
                         else np.zeros((3, nb, model.size))
                     )
