@@ -181,6 +181,7 @@ PATHS: dict[str, tuple[str, bool]] = {
     "stability": ("/v1/stability", True),
     **{kind: ("/v1/sweeps", False) for kind in SWEEP_KINDS},
     "study": ("/v1/studies", False),
+    "frequency_response": ("/v1/frequency-responses", True),
 }
 
 
