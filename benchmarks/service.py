@@ -42,7 +42,6 @@ import platform
 import random
 import re
 import shutil
-import socket
 import subprocess
 import sys
 import tempfile
@@ -60,6 +59,7 @@ from scipy import signal
 from pipeflow.model import Loading, build_model
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.simulation import simulate
+from service.launch import serve
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
@@ -112,47 +112,12 @@ def ms(seconds: float) -> str:
 # -- the server ------------------------------------------------------------------------------
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
 @contextmanager
 def server(data_dir: Path, log: Path, env: dict[str, str]) -> Iterator[tuple[str, int]]:
-    """The README's ``uvicorn service.main:app --port P``; yields (url, pid) once ready."""
-    port = free_port()
-    environ = dict(os.environ, PIPEFLOW_DATA_DIR=str(data_dir), **env)
-    environ["PYTHONPATH"] = str(ROOT) + os.pathsep + environ.get("PYTHONPATH", "")
-    with log.open("w") as out:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(port)],
-            cwd=ROOT,
-            env=environ,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 120
-        while True:
-            try:
-                if httpx.get(url + "/readyz", timeout=5).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if proc.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"the server did not become ready:\n{log.read_text()}")
-            time.sleep(0.1)
-        yield url, proc.pid
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+    """The README's ``uvicorn service.main:app --port P`` (:func:`service.launch.serve`);
+    yields (url, pid) once ready."""
+    with serve(log, env={"PIPEFLOW_DATA_DIR": str(data_dir), **env}) as s:
+        yield s.url, s.pid
 
 
 def rss_bytes(pid: int) -> int:

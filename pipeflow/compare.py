@@ -48,7 +48,7 @@ def compare(
     """Run ``sim`` with each of ``methods`` (default: :func:`default_methods`, every
     registered method but ``reference`` and ``auto``) and compare.
 
-    Returns a JSON-ready dictionary::
+    Returns a JSON-ready dictionary (:class:`pipeflow.schema.results.CompareResponse`)::
 
         {"baseline": name of the most accurate method (smallest estimated error),
          "methods": [{"method", "method_used", "status", "solve_seconds" [s], "wall_seconds" [s],
@@ -61,6 +61,8 @@ def compare(
     baseline, on the balanced state (modal displacements and scaled velocities) and on the
     tip displacement.  Where a response overflowed, only the common finite part is compared.
     """
+    from pipeflow.schema import results as r  # the contract, imported on first use
+
     names = list(methods) if methods is not None else default_methods()
     if not names:
         raise InvalidInput("give at least one method to compare", parameter="methods")
@@ -97,27 +99,29 @@ def compare(
         z = model.to_balanced(result.d, result.ddot)
         n = min(z.shape[0], base_z.shape[0])
         rows.append(
-            {
-                "method": result.simulation.method,
-                "method_used": result.method_used,
-                "status": str(result.status),
-                "solve_seconds": solve_s,
-                "wall_seconds": wall,
-                "speedup_vs_slowest": slowest / solve_s if solve_s > 0 else None,
-                "estimated_relative_error": acc if math.isfinite(acc) else None,
-                "difference_from_baseline": relative_difference(z[:n], base_z[:n]),
-                "tip_difference_from_baseline": relative_difference(
+            r.document(
+                r.MethodComparison,
+                method=result.simulation.method,
+                method_used=result.method_used,
+                status=str(result.status),
+                solve_seconds=solve_s,
+                wall_seconds=wall,
+                speedup_vs_slowest=slowest / solve_s if solve_s > 0 else None,
+                estimated_relative_error=acc if math.isfinite(acc) else None,
+                difference_from_baseline=relative_difference(z[:n], base_z[:n]),
+                tip_difference_from_baseline=relative_difference(
                     result.tip_displacement[:n], base.tip_displacement[:n]
                 ),
-                "compared_samples": n,
-                "warnings": list(result.warnings),
-                "diagnostics": summary(result.to_dict()["diagnostics"]),
-            }
+                compared_samples=n,
+                warnings=list(result.warnings),
+                diagnostics=summary(result.to_dict()["diagnostics"]),
+            )
         )
-    return {
-        "baseline": base.simulation.method,
-        "methods": rows,
-        "samples": sim.samples,
-        "modes": sim.modes,
-        "t_end": sim.t_end,
-    }
+    return r.document(
+        r.CompareResponse,
+        baseline=base.simulation.method,
+        methods=rows,
+        samples=sim.samples,
+        modes=sim.modes,
+        t_end=sim.t_end,
+    )

@@ -61,22 +61,27 @@ class ModeShapes:
     mode: NDArray[np.intp] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON form: ``{"t", "x", "modes": [{"mode", "sigma", "omega", "real", "imag"}]}``
-        with ``real``/``imag`` nested as [time][station]."""
-        return {
-            "t": self.t.tolist(),
-            "x": self.x.tolist(),
-            "modes": [
-                {
-                    "mode": int(self.mode[j]) if self.mode is not None else j + 1,
-                    "sigma": self.xi[:, j].real.tolist(),
-                    "omega": self.xi[:, j].imag.tolist(),
-                    "real": self.shapes[:, j].real.tolist(),
-                    "imag": self.shapes[:, j].imag.tolist(),
-                }
+        """JSON form: :class:`pipeflow.schema.results.ModeShapesBlock`, ``{"t", "x",
+        "modes": [{"mode", "sigma", "omega", "real", "imag"}]}`` with ``real``/``imag``
+        nested as [time][station]."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
+        return r.document(
+            r.ModeShapesBlock,
+            t=self.t.tolist(),
+            x=self.x.tolist(),
+            modes=[
+                r.document(
+                    r.ShapeTrace,
+                    mode=int(self.mode[j]) if self.mode is not None else j + 1,
+                    sigma=self.xi[:, j].real.tolist(),
+                    omega=self.xi[:, j].imag.tolist(),
+                    real=self.shapes[:, j].real.tolist(),
+                    imag=self.shapes[:, j].imag.tolist(),
+                )
                 for j in range(self.xi.shape[1])
             ],
-        }
+        )
 
 
 def frozen_mode_shapes(

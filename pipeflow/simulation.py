@@ -160,50 +160,62 @@ class Result:
         return plot(self.to_dict(), name, **kwargs)
 
     def to_dict(self, include_modal: bool | None = None) -> dict[str, Any]:
-        """JSON-ready dictionary: lists of floats, every number finite."""
+        """JSON-ready dictionary: lists of floats, every number finite; its keys are the
+        fields of :class:`pipeflow.schema.results.SimulationResponse`
+        (:func:`~pipeflow.schema.results.document`)."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         modal = self.simulation.include_modal if include_modal is None else include_modal
 
         def traces(tr: Traces, flagged: bool = False) -> list[dict[str, Any]]:
             return [
-                {
-                    "mode": tr.mode_number(j),
-                    "sigma": _finite(tr.sigma[:, j]),
-                    "omega": _finite(tr.omega[:, j]),
-                    "confidence": _finite(tr.confidence[:, j]),
+                r.document(
+                    r.Trace,
+                    mode=tr.mode_number(j),
+                    sigma=_finite(tr.sigma[:, j]),
+                    omega=_finite(tr.omega[:, j]),
+                    confidence=_finite(tr.confidence[:, j]),
                     **({"least_stable": tr.least_stable == j} if flagged else {}),
-                }
+                )
                 for j in range(tr.xi.shape[1])
             ]
 
-        out: dict[str, Any] = {
-            "status": str(self.status),
-            "method": self.simulation.method,
-            "method_used": self.method_used,
-            "method_reason": self.method_reason,
-            "first_unstable_time": self.first_unstable_time,
-            "t": _finite(self.t),
-            "tip_displacement": _finite(self.tip_displacement),
-            "initial_tip_displacement": self.initial_tip_displacement,
-            "divergence_time": self.divergence_time,
-            "displacements": [
-                {"x": x, "u": _finite(self.displacements[i])}
+        optional: dict[str, Any] = {}
+        if self.mode_shapes is not None:
+            optional["mode_shapes"] = json_safe(self.mode_shapes.to_dict())
+        if modal:
+            optional["modal"] = r.document(r.Modal, d=_finite(self.d), ddot=_finite(self.ddot))
+        return r.document(
+            r.SimulationResponse,
+            status=str(self.status),
+            method=self.simulation.method,
+            method_used=self.method_used,
+            method_reason=self.method_reason,
+            first_unstable_time=self.first_unstable_time,
+            t=_finite(self.t),
+            tip_displacement=_finite(self.tip_displacement),
+            initial_tip_displacement=self.initial_tip_displacement,
+            divergence_time=self.divergence_time,
+            displacements=[
+                r.document(r.Station, x=x, u=_finite(self.displacements[i]))
                 for i, x in enumerate(self.simulation.positions)
             ],
-            "eigenvalues": {"t": _finite(self.eigen_t), "modes": traces(self.frozen, True)},
-            "fundamental": {
-                "sigma": _finite(self.frozen.sigma[:, 0]),
-                "omega": _finite(self.frozen.omega[:, 0]),
-            },
-            "cma_exponents": {"t": _finite(self.eigen_t), "modes": traces(self.exponents)},
-            "dimensionless": self.dimensionless,
-            "diagnostics": json_safe(self.diagnostics),
-            "warnings": list(self.warnings),
-        }
-        if self.mode_shapes is not None:
-            out["mode_shapes"] = json_safe(self.mode_shapes.to_dict())
-        if modal:
-            out["modal"] = {"d": _finite(self.d), "ddot": _finite(self.ddot)}
-        return out
+            eigenvalues=r.document(
+                r.Spectrum, t=_finite(self.eigen_t), modes=traces(self.frozen, True)
+            ),
+            fundamental=r.document(
+                r.Fundamental,
+                sigma=_finite(self.frozen.sigma[:, 0]),
+                omega=_finite(self.frozen.omega[:, 0]),
+            ),
+            cma_exponents=r.document(
+                r.Spectrum, t=_finite(self.eigen_t), modes=traces(self.exponents)
+            ),
+            dimensionless=self.dimensionless,
+            diagnostics=json_safe(self.diagnostics),
+            warnings=list(self.warnings),
+            **optional,
+        )
 
 
 def _finite(a: Any) -> Any:

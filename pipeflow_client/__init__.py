@@ -3,7 +3,9 @@
 A separate top-level package, not ``pipeflow.client``: the project's rule is that
 ``pipeflow/`` imports no web library, so the numerical library stays usable (and
 importable) without any HTTP stack, and a grep for ``httpx`` under ``pipeflow/`` stays
-empty.  The client depends on ``pipeflow`` only for its exception base class and spec model.
+empty.  The client depends on ``pipeflow`` for its exception base class, the request models
+and the response models (:mod:`pipeflow.schema.results`), with which it validates every
+result it receives (:func:`parse`): the client and the service share one definition.
 
 Example::
 
@@ -30,6 +32,15 @@ from pipeflow_client.client import (
     RetryPolicy,
     ServiceError,
     SimulationResult,
+    parse,
 )
 
-__all__ = ["AsyncClient", "Client", "JobFailed", "RetryPolicy", "ServiceError", "SimulationResult"]
+__all__ = [
+    "AsyncClient",
+    "Client",
+    "JobFailed",
+    "RetryPolicy",
+    "ServiceError",
+    "SimulationResult",
+    "parse",
+]

@@ -2,7 +2,11 @@
 Parquet and plots.
 
 Results come back as :class:`SimulationResult` (numpy arrays, SI units; ``to_xarray()``,
-``to_dataframe()`` and ``plot()`` for notebooks); the service's RFC 9457 problem documents
+``to_dataframe()`` and ``plot()`` for notebooks), the other computations' as their JSON;
+every result is first validated with its computation's response model
+(:mod:`pipeflow.schema.results`, the definition the service writes its documents with:
+:func:`parse`), so a document off the contract fails here, naming the field, rather than
+later as a missing key.  The service's RFC 9457 problem documents
 come back as :class:`ServiceError` carrying the document, the HTTP status and the offending
 field.
 
@@ -29,9 +33,11 @@ import httpx
 import numpy as np
 import tenacity
 from numpy.typing import NDArray
+from pydantic import BaseModel
 
 from pipeflow.errors import PipeflowError
 from pipeflow.io.notebook import NotebookViews
+from pipeflow.schema.results import SimulationResponse
 
 FloatArray = NDArray[np.float64]
 Progress = Callable[[float], None]
@@ -100,30 +106,35 @@ class SimulationResult(NotebookViews):
     displacements: dict[float, FloatArray]
     warnings: list[str]
     raw: dict[str, Any] = field(repr=False)
+    #: the validated document (:class:`pipeflow.schema.results.SimulationResponse`)
+    model: SimulationResponse | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def from_json(cls, doc: dict[str, Any]) -> SimulationResult:
-        modes = doc["eigenvalues"]["modes"]
+        """Validate ``doc`` with :class:`~pipeflow.schema.results.SimulationResponse` (a
+        pydantic ValidationError names the field off the contract) and take the arrays from
+        the validated model."""
+        model = SimulationResponse.model_validate(doc)
+        modes = model.eigenvalues.modes
         return cls(
-            key=doc.get("key", ""),
-            cached=bool(doc.get("cached", False)),
-            status=doc["status"],
-            t=np.asarray(doc["t"], dtype=float),
-            tip_displacement=np.asarray(doc["tip_displacement"], dtype=float),
-            eigen_t=np.asarray(doc["eigenvalues"]["t"], dtype=float),
-            sigma=np.asarray([m["sigma"] for m in modes], dtype=float).T,
-            omega=np.asarray([m["omega"] for m in modes], dtype=float).T,
-            displacements={
-                float(s["x"]): np.asarray(s["u"], dtype=float) for s in doc.get("displacements", [])
-            },
-            warnings=list(doc.get("warnings", [])),
+            key=model.key,
+            cached=model.cached,
+            status=model.status,
+            t=np.asarray(model.t, dtype=float),
+            tip_displacement=np.asarray(model.tip_displacement, dtype=float),
+            eigen_t=np.asarray(model.eigenvalues.t, dtype=float),
+            sigma=np.asarray([m.sigma for m in modes], dtype=float).T,
+            omega=np.asarray([m.omega for m in modes], dtype=float).T,
+            displacements={s.x: np.asarray(s.u, dtype=float) for s in model.displacements},
+            warnings=list(model.warnings),
             raw=doc,
+            model=model,
         )
 
     @property
     def plots(self) -> list[str]:
         """Names of the plots the service can draw of this result."""
-        return list(self.raw.get("plots", []))
+        return list(self.model.plots if self.model is not None else self.raw.get("plots", []))
 
     def _document(self) -> dict[str, Any]:
         return self.raw
@@ -151,6 +162,24 @@ class Pause:
 
 
 Steps = Generator[Call | Pause, httpx.Response | None, T]
+
+
+def parse(kind: str, doc: Any) -> BaseModel:
+    """``doc``, a result of the computation named ``kind``, validated with its response
+    model (:func:`pipeflow.schema.registry.response_type`: the models the service writes
+    its documents with); raises pydantic's ValidationError naming the field."""
+    from pipeflow.schema.registry import response_type  # the computations' table, on first use
+
+    model: type[BaseModel] = response_type(kind)
+    return model.model_validate(doc)
+
+
+def _parsed(kind: str, doc: dict[str, Any]) -> dict[str, Any]:
+    """``doc`` once it validates as a result of ``kind`` (:func:`parse`)."""
+    if kind == "simulation":  # SimulationResult validates it itself
+        return doc
+    parse(kind, doc)
+    return doc
 
 
 def _json(call: Call) -> Steps[Any]:
@@ -233,20 +262,20 @@ class _Operations:
 
         One ``POST`` where the service answers with the result and no ``progress`` is
         given; otherwise submitted as a job (:meth:`submit_job`) and waited for
-        (``progress(fraction)`` while running, see :meth:`wait_raw`).
+        (``progress(fraction)`` while running, see :meth:`wait_raw`).  The result is
+        validated with the computation's response model (:func:`parse`).
         """
         path, sync = _path(kind)
         if sync and progress is None:
             doc: dict[str, Any] = yield from _json(
                 Call("POST", path, _refresh(refresh), _body(kind, spec))
             )
-            return doc
+            return _parsed(kind, doc)
         job = yield from _Operations.submit_job(kind, spec, refresh=refresh)
-        return (
-            yield from _Operations.wait_raw(
-                job["key"], progress=progress, poll=poll, timeout=timeout
-            )
+        done = yield from _Operations.wait_raw(
+            job["key"], progress=progress, poll=poll, timeout=timeout
         )
+        return _parsed(kind, done)
 
     @staticmethod
     def submit_job(kind: str, spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
@@ -461,13 +490,13 @@ class _Operations:
         """An Argand/Campbell sweep, stability map, resonance chart or Floquet analysis
         (spec ``kind``; dict or a :mod:`pipeflow.schema.stability` model): submitted as a job,
         waited for (``progress(fraction)`` while running, see :meth:`wait_raw`), and returned
-        as the result JSON (SI units, ``plots`` for :meth:`plot`)."""
+        as the result JSON (SI units, ``plots`` for :meth:`plot`), validated with the
+        response model of its ``kind`` (:func:`parse`)."""
         job = yield from _Operations.submit_sweep(spec, refresh=refresh)
-        return (
-            yield from _Operations.wait_raw(
-                job["key"], progress=progress, poll=poll, timeout=timeout
-            )
+        doc = yield from _Operations.wait_raw(
+            job["key"], progress=progress, poll=poll, timeout=timeout
         )
+        return _parsed(str(job.get("kind") or doc["kind"]), doc)
 
     @staticmethod
     def submit_study(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
@@ -487,13 +516,12 @@ class _Operations:
         """A design study (dict or :class:`pipeflow.schema.study.StudySpec`): submitted,
         waited for (``progress(fraction of cases done)``) and returned as the result JSON:
         ``columns`` (with SI units), one of ``rows`` per case, ``counts``; the same table
-        as CSV: :meth:`result_csv` with ``table="study"``."""
+        as CSV: :meth:`result_csv` with ``table="study"`` (validated: :func:`parse`)."""
         job = yield from _Operations.submit_study(spec, refresh=refresh)
-        return (
-            yield from _Operations.wait_raw(
-                job["key"], progress=progress, poll=poll, timeout=timeout
-            )
+        doc = yield from _Operations.wait_raw(
+            job["key"], progress=progress, poll=poll, timeout=timeout
         )
+        return _parsed("study", doc)
 
     @staticmethod
     def post(path: str, body: Any, **params: Any) -> Steps[Any]:

@@ -4,7 +4,7 @@
 become Python numbers); orjson applies exactly that rule natively (it writes NaN and
 +-Infinity as null, and numpy scalars and arrays with ``OPT_SERIALIZE_NUMPY``), so the
 bytes of :func:`dumps` decode to ``json_safe(obj)`` without walking ``obj`` in Python
-(tests/service/test_encoding.py checks the identity).  About 50x faster than ``json`` on
+(tests/service/http/test_encoding.py checks the identity).  About 50x faster than ``json`` on
 a 2001-sample result.  Imports neither numpy nor pipeflow (worker processes import it
 before their BLAS threads are pinned).
 """

@@ -23,9 +23,13 @@ def server(
         yield url
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    """Headless chromium (playwright ``Browser``); skipped locally, failed in CI, if absent."""
+    """Headless chromium (playwright ``Browser``); skipped locally, failed in CI, if absent.
+
+    One per test module, not per session: while playwright's sync API is open its event
+    loop counts as running in this thread, so a later module's ``asyncio.run`` in the same
+    xdist worker would fail ("cannot be called from a running event loop")."""
     with chromium() as b:
         yield b
 

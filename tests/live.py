@@ -9,19 +9,17 @@ fail instead, so CI never silently skips them (``.ci/run`` installs both).
 from __future__ import annotations
 
 import os
-import socket
-import subprocess
-import sys
-import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from service.launch import ROOT, serve
+
+__all__ = ["ROOT", "chromium", "need", "uvicorn_server"]
+
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
     "--no-sandbox",
@@ -42,47 +40,18 @@ def need(condition: bool, reason: str) -> None:
     pytest.skip(reason)
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
 @contextmanager
 def uvicorn_server(data_dir: Path, log: Path, **env: str) -> Iterator[str]:
     """``uvicorn service.main:app`` on a free port of 127.0.0.1 with its data in
-    ``data_dir`` and one worker; yields the base URL once ``/readyz`` answers 200."""
-    port = free_port()
-    environ = dict(os.environ, PIPEFLOW_DATA_DIR=str(data_dir), PIPEFLOW_WORKERS="1", **env)
-    with log.open("w") as out:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(port)],
-            cwd=ROOT,
-            env=environ,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if httpx.get(url + "/readyz", timeout=2).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if proc.poll() is not None or time.monotonic() > deadline:
-                pytest.fail(f"uvicorn did not become ready:\n{log.read_text()}")
-            time.sleep(0.1)
-        yield url
-    finally:
-        proc.terminate()
+    ``data_dir`` and one worker (:func:`service.launch.serve`); yields the base URL once
+    ``/readyz`` answers 200, fails the test with the server's log if it never does."""
+    settings = {"PIPEFLOW_DATA_DIR": str(data_dir), "PIPEFLOW_WORKERS": "1", **env}
+    with ExitStack() as stack:
         try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+            server = stack.enter_context(serve(log, env=settings, timeout_s=60))
+        except RuntimeError as exc:
+            pytest.fail(str(exc))
+        yield server.url
 
 
 @contextmanager

@@ -10,5 +10,7 @@
   table of computations the service's routes, job kinds and OpenAPI document are built from,
   and where library parameter names are mapped onto request fields.
 
-The numerical modules never import this package: they take plain arguments.
+The numerical modules take plain arguments and import nothing of this package but the
+response models, on first use, to write their ``to_dict`` forms
+(:func:`pipeflow.schema.results.document`).
 """

@@ -1,7 +1,8 @@
 """The registry of computations: every kind of request pipeflow answers, in one table.
 
 An entry (:class:`Computation`) names the request model, the response model, the function
-that runs it (a plain library call: validated request in, JSON-ready dict out), its cost
+that runs it (a plain library call: validated request in, the JSON-ready dict of the
+response model out, written with :func:`pipeflow.schema.results.document`), its cost
 bound, its plots and CSV tables, its examples, where library parameter names land in the
 request (:attr:`Computation.fields`) and, for the computations a design study can vary,
 its study summary (:attr:`Computation.summary_columns`, :attr:`Computation.summarize`).
@@ -87,7 +88,10 @@ class Computation:
 
     def execute(self, request: BaseModel, progress: Progress | None = None) -> dict[str, Any]:
         """Run a validated request: the JSON-ready result (every float finite or null) with
-        the names of its figures in ``plots``.
+        ``kind`` first where :attr:`response` has one and the names of its figures in
+        ``plots``.  The run's dict is already a document of :attr:`response` (the library
+        writes it with :func:`pipeflow.schema.results.document`); it is not validated
+        again here (a design study runs this per case).
 
         A :class:`~pipeflow.errors.PipeflowError` leaves with ``field`` set to the request
         field of the library parameter it names (:meth:`request_field`).

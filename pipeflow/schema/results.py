@@ -1,15 +1,20 @@
 """Response models: the JSON of every computation's result, as the service serves it.
 
 One model per result shape (:data:`pipeflow.schema.registry.COMPUTATIONS` names each
-computation's); the library's ``to_dict`` forms are turned into them in one place,
-:meth:`pipeflow.schema.registry.Computation.execute`, and the tests check that each model's
-fields are exactly the keys of a real result, so the two cannot drift apart.  The service
-adds ``key``, ``cached`` and ``plots``.  Every float is finite: where the library has no
-number (e.g. no critical velocity) the field is null.
+computation's), nested models for its parts.  They are the one definition of each
+document's keys: the library writes its ``to_dict`` forms with :func:`document`, which
+takes a model and the values by field name and refuses a name the model lacks or a required
+field left out, on every call; the tests check that every field of every model is written
+by some real result.  The service adds ``key``, ``cached`` and ``plots``
+(:data:`SERVICE_FIELDS`), and :meth:`pipeflow.schema.registry.Computation.execute` puts
+``kind`` first.  The client (:mod:`pipeflow_client`) validates what it receives with the
+same models.  Every float is finite: where the library has no number (e.g. no critical
+velocity) the field is null.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -19,6 +24,43 @@ from pipeflow.model import GROUPS
 #: the extended model's group names, for descriptions (definitions: pipeflow.model.GROUPS)
 GROUP_NAMES = ", ".join(GROUPS)
 PLOTS_DESCRIPTION = "Figures of this result: GET /v1/results/{key}/plots/{name}.png or .svg."
+#: the fields of a result document the service adds, never the library
+SERVICE_FIELDS = frozenset({"key", "cached", "plots"})
+
+
+@functools.cache
+def _names(model: type[BaseModel]) -> tuple[frozenset[str], frozenset[str]]:
+    """``model``'s field names, and the required ones the library must give."""
+    fields = model.model_fields
+    required = {n for n, f in fields.items() if f.is_required()} - SERVICE_FIELDS - {"kind"}
+    return frozenset(fields), frozenset(required)
+
+
+def document(model: type[BaseModel], /, **values: Any) -> dict[str, Any]:
+    """``values`` as a JSON object of ``model`` (a result document or a part of one): the
+    one way the library writes its ``to_dict`` forms, so a key exists only as a field.
+
+    Every name must be a field of ``model``, and every required field must be given but
+    :data:`SERVICE_FIELDS` and ``kind`` (the computation's name, which
+    :meth:`~pipeflow.schema.registry.Computation.execute` adds); an optional field left out
+    is absent from the document.  The values are kept as given (JSON-ready, the caller's
+    lists and numbers: nothing is converted or copied), in the order given (the order of
+    the bytes the service sends).  Raises TypeError naming the model and the names.  Cost:
+    a set difference of the names (about a microsecond), not a validation of the values.
+    """
+    fields, required = _names(model)
+    unknown = values.keys() - fields
+    missing = required - values.keys()
+    if unknown or missing:
+        raise TypeError(
+            f"{model.__name__}: "
+            + "; ".join(
+                f"{what}: {', '.join(sorted(names))}"
+                for what, names in (("not a field", unknown), ("missing", missing))
+                if names
+            )
+        )
+    return values
 
 
 class _Result(BaseModel):
@@ -164,6 +206,7 @@ class CompareResponse(BaseModel):
     samples: int = Field(description="Output times per run.")
     modes: int = Field(description="Galerkin modes.")
     t_end: float = Field(description="Simulated duration [s].")
+    plots: list[str] = Field(default_factory=list, description=PLOTS_DESCRIPTION)
 
 
 # -- POST /v1/stability ----------------------------------------------------------------------

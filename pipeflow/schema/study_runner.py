@@ -32,6 +32,7 @@ from pydantic import BaseModel
 from pipeflow import parallel
 from pipeflow._types import Progress
 from pipeflow.errors import classify
+from pipeflow.schema import results as r
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.study import StudySpec, field_unit
 
@@ -60,7 +61,10 @@ class Column:
     description: str
 
     def to_dict(self) -> dict[str, str]:
-        return {"name": self.name, "unit": self.unit, "description": self.description}
+        """JSON form: :class:`pipeflow.schema.results.StudyColumn`."""
+        return r.document(
+            r.StudyColumn, name=self.name, unit=self.unit, description=self.description
+        )
 
 
 LEADING = (
@@ -238,17 +242,19 @@ def _table(
         )
     failed = sum(1 for r in rows if r[2] == "failed")
     warnings = [f"{failed} of {len(rows)} cases failed (see error_detail)"] if failed else []
-    return {
-        "base_kind": spec.base_kind,
-        "overrides": paths,
-        "columns": [c.to_dict() for c in cols],
-        "rows": rows,
-        "counts": {
-            "total": len(rows),
-            "ok": len(rows) - failed,
-            "failed": failed,
-            "cached": sum(1 for k in keys if k in cached),
-            "computed": computed,
-        },
-        "warnings": warnings,
-    }
+    return r.document(
+        r.StudyResponse,
+        base_kind=spec.base_kind,
+        overrides=paths,
+        columns=[c.to_dict() for c in cols],
+        rows=rows,
+        counts=r.document(
+            r.StudyCounts,
+            total=len(rows),
+            ok=len(rows) - failed,
+            failed=failed,
+            cached=sum(1 for k in keys if k in cached),
+            computed=computed,
+        ),
+        warnings=warnings,
+    )

@@ -65,17 +65,21 @@ class Crossing:
     dimensionless_frequency: float
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "velocity": self.velocity,
-            "frequency": self.frequency,
-            "frequency_hz": self.frequency / (2 * math.pi),
-            "mode": self.mode,
-            "kind": self.kind,
-            "direction": self.direction,
-            "boundary": self.boundary,
-            "flow_number": self.flow_number,
-            "dimensionless_frequency": self.dimensionless_frequency,
-        }
+        """JSON form: :class:`pipeflow.schema.results.Crossing`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
+        return r.document(
+            r.Crossing,
+            velocity=self.velocity,
+            frequency=self.frequency,
+            frequency_hz=self.frequency / (2 * math.pi),
+            mode=self.mode,
+            kind=self.kind,
+            direction=self.direction,
+            boundary=self.boundary,
+            flow_number=self.flow_number,
+            dimensionless_frequency=self.dimensionless_frequency,
+        )
 
 
 @dataclass
@@ -111,38 +115,45 @@ class CriticalVelocity:
         )
 
     def dimensionless(self) -> dict[str, Any]:
+        """Paidoussis' groups: :class:`pipeflow.schema.results.StabilityDimensionless`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         p = self.pipe
         u = (
             None
             if self.critical_velocity is None or p.M2 == 0
             else float(p.flow_number(self.critical_velocity))
         )
-        return {
-            "beta": p.beta,
-            "gamma": float(p.spin_number(self.omega0)),
-            "u_cr": u,
-            "u_range": (
-                None if p.M2 == 0 else [float(p.flow_number(x)) for x in self.velocity_range]
-            ),
-            "time_scale": p.time_scale,
+        return r.document(
+            r.StabilityDimensionless,
+            beta=p.beta,
+            gamma=float(p.spin_number(self.omega0)),
+            u_cr=u,
+            u_range=(None if p.M2 == 0 else [float(p.flow_number(x)) for x in self.velocity_range]),
+            time_scale=p.time_scale,
             **p.dimensionless_groups(),
-        }
+        )
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "critical_velocity": self.critical_velocity,
-            "stable_throughout": self.stable_throughout,
-            "stable_at_start": self.stable_at_start,
-            "stable_intervals": self.stable_intervals,
-            "crossings": [c.to_dict() for c in self.crossings],
-            "dimensionless": self.dimensionless(),
-            "omega0": self.omega0,
-            "modes": self.modes,
-            "velocity_range": list(self.velocity_range),
-            "reverse_flow": self.reverse_flow,
-            "warnings": list(self.warnings),
-            "diagnostics": dict(self.diagnostics),
-        }
+        """JSON form: :class:`pipeflow.schema.results.StabilityResponse` (``kind`` aside)."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
+        reverse = self.reverse_flow
+        return r.document(
+            r.StabilityResponse,
+            critical_velocity=self.critical_velocity,
+            stable_throughout=self.stable_throughout,
+            stable_at_start=self.stable_at_start,
+            stable_intervals=self.stable_intervals,
+            crossings=[c.to_dict() for c in self.crossings],
+            dimensionless=self.dimensionless(),
+            omega0=self.omega0,
+            modes=self.modes,
+            velocity_range=list(self.velocity_range),
+            reverse_flow=None if reverse is None else r.document(r.ReverseFlow, **reverse),
+            warnings=list(self.warnings),
+            diagnostics=dict(self.diagnostics),
+        )
 
 
 def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:

@@ -160,37 +160,43 @@ class Floquet:
         return math.log(self.max_multiplier) / self.period
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON form: :class:`pipeflow.schema.results.FloquetResponse` (``kind`` aside)."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         upper = self.frozen_mean[self.frozen_mean.imag >= 0]
         upper = upper[np.argsort(upper.imag)]
-        return {
-            "period": self.period,
-            "verdict": str(self.verdict),
-            "max_multiplier": self.max_multiplier,
-            "growth_rate": self.growth_rate,
-            "multipliers": {
-                "real": self.multipliers.real.tolist(),
-                "imag": self.multipliers.imag.tolist(),
-                "modulus": np.abs(self.multipliers).tolist(),
-            },
-            "exponents": {
-                "sigma": self.exponents.real.tolist(),
-                "omega": self.exponents.imag.tolist(),
-            },
-            "frozen_mean": {"sigma": upper.real.tolist(), "omega": upper.imag.tolist()},
-            "dimensionless": {
+        return r.document(
+            r.FloquetResponse,
+            period=self.period,
+            verdict=str(self.verdict),
+            max_multiplier=self.max_multiplier,
+            growth_rate=self.growth_rate,
+            multipliers=r.document(
+                r.Multipliers,
+                real=self.multipliers.real.tolist(),
+                imag=self.multipliers.imag.tolist(),
+                modulus=np.abs(self.multipliers).tolist(),
+            ),
+            exponents=r.document(
+                r.Exponents,
+                sigma=self.exponents.real.tolist(),
+                omega=self.exponents.imag.tolist(),
+            ),
+            frozen_mean={"sigma": upper.real.tolist(), "omega": upper.imag.tolist()},
+            dimensionless={
                 "beta": self.pipe.beta,
                 "time_scale": self.pipe.time_scale,
                 **self.pipe.dimensionless_groups(),
                 "period": self.period / self.pipe.time_scale,
             },
-            "warnings": list(self.warnings),
-            "diagnostics": {
+            warnings=list(self.warnings),
+            diagnostics={
                 "steps_per_period": self.steps,
                 "error_estimate": self.error_estimate,
                 "galerkin_modes": self.modes,
                 "propagator": "magnus4 (2 Gauss points), step doubling",
             },
-        }
+        )
 
 
 def _verdict(max_mod: float, err: float) -> Verdict:
@@ -333,45 +339,53 @@ class ResonanceChart:
         return out
 
     def regions(self) -> list[dict[str, Any]]:
+        """The connected unstable regions: :class:`pipeflow.schema.results.ResonanceRegion`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         labels, count = ndimage.label(self.unstable)
         cands = self.resonances()
         out: list[dict[str, Any]] = []
-        for r in range(1, count + 1):
-            ii, jj = np.nonzero(labels == r)
+        for label in range(1, count + 1):
+            ii, jj = np.nonzero(labels == label)
             tip = np.argmin(self.amplitudes[ii] * 1e6 + np.abs(jj - jj.mean()))
             tip_freq = float(self.frequencies[jj[tip]])
             worst = np.argmax(self.growth_rate[ii, jj])
             near = min(cands, key=lambda c: abs(c[1] - tip_freq)) if cands else ("", math.nan)
             out.append(
-                {
-                    "frequency_range": [
+                r.document(
+                    r.ResonanceRegion,
+                    frequency_range=[
                         float(self.frequencies[jj.min()]),
                         float(self.frequencies[jj.max()]),
                     ],
-                    "min_amplitude": float(self.amplitudes[ii].min()),
-                    "tip": {"amplitude": float(self.amplitudes[ii[tip]]), "frequency": tip_freq},
-                    "max_growth_rate": float(self.growth_rate[ii[worst], jj[worst]]),
-                    "points": int(ii.size),
-                    "nearest_resonance": {"condition": near[0], "frequency": float(near[1])},
-                }
+                    min_amplitude=float(self.amplitudes[ii].min()),
+                    tip={"amplitude": float(self.amplitudes[ii[tip]]), "frequency": tip_freq},
+                    max_growth_rate=float(self.growth_rate[ii[worst], jj[worst]]),
+                    points=int(ii.size),
+                    nearest_resonance={"condition": near[0], "frequency": float(near[1])},
+                )
             )
         out.sort(key=lambda d: (d["min_amplitude"], -d["points"]))
         return out
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON form: :class:`pipeflow.schema.results.ResonanceChartResponse`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         p = self.pipe
-        return {
-            "kind": "resonance_chart",
-            "mean_velocity": self.mean_velocity,
-            "omega0": self.omega0,
-            "amplitudes": self.amplitudes.tolist(),
-            "frequencies": self.frequencies.tolist(),
-            "max_multiplier": self.max_multiplier.tolist(),
-            "growth_rate": self.growth_rate.tolist(),
-            "unstable": np.asarray(self.unstable).tolist(),
-            "regions": self.regions(),
-            "natural_frequencies": self.natural_frequencies().tolist(),
-            "dimensionless": {
+        return r.document(
+            r.ResonanceChartResponse,
+            kind="resonance_chart",
+            mean_velocity=self.mean_velocity,
+            omega0=self.omega0,
+            amplitudes=self.amplitudes.tolist(),
+            frequencies=self.frequencies.tolist(),
+            max_multiplier=self.max_multiplier.tolist(),
+            growth_rate=self.growth_rate.tolist(),
+            unstable=np.asarray(self.unstable).tolist(),
+            regions=self.regions(),
+            natural_frequencies=self.natural_frequencies().tolist(),
+            dimensionless={
                 "beta": p.beta,
                 "time_scale": p.time_scale,
                 **p.dimensionless_groups(),
@@ -384,13 +398,13 @@ class ResonanceChart:
                     else None
                 ),
             },
-            "warnings": list(self.warnings),
-            "diagnostics": {
+            warnings=list(self.warnings),
+            diagnostics={
                 "steps_per_period": self.steps,
                 "error_estimate": self.error_estimate,
                 "galerkin_modes": self.modes,
             },
-        }
+        )
 
 
 #: frequencies of a resonance chart computed by one piece, at most (progress between pieces)

@@ -131,16 +131,20 @@ class SpinMap:
     warnings: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON form: :class:`pipeflow.schema.results.SpinMapResponse`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         p = self.pipe
-        return {
-            "kind": "spin_map",
-            "spins": self.spins.tolist(),
-            "spins_rpm": (self.spins * 60 / (2 * math.pi)).tolist(),
-            "velocities": self.velocities.tolist(),
-            "growth_rate": self.growth.tolist(),
-            "critical_velocity": self.critical_velocity,
-            "stable_at_start": self.stable_at_start,
-            "stable_intervals": [
+        return r.document(
+            r.SpinMapResponse,
+            kind="spin_map",
+            spins=self.spins.tolist(),
+            spins_rpm=(self.spins * 60 / (2 * math.pi)).tolist(),
+            velocities=self.velocities.tolist(),
+            growth_rate=self.growth.tolist(),
+            critical_velocity=self.critical_velocity,
+            stable_at_start=self.stable_at_start,
+            stable_intervals=[
                 stable_intervals(
                     max(0.0, float(self.velocities[0])),
                     float(self.velocities[-1]),
@@ -149,20 +153,21 @@ class SpinMap:
                 )
                 for ok, line in zip(self.stable_at_start, self.crossings, strict=True)
             ],
-            "crossings": [
+            crossings=[
                 [
-                    {
-                        "velocity": c.velocity,
-                        "direction": c.direction,
-                        "kind": c.kind,
-                        "frequency": c.frequency,
-                        "frequency_hz": c.frequency / (2 * math.pi),
-                    }
+                    r.document(
+                        r.MapCrossing,
+                        velocity=c.velocity,
+                        direction=c.direction,
+                        kind=c.kind,
+                        frequency=c.frequency,
+                        frequency_hz=c.frequency / (2 * math.pi),
+                    )
                     for c in line
                 ]
                 for line in self.crossings
             ],
-            "dimensionless": {
+            dimensionless={
                 "beta": p.beta,
                 "gamma": p.spin_number(self.spins).tolist(),
                 "u_cr": [
@@ -172,9 +177,9 @@ class SpinMap:
                 "time_scale": p.time_scale,
                 **p.dimensionless_groups(),
             },
-            "warnings": list(self.warnings),
-            "diagnostics": {"galerkin_modes": self.modes, "points": int(self.growth.size)},
-        }
+            warnings=list(self.warnings),
+            diagnostics={"galerkin_modes": self.modes, "points": int(self.growth.size)},
+        )
 
 
 @dataclass(frozen=True)
@@ -275,40 +280,45 @@ class BetaMap:
         return [_first_loss(c) for c in self.crossings]
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "kind": "beta_map",
-            "gamma": self.gamma,
-            "groups": dict(self.groups),
-            "plane": self.plane,
-            "betas": self.betas.tolist(),
-            "u_range": list(self.u_range),
-            "u_cr": self.u_cr,
-            "stable_at_start": self.stable_at_start,
-            "crossings": [
+        """JSON form: :class:`pipeflow.schema.results.BetaMapResponse`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
+        return r.document(
+            r.BetaMapResponse,
+            kind="beta_map",
+            gamma=self.gamma,
+            groups=dict(self.groups),
+            plane=self.plane,
+            betas=self.betas.tolist(),
+            u_range=list(self.u_range),
+            u_cr=self.u_cr,
+            stable_at_start=self.stable_at_start,
+            crossings=[
                 [
-                    {
-                        "u": c.velocity,
-                        "direction": c.direction,
-                        "kind": c.kind,
-                        "frequency": c.frequency,
-                    }
+                    r.document(
+                        r.BetaCrossing,
+                        u=c.velocity,
+                        direction=c.direction,
+                        kind=c.kind,
+                        frequency=c.frequency,
+                    )
                     for c in line
                 ]
                 for line in self.crossings
             ],
-            "curve": [
+            curve=[
                 [float(b), c.velocity]
                 for b, line in zip(self.betas, self.crossings, strict=True)
                 for c in line
             ],
-            "multiple_crossings": [
+            multiple_crossings=[
                 float(b)
                 for b, line in zip(self.betas, self.crossings, strict=True)
                 if len(line) > 1
             ],
-            "warnings": list(self.warnings),
-            "diagnostics": {"galerkin_modes": self.modes},
-        }
+            warnings=list(self.warnings),
+            diagnostics={"galerkin_modes": self.modes},
+        )
 
 
 @dataclass(frozen=True)

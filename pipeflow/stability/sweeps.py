@@ -75,17 +75,21 @@ class ExcitationCrossing:
     sigma: float
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON form: :class:`pipeflow.schema.results.ExcitationCrossing`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         mag = math.hypot(self.sigma, self.frequency)
-        return {
-            "order": self.order,
-            "mode": self.mode,
-            "spin": self.spin,
-            "spin_rpm": self.spin * RPM,
-            "frequency": self.frequency,
-            "frequency_hz": self.frequency / (2 * math.pi),
-            "sigma": self.sigma,
-            "damping_ratio": -self.sigma / mag if mag > 0 else 0.0,
-        }
+        return r.document(
+            r.ExcitationCrossing,
+            order=self.order,
+            mode=self.mode,
+            spin=self.spin,
+            spin_rpm=self.spin * RPM,
+            frequency=self.frequency,
+            frequency_hz=self.frequency / (2 * math.pi),
+            sigma=self.sigma,
+            damping_ratio=-self.sigma / mag if mag > 0 else 0.0,
+        )
 
 
 @dataclass(frozen=True)
@@ -102,12 +106,16 @@ class ZeroCrossing:
     direction: Literal["loss", "gain"]
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "mode": self.mode,
-            "value": self.value,
-            "frequency": self.frequency,
-            "direction": self.direction,
-        }
+        """JSON form: :class:`pipeflow.schema.results.ZeroCrossing`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
+        return r.document(
+            r.ZeroCrossing,
+            mode=self.mode,
+            value=self.value,
+            frequency=self.frequency,
+            direction=self.direction,
+        )
 
 
 def _abs_omega_minus(br: Branches, j: int, order: float, x: float, k: int) -> float:
@@ -200,13 +208,12 @@ class Sweep:
         return np.asarray(self.xi.imag)
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON form: :class:`pipeflow.schema.results.SweepResponse`."""
+        from pipeflow.schema import results as r  # the contract, imported on first use
+
         p = self.pipe
         spin = self.parameter == "spin"
-        axis: dict[str, Any] = {
-            "name": self.parameter,
-            "unit": "rad/s" if spin else "m/s",
-            "values": self.values.tolist(),
-        }
+        axis: dict[str, Any] = {}
         if spin:
             axis["values_hz"] = (self.values / (2 * math.pi)).tolist()
             axis["values_rpm"] = (self.values * RPM).tolist()
@@ -214,50 +221,58 @@ class Sweep:
         elif p.M2 > 0:
             axis["flow_number"] = p.flow_number(self.values).tolist()
         zeta = damping_ratio(self.xi)
-        branches = []
-        for j in range(self.xi.shape[1]):
-            b: dict[str, Any] = {
-                "mode": int(self.mode[j]),
-                "sigma": self.sigma[:, j].tolist(),
-                "omega": self.omega[:, j].tolist(),
-                "frequency_hz": (self.omega[:, j] / (2 * math.pi)).tolist(),
-                "damping_ratio": zeta[:, j].tolist(),
-                "confidence": self.confidence[:, j].tolist(),
-            }
-            if spin:
-                b["frequency_rpm"] = (self.omega[:, j] * RPM).tolist()
-            branches.append(b)
+        branches = [
+            r.document(
+                r.SweepBranch,
+                mode=int(self.mode[j]),
+                sigma=self.sigma[:, j].tolist(),
+                omega=self.omega[:, j].tolist(),
+                frequency_hz=(self.omega[:, j] / (2 * math.pi)).tolist(),
+                damping_ratio=zeta[:, j].tolist(),
+                confidence=self.confidence[:, j].tolist(),
+                **({"frequency_rpm": (self.omega[:, j] * RPM).tolist()} if spin else {}),
+            )
+            for j in range(self.xi.shape[1])
+        ]
         fixed_name = "velocity" if spin else "omega0"
-        return {
-            "kind": "campbell" if spin else "argand",
-            "parameter": axis,
-            "fixed": {fixed_name: self.fixed},
-            "inserted": self.inserted.tolist(),
-            "modes": branches,
-            "dimensionless": {
+        return r.document(
+            r.SweepResponse,
+            kind="campbell" if spin else "argand",
+            parameter=r.document(
+                r.SweepAxis,
+                name=self.parameter,
+                unit="rad/s" if spin else "m/s",
+                values=self.values.tolist(),
+                **axis,
+            ),
+            fixed={fixed_name: self.fixed},
+            inserted=self.inserted.tolist(),
+            modes=branches,
+            dimensionless={
                 "beta": p.beta,
                 "time_scale": p.time_scale,
                 **p.dimensionless_groups(),
                 **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
                 **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
             },
-            "excitation": (
-                {
-                    "orders": list(self.orders),
-                    "crossings": [c.to_dict() for c in self.excitation],
-                }
+            excitation=(
+                r.document(
+                    r.Excitation,
+                    orders=list(self.orders),
+                    crossings=[c.to_dict() for c in self.excitation],
+                )
                 if spin
                 else None
             ),
-            "zero_crossings": [c.to_dict() for c in self.zero_crossings],
-            "warnings": list(self.warnings),
-            "diagnostics": {
+            zero_crossings=[c.to_dict() for c in self.zero_crossings],
+            warnings=list(self.warnings),
+            diagnostics={
                 "points": int(self.values.size),
                 "inserted_points": int(self.inserted.sum()),
                 "min_confidence": float(np.min(self.confidence)),
                 "galerkin_modes": self.modes,
             },
-        }
+        )
 
 
 def sweep(

@@ -12,7 +12,6 @@ from fastapi.responses import JSONResponse
 from fastapi.testclient import TestClient
 
 from pipeflow.schema.simulation import PAPER_EXAMPLE
-from pipeflow_client import Client
 from service.deps import RunnerDep, StoreDep
 from service.http.responses import job_document
 from service.keys import keyed
@@ -112,22 +111,4 @@ def tight(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
     ) as c:
         wait_ready(c)
         c.app.state.runner.watchdog_grace_s = 0.5  # type: ignore[attr-defined]
-        yield c
-
-
-@pytest.fixture(scope="module")
-def service(
-    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[TestClient]:
-    """An app with one worker and a data directory of its own per test module: the
-    transport of :func:`sdk_client`."""
-    with make_client(tmp_path_factory.mktemp(request.module.__name__.rpartition(".")[2])) as tc:
-        wait_ready(tc)
-        yield tc
-
-
-@pytest.fixture
-def sdk_client(service: TestClient) -> Iterator[Client]:
-    """pipeflow_client.Client talking to :func:`service` in-process (TestClient as httpx)."""
-    with Client(str(service.base_url), http=service) as c:
         yield c

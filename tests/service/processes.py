@@ -6,7 +6,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -15,16 +14,9 @@ from typing import Any
 
 import httpx
 
-from tests.live import free_port
+from service.launch import ROOT, answers, child_environment, serve
 
-ROOT = Path(__file__).resolve().parents[2]
 TERMINAL = ("succeeded", "failed", "cancelled")
-
-
-def env(**overrides: str) -> dict[str, str]:
-    """This environment with this tree first on the path, plus ``overrides``."""
-    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
-    return {**os.environ, "PYTHONPATH": path, **overrides}
 
 
 def spawn(args: list[str], log: Path, **overrides: str) -> subprocess.Popen[bytes]:
@@ -33,7 +25,7 @@ def spawn(args: list[str], log: Path, **overrides: str) -> subprocess.Popen[byte
         return subprocess.Popen(
             args,
             cwd=ROOT,
-            env=env(**overrides),
+            env=child_environment(**overrides),
             stdout=out,
             stderr=subprocess.STDOUT,
             start_new_session=True,  # its own group: the process and its children
@@ -42,22 +34,19 @@ def spawn(args: list[str], log: Path, **overrides: str) -> subprocess.Popen[byte
 
 def wait_http(url: str, proc: subprocess.Popen[bytes] | None = None, timeout: float = 90) -> None:
     end = time.monotonic() + timeout
-    while True:
+    while not answers(url):
         assert proc is None or proc.poll() is None, f"{proc.args} exited"
-        try:
-            if httpx.get(url, timeout=2).status_code == 200:
-                return
-        except httpx.TransportError:
-            pass
         assert time.monotonic() < end, f"{url} did not answer 200"
         time.sleep(0.1)
 
 
 def kill_group(proc: subprocess.Popen[bytes], sig: int = signal.SIGKILL) -> None:
+    """``sig`` to the process group of ``proc`` (the fault tests' kill), waiting for the
+    leader; a group whose leader is gone already gets SIGKILL (children left behind)."""
     if proc.poll() is None:
         os.killpg(proc.pid, sig)
         proc.wait(timeout=30)
-    else:  # the leader is gone: its group may still hold children
+    else:
         try:
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
@@ -85,19 +74,10 @@ def live_group_members(pgid: int) -> list[int]:
 def server(
     log: Path, ready: bool = True, **overrides: str
 ) -> Iterator[tuple[subprocess.Popen[bytes], str]]:
-    """``uvicorn service.main:app`` on a free port with ``PIPEFLOW_*`` ``overrides``."""
-    port = free_port()
-    proc = spawn(
-        [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(port)],
-        log,
-        **overrides,
-    )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_http(f"{url}/readyz" if ready else f"{url}/healthz", proc)
-        yield proc, url
-    finally:
-        kill_group(proc)
+    """``uvicorn service.main:app`` on a free port with ``PIPEFLOW_*`` ``overrides``
+    (:func:`service.launch.serve`), its whole group SIGKILLed at the end."""
+    with serve(log, env=overrides, ready=ready, timeout_s=90, stop=signal.SIGKILL) as s:
+        yield s.proc, s.url
 
 
 def wait_job(

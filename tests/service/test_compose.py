@@ -6,7 +6,7 @@ real command-line parser of the program it runs (``dask scheduler``, ``dask work
 ``uvicorn``: an unknown option fails), the modules they load import, the service's
 environment variables are settings the service reads, the proxy's configuration file
 exists and points at the API services.  The same topology runs as local processes in
-``tests/service/test_topology.py``.
+``tests/service/engine/test_topology.py``.
 """
 
 from __future__ import annotations

@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import socket
 import subprocess
 import sys
 import time
@@ -21,6 +20,8 @@ from pathlib import Path
 
 import httpx
 import pytest
+
+from service.launch import free_port
 
 #: slow (a fuzz run of the whole API, about 100 s): run by .ci/run's second pytest step
 pytestmark = pytest.mark.slow
@@ -31,15 +32,9 @@ ROOT = HERE.parent.parent
 MAX_EXAMPLES = 20
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 @pytest.mark.skipif(shutil.which("schemathesis") is None, reason="pip install -e '.[dev]'")
 def test_schemathesis_finds_nothing(tmp_path: Path) -> None:
-    port = _free_port()
+    port = free_port()
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PIPEFLOW_DATA_DIR": str(tmp_path)}
     app = "tests.service.fuzz_app:create_fuzz_app"
     server = subprocess.Popen(

@@ -1,6 +1,6 @@
 """POST /v1/stability, POST /v1/stability/jobs and POST /v1/sweeps over HTTP.
 
-The numbers are pipeflow's (tests/pipeflow/test_stability*.py check them against the
+The numbers are pipeflow's (tests/pipeflow/stability/ check them against the
 literature); these tests check that the service carries them through unchanged, with the
 job, cache and error machinery shared with simulations.  Grids are small: seconds in all.
 """
@@ -141,7 +141,7 @@ def test_paper_pipe_critical_velocity_and_cache(api: TestClient) -> None:
 def test_beta_02_critical_flow_number_through_http(api: TestClient) -> None:
     """Gregory & Paidoussis (1966); Paidoussis, Fluid-Structure Interactions vol. 1 (1998)
     sec. 3.5: beta = 0.2, gamma = 0: flutter of the second mode at u_cr ~ 5.6 (read from a
-    graph, hence 0.1).  Our 10-mode value is 5.5917 (tests/pipeflow/test_stability.py); the
+    graph, hence 0.1).  Our 10-mode value is 5.5917 (tests/pipeflow/stability/test_critical.py); the
     service must return it unchanged, so 1e-4 relative here."""
     doc = api.post("/v1/stability", json=BETA_02).json()
     assert doc["dimensionless"]["u_cr"] == pytest.approx(5.6, abs=0.1)

@@ -8,8 +8,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 import pipeflow_client
+from pipeflow.schema.results import SimulationResponse, StabilityResponse
 from pipeflow_cli.cli import main as cli_main
 from pipeflow_client import Client, JobFailed, ServiceError, SimulationResult
 from tests.service.conftest import SMALL
@@ -28,6 +30,9 @@ def test_simulate_returns_numpy_arrays(sdk_client: Client) -> None:
     again = sdk_client.simulate(SMALL)
     assert again.cached and again.key == r.key
     np.testing.assert_array_equal(again.tip_displacement, r.tip_displacement)
+    # the views come from the document validated with the service's own response model
+    assert isinstance(r.model, SimulationResponse) and r.model.key == r.key
+    assert r.model.model_dump(exclude_unset=True) == r.raw
 
 
 def test_job_with_progress_then_fetch_by_key(sdk_client: Client) -> None:
@@ -105,3 +110,17 @@ def test_compare_through_the_client(sdk_client: Client) -> None:
     with pytest.raises(ServiceError) as err:
         sdk_client.compare(SMALL, ["nope"])
     assert err.value.status == 422 and (err.value.field or "").startswith("methods")
+
+
+def test_results_are_validated_with_the_services_response_models(sdk_client: Client) -> None:
+    """A document off the contract fails in the client, naming the field."""
+    doc = sdk_client.simulate_raw(SMALL)
+    broken = {k: v for k, v in doc.items() if k != "fundamental"}
+    with pytest.raises(ValidationError, match="fundamental"):
+        SimulationResult.from_json(broken)
+    stability = sdk_client.stability(
+        {"pipe": SMALL["pipe"], "modes": 3, "velocity_range": [0.0, 40.0], "points": 11}
+    )
+    assert isinstance(pipeflow_client.parse("stability", stability), StabilityResponse)
+    with pytest.raises(ValidationError, match="crossings"):
+        pipeflow_client.parse("stability", {**stability, "crossings": [{"velocity": 1.0}]})

@@ -256,7 +256,7 @@ def test_simulation_summaries_are_the_standalone_computations() -> None:
 
 def test_stability_summaries_are_the_library_critical_velocities() -> None:
     """The paper's pipe at w0 = 100 rad/s, 10 modes: flutter of mode 3 at 27.69 m/s
-    (README, tests/pipeflow/test_stability.py); here checked against the library call."""
+    (README, tests/pipeflow/stability/test_critical.py); here checked against the library call."""
     body = {
         "base": {
             "kind": "stability",

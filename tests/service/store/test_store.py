@@ -172,7 +172,7 @@ def test_lease_claim_heartbeat_takeover(tmp_path: Path) -> None:
 
 
 def test_full_database_raises_storage_error_and_probe_recovers(tmp_path: Path) -> None:
-    """SQLITE_FULL (a page limit here, a full disk in tests/service/test_faults.py) is a
+    """SQLITE_FULL (a page limit here, a full disk in tests/service/engine/test_faults.py) is a
     StorageError with ``full``; the store is unhealthy until a probe write succeeds."""
     store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**8, memory_cache_bytes=0)
     limit = {"pages": 20}

@@ -104,7 +104,7 @@ def test_errors_name_the_field(result: dict[str, Any]) -> None:
 
 def test_paper_figures_example_script(tmp_path: Path) -> None:
     """examples/paper_figures.py draws the requested figures (coarse settings: a smoke test)."""
-    script = Path(__file__).resolve().parents[2] / "examples" / "paper_figures.py"
+    script = Path(__file__).resolve().parents[3] / "examples" / "paper_figures.py"
     spec = importlib.util.spec_from_file_location("paper_figures", script)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

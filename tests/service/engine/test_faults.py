@@ -28,9 +28,9 @@ import pytest
 from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from service.keys import keyed
+from service.launch import free_port
 from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
 from tests.service.processes import (
-    free_port,
     kill_group,
     live_group_members,
     server,

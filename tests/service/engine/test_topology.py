@@ -30,8 +30,9 @@ import httpx
 import pytest
 from sqlalchemy import create_engine, text
 
+from service.launch import free_port
 from tests.service.conftest import SMALL
-from tests.service.processes import free_port, kill_group, server, spawn, wait_http, wait_job
+from tests.service.processes import kill_group, server, spawn, wait_http, wait_job
 
 #: slow (PostgreSQL, a scheduler, workers and two replicas; about 75 s): .ci/run's -m slow step
 pytestmark = pytest.mark.slow

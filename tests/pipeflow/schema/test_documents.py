@@ -1,0 +1,154 @@
+"""The response models are the one definition of the result documents' keys.
+
+The library writes every document with :func:`pipeflow.schema.results.document`, which
+refuses a name its model lacks and a required field left out; and every field of every
+response model (nested ones included) is written by some real result below.  A key added
+on one side only fails here: in the library only, ``document`` raises; in a model only,
+no real result writes it.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import typing
+from typing import Any
+
+import pytest
+from pydantic import BaseModel
+
+from pipeflow.schema import results as r
+from pipeflow.schema.registry import COMPUTATIONS
+from tests.pipeflow.cases import TINY
+
+SIM = TINY["simulation"]
+#: real requests that between them write every field of every response model
+REQUESTS: list[tuple[str, dict[str, Any]]] = [
+    *((name, body) for name, body in TINY.items()),
+    (
+        "simulation",
+        {
+            **SIM,
+            "output": {"modal": True, "positions": [0.01], "mode_shapes": {"times": [0.0]}},
+        },
+    ),
+    ("stability", {**TINY["stability"], "velocity_range": [-10.0, 40.0]}),
+    ("argand", {**TINY["argand"], "points": 21}),
+    ("campbell", {**TINY["campbell"], "spin_range": [0.0, 3000.0], "points": 21}),
+    (  # one unstable region (a parametric resonance near 190 rad/s)
+        "resonance_chart",
+        {**TINY["resonance_chart"], "mean_velocity": 20.0, "amplitude_range": [0.0, 20.0]}
+        | {"frequency_range": [187.0, 207.0], "amplitude_points": 3, "frequency_points": 7},
+    ),
+]
+
+
+def _models(annotation: Any) -> list[type[BaseModel]]:
+    """The response models inside a field's annotation (lists and optionals unwrapped)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models(arg)]
+
+
+def _walk(model: type[BaseModel], doc: Any, seen: dict[type[BaseModel], set[str]]) -> None:
+    """Record the fields of ``model`` written in ``doc`` (and in its nested documents); an
+    unknown key fails at once."""
+    if isinstance(doc, list):
+        for item in doc:
+            _walk(model, item, seen)
+        return
+    if doc is None:
+        return
+    assert isinstance(doc, dict), (model.__name__, doc)
+    assert set(doc) <= set(model.model_fields), (model.__name__, set(doc) - set(model.model_fields))
+    seen.setdefault(model, set()).update(doc)
+    for name, value in doc.items():
+        for sub in _models(model.model_fields[name].annotation):
+            _walk(sub, value, seen)
+
+
+def _reachable(model: type[BaseModel], out: set[type[BaseModel]]) -> set[type[BaseModel]]:
+    if model not in out:
+        out.add(model)
+        for info in model.model_fields.values():
+            for sub in _models(info.annotation):
+                _reachable(sub, out)
+    return out
+
+
+@functools.cache
+def _documents() -> list[tuple[type[BaseModel], dict[str, Any]]]:
+    """Every request of :data:`REQUESTS` run as the service runs it, with the fields the
+    service adds (key, cached: execute adds kind and plots)."""
+    out = []
+    for name, body in REQUESTS:
+        c = COMPUTATIONS[name]
+        body = copy.deepcopy(body)
+        request = c.request.model_validate(
+            {"kind": name, **body} if "kind" in c.request.model_fields else body
+        )
+        out.append((c.response, {"key": "0" * 64, "cached": False, **c.execute(request)}))
+    return out
+
+
+def test_every_real_document_validates_against_its_model() -> None:
+    for model, doc in _documents():
+        model.model_validate(doc)
+        _walk(model, doc, {})
+
+
+def test_every_field_of_every_response_model_is_written_by_a_real_result() -> None:
+    seen: dict[type[BaseModel], set[str]] = {}
+    for model, doc in _documents():
+        _walk(model, doc, seen)
+    served: set[type[BaseModel]] = set()
+    for c in COMPUTATIONS.values():
+        if c.name in dict(REQUESTS):
+            _reachable(c.response, served)
+    unwritten = {
+        m.__name__: sorted(set(m.model_fields) - seen.get(m, set()))
+        for m in served
+        if set(m.model_fields) - seen.get(m, set())
+    }
+    assert not unwritten, f"fields no real result writes (a key on the model only?): {unwritten}"
+
+
+def test_document_refuses_a_name_the_model_lacks_and_a_missing_required_field() -> None:
+    with pytest.raises(TypeError, match=r"Fundamental: not a field: extra"):
+        r.document(r.Fundamental, sigma=[], omega=[], extra=1)
+    with pytest.raises(TypeError, match=r"Fundamental: missing: omega"):
+        r.document(r.Fundamental, sigma=[])
+    # optional fields may be left out (absent from the document), the service's never given
+    assert r.document(r.Trace, mode=1, sigma=[], omega=[], confidence=[]) == {
+        "mode": 1,
+        "sigma": [],
+        "omega": [],
+        "confidence": [],
+    }
+    assert list(
+        r.document(r.CompareResponse, t_end=1.0, baseline="a", methods=[], samples=2, modes=1)
+    ) == [
+        "t_end",
+        "baseline",
+        "methods",
+        "samples",
+        "modes",
+    ]  # in the order given: the bytes the service sends keep the library's order
+
+
+def test_the_library_writes_its_documents_through_document(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A key the library writes that its model lacks fails in the library's own to_dict."""
+    monkeypatch.setattr(
+        r.Crossing,
+        "model_fields",
+        {k: v for k, v in r.Crossing.model_fields.items() if k != "frequency_hz"},
+    )
+    r._names.cache_clear()
+    try:
+        name, body = "stability", TINY["stability"]
+        c = COMPUTATIONS[name]
+        with pytest.raises(TypeError, match="Crossing: not a field: frequency_hz"):
+            c.execute(c.request.model_validate(body))
+    finally:
+        monkeypatch.undo()
+        r._names.cache_clear()
