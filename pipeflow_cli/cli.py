@@ -33,6 +33,7 @@ the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s
   pipeflow plot result.json --name tip_displacement --out tip.png
   pipeflow plot spec.json --name frequency --out freq.svg        # runs the spec, then plots
   pipeflow stability stab.json                  # critical flow velocity, sweeps, maps
+  pipeflow frequency-response frf.json -o frf_result.json        # H(W), peaks, stable
   pipeflow serve --port 8000                    # the HTTP service and viewer at / (it
                                                 # runs: python -m service --port 8000)
   pipeflow run spec.json --server http://localhost:8000          # run on a server
@@ -48,6 +49,22 @@ examples (the paper's pipe, 10 modes):
   # argand.json: {"kind": "argand", "pipe": {...}, "velocity_range": [0, 60]}
   pipeflow stability argand.json -o argand_result.json
   pipeflow plot argand_result.json --name argand --out argand.png
+"""
+
+
+FREQUENCY_HELP = """\
+example: a hammer test at the tip of the paper's pipe at w0 = 100 rad/s, v = 5 m/s
+
+  echo '{"pipe": {"E": 7.8e9, "I": 1.21e-17, "L": 0.025, "M1": 1.884e-5, "M2": 1.6485e-5},
+         "flow": {"velocity": {"kind": "constant", "value": 5}},
+         "rotation": {"omega0": {"kind": "constant", "value": 100}},
+         "load": {"kind": "point_force", "position": 0.025},
+         "response": {"positions": [0.025]},
+         "frequencies": {"min": 10, "max": 8000, "count": 2000, "spacing": "log"}}' > frf.json
+  pipeflow frequency-response frf.json -o frf_result.json   # peaks on stderr
+  pipeflow frequency-response frf.json --format csv --table peaks
+  pipeflow plot frf_result.json --name bode --out bode.png  # also nyquist, waterfall,
+                                                            # deflection_shape
 """
 
 
@@ -118,6 +135,8 @@ def _is_result(data: Any) -> bool:
         return False
     if "t" in data and "tip_displacement" in data:
         return True
+    if data.get("kind") == "frequency_response":  # a result has its unit; a request has not
+        return "unit" in data and "operating_points" in data
     # stability results echo their kind and carry no request-only fields
     return data.get("kind") in (*_sweep_kinds(), "stability") and "diagnostics" in data
 
@@ -289,6 +308,27 @@ def cmd_stability(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_frequency_response(args: argparse.Namespace) -> int:
+    data = _unwrap(_read_json(args.spec))
+    result = _result_for(args, data, "frequency_response", ("frequency_response",))
+    if args.format in ("csv", "parquet"):
+        from pipeflow.io.export import to_csv, to_parquet
+
+        export = to_csv if args.format == "csv" else to_parquet
+        _write(args.output, export(result, args.table))
+    else:
+        _write_json(args, result)
+    for point in result["operating_points"]:
+        where = f"v = {point['velocity']:g} m/s, w0 = {point['omega0']:g} rad/s"
+        peaks = ", ".join(
+            f"mode {p['mode']} at {p['frequency']:.6g} rad/s (zeta {p['damping_ratio']:.4g})"
+            for p in point["peaks"]
+        )
+        print(f"{where}: {peaks or 'no peak in the range'}", file=sys.stderr)
+    _print_warnings(result)
+    return 0
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     """Run ``python -m service`` with the same flags in a child process and return its exit
     status: the service (an extra, ``pip install 'pipeflow[service]'``) is not imported by
@@ -428,6 +468,36 @@ def build_parser() -> argparse.ArgumentParser:
     kind_flag(sp, "stability", ("stability", *_sweep_kinds()))
     json_output_flags(sp)
     sp.set_defaults(func=cmd_stability)
+
+    sp = sub.add_parser(
+        "frequency-response",
+        help="frequency response functions (Bode data, peaks) at frozen operating points",
+        description=(
+            "Compute the frequency response H(W) of SPEC (a /v1/frequency-responses body: "
+            "pipe, constant flow.velocity [m/s] and rotation.omega0 [rad/s] or "
+            "operating_points, load, response positions [m] and quantity, frequencies "
+            "[rad/s]) locally (or with --server) and write its JSON (or a table); the peaks "
+            "(frequency [rad/s], damping ratio [-]) are printed on stderr.  Draw it with "
+            "'pipeflow plot RESULT --name bode|nyquist|waterfall|deflection_shape'."
+        ),
+        epilog=FREQUENCY_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument("spec", help="frequency-response spec JSON file ('-': stdin)")
+    sp.add_argument(
+        "--format",
+        choices=("json", "csv", "parquet"),
+        default="json",
+        help="output format (parquet: units in the column metadata; needs pipeflow[parquet])",
+    )
+    sp.add_argument(
+        "--table",
+        choices=("frequency_response", "peaks"),
+        default="frequency_response",
+        help="CSV/Parquet table: frequency_response (H per point and position) or peaks",
+    )
+    json_output_flags(sp)
+    sp.set_defaults(func=cmd_frequency_response)
 
     sp = sub.add_parser(
         "serve",

@@ -210,6 +210,7 @@ PATHS: dict[str, tuple[str, bool]] = {
     "stability": ("/v1/stability", True),
     **{kind: ("/v1/sweeps", False) for kind in SWEEP_KINDS},
     "study": ("/v1/studies", False),
+    "frequency_response": ("/v1/frequency-responses", True),
 }
 
 
@@ -256,7 +257,8 @@ class _Operations:
         timeout: float | None = None,
     ) -> Steps[dict[str, Any]]:
         """Run the computation named ``kind`` (``simulation``, ``compare``, ``stability``,
-        a sweep kind, ``study``: :data:`PATHS`) on ``spec`` and return the result JSON.
+        a sweep kind, ``study``, ``frequency_response``: :data:`PATHS`) on ``spec`` and
+        return the result JSON.
 
         One ``POST`` where the service answers with the result and no ``progress`` is
         given; otherwise submitted as a job (:meth:`submit_job`) and waited for
@@ -431,6 +433,31 @@ class _Operations:
         return (
             yield from _Operations.compute("stability", spec, refresh=refresh, progress=progress)
         )
+
+    @staticmethod
+    def frequency_response(
+        spec: Any, *, refresh: bool = False, progress: Progress | None = None
+    ) -> Steps[dict[str, Any]]:
+        """Frequency response functions H(W) at one or several frozen operating points
+        (spec: dict or :class:`~pipeflow.schema.frequency.FrequencyResponseSpec`): the result
+        JSON with ``frequencies`` [rad/s], ``unit`` and one block per operating point
+        (``responses`` per position: real, imag, magnitude, phase [rad]; ``peaks``;
+        ``stable``; ``diagnostics``).  Plots ``bode``, ``nyquist``, ``waterfall``,
+        ``deflection_shape`` (:meth:`plot`); tables ``frequency_response`` and ``peaks``
+        (:meth:`result_csv`).
+
+        One ``POST /v1/frequency-responses``; with ``progress`` it runs as a job instead.
+        """
+        return (
+            yield from _Operations.compute(
+                "frequency_response", spec, refresh=refresh, progress=progress
+            )
+        )
+
+    @staticmethod
+    def submit_frequency_response(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
+        """Submit a frequency response as a job; returns the job document."""
+        return (yield from _Operations.submit_job("frequency_response", spec, refresh=refresh))
 
     @staticmethod
     def submit_stability(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
@@ -634,6 +661,8 @@ class _Base:
     compare = _operation(_Operations.compare)
     stability = _operation(_Operations.stability)
     submit_stability = _operation(_Operations.submit_stability)
+    frequency_response = _operation(_Operations.frequency_response)
+    submit_frequency_response = _operation(_Operations.submit_frequency_response)
     submit_sweep = _operation(_Operations.submit_sweep)
     sweep = _operation(_Operations.sweep)
     submit_study = _operation(_Operations.submit_study)

@@ -121,3 +121,23 @@ def test_fanout_benchmark_smoke(tmp_path: Path) -> None:
     assert "2 workers vs 1:" in section
     row = next(line for line in section.splitlines() if "PIPEFLOW_WORKERS=2" in line)
     assert "'workers': 2" in row, row
+
+
+def test_frequency_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-def]
+    """benchmarks/bench_frequency.py --smoke (about a second): the three ways agree to 1e-9
+    and every ratio row is printed with a verdict (timing is not asserted)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_frequency.py"
+    spec = importlib.util.spec_from_file_location("pipeflow_bench_frequency", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--smoke"]) == 0
+    text = capsys.readouterr().out
+    for row in ("frequency_response() |", "bare numpy modal sum |", "direct solves, batched |"):
+        line = next(ln for ln in text.splitlines() if row in ln)
+        assert float(line.rstrip(" |").rsplit("|", 1)[1]) < 1e-9, line
+    for ratio in ("/ bare modal sum", "direct batched /", "direct per-frequency /"):
+        line = next(ln for ln in text.splitlines() if ratio in ln)
+        assert line.rstrip().endswith(("met |", "**missed** |")), line

@@ -22,6 +22,18 @@ Tables
     When the result carries mode shapes (``output.mode_shapes``): ``x [m]`` then, for each
     time t and branch j, ``real_j(t=<t>) [-]`` and ``imag_j(t=<t>) [-]`` of the normalised
     complex shape (:mod:`pipeflow.modeshapes`).
+``frequency_response``
+    A frequency response (:mod:`pipeflow.schema.frequency`): ``frequency [rad/s]`` then,
+    per operating point and position, ``real``, ``imag``, ``magnitude`` of H in the
+    result's unit (``m/N``, ...) and ``phase [rad]``; the column names carry the position
+    (``magnitude(x=0.025) [m/N]``) and, with several operating points, the point
+    (``magnitude(v=5.0,w0=100.0,x=0.025) [m/N]``).  An unbounded value (a frequency on an
+    undamped resonance) is an empty cell.
+``peaks``
+    Its resonances inside the range, one row per operating point and mode: ``velocity
+    [m/s]``, ``omega0 [rad/s]``, ``mode [-]``, ``frequency [rad/s]``,
+    ``natural_frequency [rad/s]``, ``damping_ratio [-]`` and ``|H|`` at the peak per
+    position (``magnitude(x=0.025) [m/N]``).
 ``study``
     A design study's table (:mod:`pipeflow.schema.study_runner`): one row per case, its
     columns as the result names them, each number's unit in brackets (``pipe.E [Pa]``,
@@ -50,10 +62,18 @@ TABLES: dict[str, str] = {
     "cma_exponents": "eigenvalues of P(t)/t (the CMA exponents): sigma [1/s], omega [rad/s]",
     "mode_shapes": "complex mode shapes along x [m]: real and imaginary parts [-] per time",
     "study": "a design study: one row per case, its overrides and summaries (units in the header)",
+    "frequency_response": "frequency response: frequency [rad/s], real, imag, magnitude of H "
+    "(in its unit) and phase [rad] per operating point and position",
+    "peaks": "resonances of a frequency response: operating point, mode, frequency [rad/s], "
+    "damping ratio [-], |H| at the peak per position",
 }
 
-#: the tables of a simulation's result (all but a study's)
-SIMULATION_TABLES: tuple[str, ...] = tuple(t for t in TABLES if t != "study")
+#: the tables of a frequency response's result
+FREQUENCY_TABLES: tuple[str, ...] = ("frequency_response", "peaks")
+#: the tables of a simulation's result (all but a study's and a frequency response's)
+SIMULATION_TABLES: tuple[str, ...] = tuple(
+    t for t in TABLES if t != "study" and t not in FREQUENCY_TABLES
+)
 
 CSV_MEDIA_TYPE = "text/csv"
 PARQUET_MEDIA_TYPE = "application/vnd.apache.parquet"
@@ -80,6 +100,8 @@ def available_tables(result: dict[str, Any]) -> list[str]:
         names.append("mode_shapes")
     if result.get("kind") == "study" and "rows" in result:
         names.append("study")
+    if result.get("kind") == "frequency_response" and result.get("operating_points"):
+        names += list(FREQUENCY_TABLES)
     return names
 
 
@@ -95,6 +117,10 @@ def table(result: dict[str, Any], name: str = "history") -> tuple[list[str], lis
         return _shapes(result["mode_shapes"])
     if name == "study":
         return _study(result)
+    if name == "frequency_response":
+        return _frf(result)
+    if name == "peaks":
+        return _peaks(result)
     return _traces(result[name])
 
 
@@ -148,6 +174,48 @@ def _shapes(block: dict[str, Any]) -> tuple[list[str], list[list[float]]]:
 def _study(result: dict[str, Any]) -> tuple[list[str], list[list[Any]]]:
     header = [f"{c['name']} [{c['unit']}]" if c["unit"] else c["name"] for c in result["columns"]]
     rows = result["rows"]
+    return header, [[row[j] for row in rows] for j in range(len(header))]
+
+
+def _point_label(result: dict[str, Any], point: dict[str, Any], x: float) -> str:
+    """``x=0.025``, or ``v=5.0,w0=100.0,x=0.025`` when the result has several points."""
+    where = f"x={_num(x)}"
+    if len(result["operating_points"]) > 1:
+        where = f"v={_num(point['velocity'])},w0={_num(point['omega0'])},{where}"
+    return where
+
+
+def _frf(result: dict[str, Any]) -> tuple[list[str], list[list[Any]]]:
+    unit = result["unit"]
+    header = ["frequency [rad/s]"]
+    columns: list[list[Any]] = [list(result["frequencies"])]
+    for point in result["operating_points"]:
+        for curve in point["responses"]:
+            where = _point_label(result, point, curve["position"])
+            for part, u in (("real", unit), ("imag", unit), ("magnitude", unit), ("phase", "rad")):
+                header.append(f"{part}({where}) [{u}]")
+                columns.append(list(curve[part]))
+    return header, columns
+
+
+def _peaks(result: dict[str, Any]) -> tuple[list[str], list[list[Any]]]:
+    unit = result["unit"]
+    names = [
+        ("velocity", "m/s"),
+        ("omega0", "rad/s"),
+        ("mode", "-"),
+        ("frequency", "rad/s"),
+        ("natural_frequency", "rad/s"),
+        ("damping_ratio", "-"),
+    ]
+    header = [f"{n} [{u}]" for n, u in names]
+    header += [f"magnitude(x={_num(x)}) [{unit}]" for x in result["positions"]]
+    rows = []
+    for point in result["operating_points"]:
+        for peak in point["peaks"]:
+            row = [point["velocity"], point["omega0"]]
+            row += [peak[n] for n, _ in names[2:]]
+            rows.append(row + list(peak["magnitude"]))
     return header, [[row[j] for row in rows] for j in range(len(header))]
 
 

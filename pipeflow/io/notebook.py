@@ -15,6 +15,13 @@ Dataset layout (:func:`to_xarray`), every variable with ``units`` (SI) and ``lon
   ``confidence(eigen_t, mode)`` [-]: the tracked frozen eigenvalues (``mode`` is the branch
   number, 1 = lowest frequency at t = 0), ``cma_sigma``/``cma_omega`` for P(t)/t;
 - ``mode_shape(shape_t, mode, shape_x)`` [-] (complex) when mode shapes were asked.
+
+A frequency response (``kind`` ``frequency_response``) has its own layout:
+``H(operating_point, position, frequency)`` (complex, in the result's unit per unit load:
+m/N, ...), ``magnitude`` and ``phase`` [rad] alike; coordinates ``frequency`` [rad/s],
+``position`` [m], ``operating_point`` (0, 1, ...) with ``velocity`` [m/s] and ``omega0``
+[rad/s] along it; ``stable(operating_point)`` and ``max_growth_rate(operating_point)``
+[1/s]; unbounded values (on an undamped resonance) are NaN.
 """
 
 from __future__ import annotations
@@ -48,6 +55,9 @@ def to_xarray(result: Any) -> Any:
 
     def var(dims: tuple[str, ...], data: Any, units: str, long_name: str) -> Any:
         return xr.Variable(dims, np.asarray(data), {"units": units, "long_name": long_name})
+
+    if result.get("kind") == "frequency_response":
+        return _frf_xarray(xr, var, result)
 
     coords: dict[str, Any] = {
         "t": var(("t",), result["t"], "s", "time"),
@@ -106,6 +116,46 @@ def to_xarray(result: Any) -> Any:
         for k in ("key", "status", "method", "initial_tip_displacement", "divergence_time")
         if result.get(k) is not None
     }
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _frf_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """The Dataset of a frequency response (see the module docstring)."""
+    import numpy as np
+
+    def arr(part: str) -> Any:
+        return np.array(
+            [[c[part] for c in p["responses"]] for p in result["operating_points"]], dtype=float
+        )  # null -> nan
+
+    points = result["operating_points"]
+    unit = result["unit"]
+    dims = ("operating_point", "position", "frequency")
+    what = f"{result['quantity']} per unit load"
+    coords = {
+        "frequency": var(("frequency",), result["frequencies"], "rad/s", "excitation frequency"),
+        "position": var(("position",), result["positions"], "m", "position along the pipe"),
+        "operating_point": var(
+            ("operating_point",), np.arange(len(points)), "1", "operating point index"
+        ),
+        "velocity": var(
+            ("operating_point",), [p["velocity"] for p in points], "m/s", "flow velocity"
+        ),
+        "omega0": var(("operating_point",), [p["omega0"] for p in points], "rad/s", "spin"),
+    }
+    data = {
+        "H": var(dims, arr("real") + 1j * arr("imag"), unit, f"frequency response: {what}"),
+        "magnitude": var(dims, arr("magnitude"), unit, f"|H|: {what}"),
+        "phase": var(dims, arr("phase"), "rad", "arg H"),
+        "stable": var(("operating_point",), [p["stable"] for p in points], "1", "stable"),
+        "max_growth_rate": var(
+            ("operating_point",),
+            [p["max_growth_rate"] for p in points],
+            "1/s",
+            "largest growth rate Re xi",
+        ),
+    }
+    attrs = {k: result[k] for k in ("key", "quantity", "unit", "modes") if k in result}
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 

@@ -49,6 +49,11 @@ class PlotKind:
     ylabel: str
     draw: Callable[[Axes, dict[str, Any], str | None], None]
     applies: Callable[[dict[str, Any]], bool]
+    #: stacked axes sharing x (the Bode plot's magnitude and phase); ``draw`` gets the
+    #: first and finds the others in ``ax.figure.axes``
+    panels: int = 1
+    #: the y axis is logarithmic (no scientific tick format)
+    log_y: bool = False
 
 
 def _has_history(r: dict[str, Any]) -> bool:
@@ -234,6 +239,126 @@ def _draw_multipliers(ax: Axes, r: dict[str, Any], label: str | None) -> None:
     ax.legend(fontsize=8)
 
 
+def _is_frf(r: dict[str, Any]) -> bool:
+    return r.get("kind") == "frequency_response" and bool(r.get("operating_points"))
+
+
+def _finite(values: Sequence[float | None]) -> list[float]:
+    """null (an unbounded value in the JSON) as NaN: matplotlib leaves a gap."""
+    return [float("nan") if v is None else float(v) for v in values]
+
+
+def _point_name(r: dict[str, Any], point: dict[str, Any], x: float | None = None) -> str:
+    parts = []
+    if len(r["operating_points"]) > 1:
+        parts.append(f"v = {point['velocity']:g} m/s, ω0 = {point['omega0']:g} rad/s")
+    if x is not None and len(r["positions"]) > 1:
+        parts.append(f"x = {x:g} m")
+    return ", ".join(parts)
+
+
+def _frf_label(r: dict[str, Any]) -> str:
+    return f"{r['quantity']} per unit load"
+
+
+def _draw_bode(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    """|H| (log-log, peaks marked) above arg H [rad] (log frequency)."""
+    phase_ax = ax.figure.axes[1]
+    W = r["frequencies"]
+    for point in r["operating_points"]:
+        for i, curve in enumerate(point["responses"]):
+            name = ", ".join(p for p in (label, _point_name(r, point, curve["position"])) if p)
+            (line,) = ax.plot(W, _finite(curve["magnitude"]), lw=1.1, label=name or None)
+            phase_ax.plot(W, _finite(curve["phase"]), lw=1.0, color=line.get_color())
+            peaks = [p for p in point["peaks"] if p["magnitude"][i] is not None]
+            ax.plot([p["frequency"] for p in peaks], [p["magnitude"][i] for p in peaks], "v",
+                    ms=5, color=line.get_color())  # fmt: skip
+    for p in r["operating_points"][0]["peaks"] if len(r["operating_points"]) == 1 else []:
+        if p["magnitude"][0] is not None:
+            ax.annotate(f"{p['mode']}: ζ = {p['damping_ratio']:.3g}", (p["frequency"],
+                        p["magnitude"][0]), fontsize=7, xytext=(4, 4),
+                        textcoords="offset points")  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylabel(f"|H| [{r['unit']}]")
+    phase_ax.set_xscale("log")
+    phase_ax.set_ylabel("phase arg H [rad]")
+    phase_ax.set_xlabel("frequency Ω [rad/s]")
+    phase_ax.set_ylim(-3.3, 3.3)
+    phase_ax.grid(True, lw=0.4, alpha=0.5)
+    ax.set_xlabel("")
+    if any(not str(line.get_label()).startswith("_") for line in ax.lines):
+        ax.legend(fontsize=7)
+
+
+def _draw_nyquist(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    """Im H against Re H, the frequency increasing along each curve (o: lowest)."""
+    for point in r["operating_points"]:
+        for curve in point["responses"]:
+            name = ", ".join(p for p in (label, _point_name(r, point, curve["position"])) if p)
+            (line,) = ax.plot(_finite(curve["real"]), _finite(curve["imag"]), lw=1.0,
+                              label=name or None)  # fmt: skip
+            ax.plot(_finite(curve["real"][:1]), _finite(curve["imag"][:1]), "o", ms=3,
+                    color=line.get_color())  # fmt: skip
+    ax.set_xlabel(f"Re H [{r['unit']}]")
+    ax.set_ylabel(f"Im H [{r['unit']}]")
+    ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
+    ax.axvline(0.0, color="0.6", lw=0.8, zorder=0)
+    if any(not str(line.get_label()).startswith("_") for line in ax.lines):
+        ax.legend(fontsize=7)
+
+
+def _draw_waterfall(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    """|H| at the first position, one curve per operating point, coloured by the point's
+    flow velocity (or spin, when only the spin varies), peaks marked."""
+    import numpy as np
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    points = r["operating_points"]
+    v = np.array([p["velocity"] for p in points], dtype=float)
+    w = np.array([p["omega0"] for p in points], dtype=float)
+    by_spin = bool(np.ptp(v) == 0 and np.ptp(w) > 0)
+    values = w if by_spin else v
+    norm = Normalize(vmin=float(values.min()), vmax=float(values.max()) + (np.ptp(values) == 0))
+    cmap = colormaps["viridis"]
+    for p, value in zip(points, values, strict=True):
+        colour = cmap(norm(value))
+        ax.plot(r["frequencies"], _finite(p["responses"][0]["magnitude"]), lw=1.0, color=colour)
+        peaks = [k for k in p["peaks"] if k["magnitude"][0] is not None]
+        ax.plot([k["frequency"] for k in peaks], [k["magnitude"][0] for k in peaks], "v", ms=4,
+                color=colour)  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylabel(f"|H(x = {r['positions'][0]:g} m)| [{r['unit']}]")
+    what = "spin ω0 [rad/s]" if by_spin else "flow velocity v [m/s]"
+    ax.figure.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=what)
+
+
+def _draw_deflection(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+    """The operating deflection shape |H(x)| along the pipe at each peak frequency (the
+    grid point nearest to it) of the first operating point, phase as dashes on a twin axis."""
+    import numpy as np
+
+    point = r["operating_points"][0]
+    W = np.asarray(r["frequencies"], dtype=float)
+    x = r["positions"]
+    order = np.argsort(x)
+    twin = ax.twinx()
+    for peak in point["peaks"] or []:
+        k = int(np.argmin(np.abs(W - peak["frequency"])))
+        amp = np.array(_finite([c["magnitude"][k] for c in point["responses"]]))[order]
+        ph = np.array(_finite([c["phase"][k] for c in point["responses"]]))[order]
+        (line,) = ax.plot(np.asarray(x)[order], amp, "-o", ms=2.5, lw=1.2,
+                          label=f"mode {peak['mode']}, Ω = {W[k]:.4g} rad/s")  # fmt: skip
+        twin.plot(np.asarray(x)[order], ph, "--", lw=0.8, color=line.get_color())
+    ax.set_ylabel(f"amplitude |H(x)| [{r['unit']}]")
+    twin.set_ylabel("phase arg H [rad] (dashed)")
+    if point["peaks"]:
+        ax.legend(fontsize=7)
+
+
 #: every plot kind, by the name used in URLs and on the command line
 PLOTS: dict[str, PlotKind] = {
     k.name: k
@@ -342,6 +467,43 @@ PLOTS: dict[str, PlotKind] = {
             _draw_mode_shapes,
             _has_shapes,
         ),
+        PlotKind(
+            "bode",
+            "Bode plot: magnitude and phase of the frequency response (▼: peaks)",
+            "frequency Ω [rad/s]",
+            "|H|",
+            _draw_bode,
+            _is_frf,
+            panels=2,
+            log_y=True,
+        ),
+        PlotKind(
+            "nyquist",
+            "Nyquist plot of the frequency response (o: lowest frequency)",
+            "Re H",
+            "Im H",
+            _draw_nyquist,
+            _is_frf,
+        ),
+        PlotKind(
+            "waterfall",
+            "Frequency response over the operating points (▼: peaks)",
+            "frequency Ω [rad/s]",
+            "|H|",
+            _draw_waterfall,
+            lambda r: _is_frf(r) and len(r["operating_points"]) > 1,
+            log_y=True,
+        ),
+        PlotKind(
+            "deflection_shape",
+            "Operating deflection shape at each peak (solid: amplitude, dashed: phase)",
+            "position along the pipe x [m]",
+            "amplitude |H(x)|",
+            _draw_deflection,
+            lambda r: (
+                _is_frf(r) and len(r["positions"]) >= 3 and bool(r["operating_points"][0]["peaks"])
+            ),
+        ),
     )
 }
 
@@ -371,16 +533,18 @@ def figure(
     for _, result in series:
         if not kind.applies(result):
             raise PlotError(f"this result has no data for the {name!r} plot")
+    if kind.panels > 1 and size == (6.4, 4.0):
+        size = (6.4, 2.4 + 2.0 * kind.panels)
     fig = Figure(figsize=size, layout="constrained")
     FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
+    ax = fig.subplots(kind.panels, 1, sharex=True, squeeze=False)[0, 0]
     ax.set_xlabel(kind.xlabel)
     ax.set_ylabel(kind.ylabel)
     for label, result in series:
         kind.draw(ax, result, label)  # may refine the labels (e.g. the swept parameter)
     ax.set_title(title if title is not None else kind.title, fontsize=10)
     ax.grid(True, lw=0.4, alpha=0.5)
-    if name not in ("spin_map", "resonance_chart", "floquet_multipliers"):
+    if name not in ("spin_map", "resonance_chart", "floquet_multipliers") and not kind.log_y:
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
     multi = ("argand", "displacements", "sweep_frequency", "sweep_damping", "mode_shapes")
     if any(label is not None for label, _ in series) or name in multi:

@@ -28,9 +28,11 @@ from pydantic import BaseModel, Field, TypeAdapter
 from pipeflow._types import Progress
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
-from pipeflow.io.export import SIMULATION_TABLES
+from pipeflow.frequency import MAX_FREQUENCIES
+from pipeflow.io.export import FREQUENCY_TABLES, SIMULATION_TABLES
 from pipeflow.io.json import json_safe
 from pipeflow.io.plots import available_plots
+from pipeflow.schema import frequency as f
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
 from pipeflow.schema.simulation import (
@@ -278,8 +280,11 @@ COMPARE = register(
 )
 
 
-def run_analysis(spec: s.StabilitySpec | s.SweepModel, progress: Progress | None) -> dict[str, Any]:
-    """A stability analysis or sweep: its model's ``run`` (the plain library call)."""
+def run_analysis(
+    spec: s.StabilitySpec | s.SweepModel | f.FrequencyResponseSpec, progress: Progress | None
+) -> dict[str, Any]:
+    """A stability analysis, sweep or frequency response: its model's ``run`` (the plain
+    library call)."""
     return spec.run(progress)
 
 
@@ -458,6 +463,35 @@ SWEEP_KINDS: tuple[str, ...] = (
     BETA_MAP.name,
     RESONANCE_CHART.name,
     FLOQUET.name,
+)
+
+
+FREQUENCY_RESPONSE = register(
+    Computation(
+        name="frequency_response",
+        request=f.FrequencyResponseSpec,
+        response=r.FrequencyResponseResponse,
+        run=run_analysis,
+        budget=f"response.positions x frequencies x operating points <= {f.MAX_FRF_VALUES:,} "
+        f"values, frequencies being the list's length or count + 3 x modes x operating points "
+        f"for a range (at most {MAX_FREQUENCIES}); one eigen-decomposition per operating point "
+        "and a few direct solves to check it",
+        plots=("bode", "nyquist", "waterfall", "deflection_shape"),
+        tables=FREQUENCY_TABLES,
+        examples={
+            "hammer": {
+                "summary": "Hammer test at the tip of the paper's pipe, w0 = 100 rad/s, v = 5 m/s",
+                "description": "Receptance at the tip, 10 to 8000 rad/s (log), 10 modes: "
+                "peaks at 244, 1768 and 5034 rad/s.",
+                "value": f.HAMMER_EXAMPLE,
+            },
+            "waterfall": {
+                "summary": "The same hammer test at v = 0, 5, 10 and 20 m/s (a waterfall)",
+                "value": f.WATERFALL_EXAMPLE,
+            },
+        },
+        fields=f.FREQUENCY_FIELDS,
+    )
 )
 
 

@@ -595,3 +595,98 @@ class StudyResponse(_Result):
         "where a case has no value (a field it does not override, a failed case's summary)."
     )
     counts: StudyCounts = Field(description="How many cases ran, failed, came from the cache.")
+
+
+# -- POST /v1/frequency-responses ------------------------------------------------------------
+
+
+class FrfCurve(BaseModel):
+    """H at one position over the frequencies, in the answer's ``unit`` per unit load."""
+
+    position: float = Field(description="Position x along the pipe [m].")
+    real: list[float | None] = Field(
+        description="Re H per frequency [unit] (null where H is unbounded: a frequency on an "
+        "undamped resonance)."
+    )
+    imag: list[float | None] = Field(description="Im H per frequency [unit].")
+    magnitude: list[float | None] = Field(description="|H| per frequency [unit].")
+    phase: list[float | None] = Field(
+        description="arg H per frequency [rad] in (-pi, pi]: the response lags the load by -phase."
+    )
+
+
+class FrfPeak(BaseModel):
+    """A resonance of the operating point inside the frequency range."""
+
+    frequency: float = Field(description="Damped natural frequency Im xi [rad/s].")
+    natural_frequency: float = Field(description="Undamped natural frequency |xi| [rad/s].")
+    damping_ratio: float = Field(
+        description="zeta = -Re xi / |xi| [-] (negative for a growing mode)."
+    )
+    mode: int = Field(description="Mode number [-] (1 = lowest frequency).")
+    magnitude: list[float | None] = Field(
+        description="|H| at the peak frequency at each position [unit] (null for an undamped "
+        "mode: unbounded there)."
+    )
+
+
+class FrfDiagnostics(BaseModel):
+    """The modal sum checked against direct solves of (K - W^2 M + i W C) q = f."""
+
+    check_frequencies: list[float] = Field(description="Where the check was made [rad/s].")
+    max_relative_difference: float | None = Field(
+        description="Largest ||H_modal - H_direct|| / ||H_direct|| over them [-]."
+    )
+    eigenvector_condition: float | None = Field(
+        description="1-norm condition number of the eigenvectors [-] (large: coalescing "
+        "eigenvalues)."
+    )
+    method: Literal["modal", "direct"] = Field(
+        description="modal: the modal sum; direct: it disagreed by more than 1e-6, so every "
+        "frequency was solved directly."
+    )
+
+
+class FrfOperatingPoint(BaseModel):
+    """The response at one operating point."""
+
+    velocity: float = Field(description="Constant flow velocity v [m/s].")
+    omega0: float = Field(description="Constant spin w0 [rad/s].")
+    stable: bool = Field(
+        description="False when some eigenvalue has Re xi > 0: there is no steady state and H "
+        "is a formal quantity (answered, with a warning)."
+    )
+    max_growth_rate: float = Field(
+        description="Largest Re xi of the frozen state matrix [1/s] (0 within rounding)."
+    )
+    responses: list[FrfCurve] = Field(description="One per requested position, in order.")
+    peaks: list[FrfPeak] = Field(description="The resonances inside the range, by mode.")
+    diagnostics: FrfDiagnostics = Field(description="Modal sum vs direct solves.")
+    warnings: list[str] = Field(description="This point's warnings (e.g. unstable).")
+
+
+class FrequencyResponseResponse(_Result):
+    """Frequency response functions H(W) at one or several frozen operating points."""
+
+    kind: Literal["frequency_response"] = Field(description="Result kind.")
+    quantity: Literal["displacement", "velocity", "acceleration"] = Field(
+        description="What H gives: displacement, velocity or acceleration per unit load."
+    )
+    unit: str = Field(
+        description="Unit of H: m/N, m/(N s), 1/kg for a point force; s^2, s, - per unit base "
+        "acceleration."
+    )
+    load: dict[str, Any] = Field(
+        description="The load: {kind: point_force, position [m]} or {kind: base_acceleration}."
+    )
+    modes: int = Field(description="Galerkin modes used [-].")
+    positions: list[float] = Field(description="The response positions x [m].")
+    frequencies: list[float] = Field(
+        description="Excitation frequencies W [rad/s] (a range has the resonances added)."
+    )
+    stable: bool = Field(description="Every operating point is stable.")
+    max_growth_rate: float = Field(description="Largest Re xi over the operating points [1/s].")
+    operating_points: list[FrfOperatingPoint] = Field(
+        description="One block per operating point, in request order (one for a request with "
+        "flow.velocity and rotation.omega0)."
+    )

@@ -131,6 +131,29 @@ STUDIES = Endpoint(
 )
 
 
+FREQUENCY_RESPONSES = Endpoint(
+    path="frequency-responses",
+    tag="frequency-responses",
+    summary="Frequency response functions at frozen operating points (or from the cache)",
+    description="The steady harmonic response H(W) of the pipe at constant flow velocity v "
+    "[m/s] and spin w0 [rad/s] (``flow.velocity`` and ``rotation.omega0``, or up to 64 "
+    "``operating_points``) to a harmonic ``load`` (a point force at a position [m], H per "
+    "newton; or the clamp's acceleration, H per m/s^2), at the ``response.positions`` [m] as "
+    "displacement, velocity or acceleration (``unit`` in the answer: m/N, m/(N s), 1/kg; s^2, "
+    "s, -), over ``frequencies`` [rad/s] (a range with the resonances added, or an explicit "
+    "list).  Per operating point: real, imaginary, magnitude and phase [rad] at each position, "
+    "the ``peaks`` (frequency [rad/s], damping ratio [-], magnitude, mode), ``stable`` and "
+    "``max_growth_rate`` [1/s] (an unstable point is answered, with a warning: H is formal "
+    "there) and the check of the modal sum against direct solves (``diagnostics``).  Many "
+    "positions give the operating deflection shape.  Figures: bode, nyquist, waterfall (several "
+    "points), deflection_shape; tables (CSV, Parquet): frequency_response, peaks.  Cached like "
+    "simulations (``X-Cache``, ``?refresh=true``).",
+    run_operation="runFrequencyResponse",
+    job_operation="submitFrequencyResponseJob",
+    job_summary="Submit a frequency response as a job",
+)
+
+
 #: computation name -> its endpoint (every served computation, and only those)
 ENDPOINTS: dict[str, Endpoint] = {
     "simulation": SIMULATIONS,
@@ -138,6 +161,7 @@ ENDPOINTS: dict[str, Endpoint] = {
     "stability": STABILITY,
     **{name: SWEEPS for name in SWEEP_KINDS},
     "study": STUDIES,
+    "frequency_response": FREQUENCY_RESPONSES,
 }
 
 

@@ -1,11 +1,14 @@
-"""The browser viewer at ``/`` and ``/stability``, and their static assets under ``/static/``.
+"""The browser viewer at ``/``, ``/stability`` and ``/frequency-response``, and their static
+assets under ``/static/``.
 
 ``/`` (``service/static/index.html``): a simulation form generated at run time from this
 service's ``/openapi.json`` (``schemaform.js``: every method, profile kind and default the
 request schema has), a run button calling ``POST /v1/simulations``, uPlot charts and a
 banner for unstable runs.  ``/stability`` (``stability.html``): the same kind of form for
 ``POST /v1/stability`` and every ``POST /v1/sweeps`` kind, job progress, crossing tables and
-the server's figures.  The chart
+the server's figures.  ``/frequency-response`` (``frequency.html``): the form of
+``POST /v1/frequency-responses``, uPlot charts of |H| (log-log, peaks marked) and the phase,
+a table of the peaks and the server's figures.  The chart
 library is vendored (``service/static/uPlot.iife.min.js``, MIT, from the npm package
 ``uplot``), so the viewer works without internet access.  The assets are a fixed
 allow-list read from the package directory: no path from the request reaches the file
@@ -27,6 +30,7 @@ ASSETS: dict[str, str] = {
     "viewer.js": "text/javascript; charset=utf-8",
     "schemaform.js": "text/javascript; charset=utf-8",
     "stability.js": "text/javascript; charset=utf-8",
+    "frequency.js": "text/javascript; charset=utf-8",
     "viewer.css": "text/css; charset=utf-8",
     "uPlot.iife.min.js": "text/javascript; charset=utf-8",
     "uPlot.min.css": "text/css; charset=utf-8",
@@ -55,6 +59,16 @@ async def stability_page() -> Response:
     """The stability page (critical velocities, sweeps, maps)."""
     return Response(
         _FILES.read("stability.html"),
+        media_type="text/html; charset=utf-8",
+        headers={"Cache-Control": "no-cache"},
+    )
+
+
+@router.get("/frequency-response")
+async def frequency_page() -> Response:
+    """The frequency-response page (Bode charts with the peaks, peaks table, figures)."""
+    return Response(
+        _FILES.read("frequency.html"),
         media_type="text/html; charset=utf-8",
         headers={"Cache-Control": "no-cache"},
     )

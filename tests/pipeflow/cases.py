@@ -60,6 +60,14 @@ TINY: dict[str, dict[str, Any]] = {
     | {"flow": {"velocity": {"kind": "harmonic", "mean": 10.0, "amplitude": 5.0}}},
 }
 TINY["floquet"]["flow"]["velocity"]["frequency"] = 1000.0
+TINY["frequency_response"] = {
+    "pipe": PIPE,
+    "modes": 3,
+    "operating_points": [{"velocity": 5.0, "omega0": 100.0}, {"velocity": 10.0, "omega0": 100.0}],
+    "load": {"kind": "point_force", "position": PIPE["L"]},
+    "response": {"positions": [PIPE["L"] / 3, 2 * PIPE["L"] / 3, PIPE["L"]]},
+    "frequencies": {"min": 10.0, "max": 6000.0, "count": 50, "spacing": "log"},
+}
 TINY["study"] = {
     "base": {"kind": "simulation", "spec": TINY["simulation"]},
     "cases": [{}, {"pipe.E": 8e9}],

@@ -32,6 +32,8 @@ def test_operations_errors_and_example() -> None:
         "submitCompareJob",
         "submitSweep",
         "submitStudy",
+        "runFrequencyResponse",
+        "submitFrequencyResponseJob",
         "getJob",
         "cancelJob",
         "getResult",
@@ -41,7 +43,7 @@ def test_operations_errors_and_example() -> None:
         "getMetrics",
     }
     # every computing endpoint has the same pair: the result, and the job form
-    for path in ("/v1/simulations", "/v1/compare", "/v1/stability"):
+    for path in ("/v1/simulations", "/v1/compare", "/v1/stability", "/v1/frequency-responses"):
         assert ("POST", path) in ops and ("POST", path + "/jobs") in ops
     for op in ops.values():
         for code, resp in op["responses"].items():
@@ -68,4 +70,5 @@ def test_the_client_paths_are_the_services_endpoint_table() -> None:
     for name, (path, sync) in PATHS.items():
         assert path == f"/v1/{ENDPOINTS[name].path}", name
         assert sync == (ENDPOINTS[name].run_operation is not None), name
-    assert len(endpoints()) == 5  # simulations, compare, stability, sweeps, studies
+    # simulations, compare, stability, sweeps, studies, frequency responses
+    assert len(endpoints()) == 6

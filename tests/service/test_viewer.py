@@ -39,6 +39,10 @@ def tc(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     [
         ("/", ["static/uPlot.iife.min.js", "static/schemaform.js", "static/viewer.js"]),
         ("/stability", ["static/schemaform.js", "static/stability.js"]),
+        (
+            "/frequency-response",
+            ["static/uPlot.iife.min.js", "static/schemaform.js", "static/frequency.js"],
+        ),
     ],
 )
 def test_pages_build_their_forms_from_the_schema(tc: Any, path: str, scripts: list[str]) -> None:

@@ -92,8 +92,8 @@ def test_overlay_legend_and_title(result: dict[str, Any]) -> None:
 
 
 def test_errors_name_the_field(result: dict[str, Any]) -> None:
-    with pytest.raises(PlotError, match="unknown plot 'bode'") as err:
-        render(result, "bode")
+    with pytest.raises(PlotError, match="unknown plot 'smith_chart'") as err:
+        render(result, "smith_chart")
     assert err.value.field == "name"
     with pytest.raises(PlotError) as err:
         render(result, "damping", "jpg")

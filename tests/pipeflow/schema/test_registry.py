@@ -16,7 +16,10 @@ from pipeflow.solvers import Options
 from tests.pipeflow.cases import TINY, tiny_request
 
 #: the computations pipeflow answers (the tests register their own kinds too)
-SERVED = [COMPUTATIONS[n] for n in ("simulation", "compare", "stability", *SWEEP_KINDS, "study")]
+SERVED = [
+    COMPUTATIONS[n]
+    for n in ("simulation", "compare", "stability", *SWEEP_KINDS, "study", "frequency_response")
+]
 
 
 def test_every_served_computation_is_complete() -> None:

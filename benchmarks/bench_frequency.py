@@ -1,0 +1,152 @@
+"""Benchmark of frequency_response() (issue 18): wall time against two bare-numpy baselines.
+
+    python benchmarks/bench_frequency.py            # the measurement (about 10 s)
+    python benchmarks/bench_frequency.py --smoke    # one quick repeat (tests/test_benchmarks.py)
+
+The case: the paper's pipe at v = 5 m/s, w0 = 100 rad/s, 20 modes, a unit force at the tip,
+the response at 3 positions (L/3, 2L/3, L) at 2,000 log-spaced frequencies from 10 to
+2e5 rad/s.  Three ways, all in this process, best of ``--repeats``:
+
+- ``frequency_response()``: the library call, everything included (the model's matrices,
+  the eigen-decomposition, the modal sum, the resonances, the direct-solve check at 5
+  frequencies, the peaks);
+- a bare numpy modal sum written here: from M, C, K and the mode shapes at the outputs
+  (built once, outside the timing), the first-order matrix, its eigen-decomposition and
+  Phi V diag(1/(iW - xi)) V^-1 b.  Target: the library within 2x of it;
+- direct solves of (K - W^2 M + i W C) q = f at every frequency, batched
+  (``np.linalg.solve`` on the stack of 2,000 systems, the fastest numpy has) and one
+  ``np.linalg.solve`` call per frequency.  Target: the library >= 20x faster than direct.
+
+The three agree (printed: the largest relative difference of H); the ratios are printed
+from the same run.  Wall time depends on the machine and its load: the load average is
+printed too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+
+from pipeflow.basis import mode_shapes
+from pipeflow.frequency import PointForce, frequency_response
+from pipeflow.model import build_model
+from pipeflow.paper import PAPER_PIPE
+
+V, W0, MODES = 5.0, 100.0, 20
+L = PAPER_PIPE.L
+POSITIONS = np.array([L / 3, 2 * L / 3, L])
+FREQUENCIES = np.geomspace(10.0, 2e5, 2000)  # [rad/s]
+
+
+def best(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
+    """Best wall time [s] of ``repeats`` calls, and the last call's value."""
+    t_best, out = math.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        t_best = min(t_best, time.perf_counter() - t0)
+    return t_best, out
+
+
+def matrices() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """M, C, K at (V, W0), the mode shapes at the outputs (p, n) and the force f (n,)."""
+    model = build_model(PAPER_PIPE, MODES)
+    C = model.C_0 + V * model.C_v
+    K = model.K_0 + V * V * model.K_v2 + W0 * W0 * model.K_w2
+    shapes = mode_shapes(MODES, np.concatenate([POSITIONS, [L]]) / L)
+    return np.asarray(model.M), C, K, shapes[:, :3].T, shapes[:, 3]
+
+
+def bare_modal(M: Any, C: Any, K: Any, out: Any, f: Any, W: Any) -> np.ndarray:
+    """Phi_out (K - W^2 M + i W C)^-1 f by modal superposition over the complex modes of
+    y' = A y, y = (q', q): H = Phi_out V_q diag(1/(iW - xi)) V^-1 (M^-1 f, 0)."""
+    n = M.shape[0]
+    Minv = np.linalg.inv(M)
+    A = np.block([[-Minv @ C, -Minv @ K], [np.eye(n), np.zeros((n, n))]])
+    xi, vec = np.linalg.eig(A)
+    b = np.concatenate([Minv @ f, np.zeros(n)])
+    left = (out @ vec[n:]) * np.linalg.solve(vec, b)[None, :]
+    return np.asarray(left @ (1.0 / (1j * W[None, :] - xi[:, None])))
+
+
+def direct_batched(M: Any, C: Any, K: Any, out: Any, f: Any, W: Any) -> np.ndarray:
+    D = K[None] - (W**2)[:, None, None] * M[None] + (1j * W)[:, None, None] * C[None]
+    rhs = np.broadcast_to(f.astype(complex), (W.size, f.size))[..., None]
+    return np.asarray(out @ np.linalg.solve(D, rhs)[..., 0].T)
+
+
+def direct_loop(M: Any, C: Any, K: Any, out: Any, f: Any, W: Any) -> np.ndarray:
+    H = np.empty((out.shape[0], W.size), dtype=complex)
+    for k, w in enumerate(W):
+        H[:, k] = out @ np.linalg.solve(K - w * w * M + 1j * w * C, f.astype(complex))
+    return H
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(np.linalg.norm(a - b, axis=0) / np.linalg.norm(b, axis=0)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--repeats", type=int, default=30, help="calls per method (best is kept)")
+    p.add_argument("--smoke", action="store_true", help="two repeats, for the test suite")
+    args = p.parse_args(argv)
+    repeats = 2 if args.smoke else args.repeats
+
+    load = os.getloadavg()
+    print("# frequency_response() benchmark (issue 18)")
+    print(f"python {sys.version.split()[0]}, numpy {np.__version__}, {os.cpu_count()} CPUs, "
+          f"OMP_NUM_THREADS={os.environ['OMP_NUM_THREADS']}, load average "
+          f"{load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")  # fmt: skip
+    size = f"{POSITIONS.size} positions x {FREQUENCIES.size} frequencies"
+    print(f"case: paper pipe, v = {V} m/s, w0 = {W0} rad/s, {MODES} modes, tip force, "
+          f"{size}, best of {repeats}")  # fmt: skip
+
+    def library() -> np.ndarray:
+        r = frequency_response(PAPER_PIPE, V, W0, load=PointForce(L), positions=POSITIONS,
+                               frequencies=FREQUENCIES, modes=MODES)  # fmt: skip
+        return np.asarray(r.H)
+
+    M, C, K, out, f = matrices()
+    library()  # warm-up: imports, caches of the basis
+    t_lib, H_lib = best(library, repeats)
+    t_bare, H_bare = best(lambda: bare_modal(M, C, K, out, f, FREQUENCIES), repeats)
+    t_batch, H_batch = best(lambda: direct_batched(M, C, K, out, f, FREQUENCIES), repeats)
+    t_loop, H_loop = best(lambda: direct_loop(M, C, K, out, f, FREQUENCIES), max(1, repeats // 5))
+
+    print()
+    print("| method | time [ms] | relative difference of H from direct (batched) |")
+    print("|---|---:|---:|")
+    for name, t, H in (
+        ("frequency_response()", t_lib, H_lib),
+        ("bare numpy modal sum", t_bare, H_bare),
+        ("direct solves, batched", t_batch, H_batch),
+        ("direct solves, one call per frequency", t_loop, H_loop),
+    ):
+        print(f"| {name} | {1e3 * t:.2f} | {_rel(H, H_batch):.1e} |")
+    print()
+    print("| ratio (same run) | measured | target | verdict |")
+    print("|---|---:|---:|---|")
+    rows = (
+        ("frequency_response() / bare modal sum", t_lib / t_bare, "<= 2x", t_lib / t_bare <= 2),
+        ("direct batched / frequency_response()", t_batch / t_lib, ">= 20x", t_batch / t_lib >= 20),
+        ("direct per-frequency / frequency_response()", t_loop / t_lib, ">= 20x",
+         t_loop / t_lib >= 20),
+    )  # fmt: skip
+    for name, ratio, target, met in rows:
+        print(f"| {name} | {ratio:.2f}x | {target} | {'met' if met else '**missed**'} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,479 @@
+"""Request model of a frequency response (``POST /v1/frequency-responses``, issue 18).
+
+:class:`FrequencyResponseSpec` is the body: the pipe (every field of the simulation and
+stability schemas: damping, tip body, hub radius, plane), one operating point (constant
+``flow.velocity`` [m/s] and ``rotation.omega0`` [rad/s], as in the stability requests) or a
+list of them (``operating_points``), the ``load`` (a point force or the clamp's
+acceleration), the ``response`` wanted (positions [m] and quantity) and the ``frequencies``
+[rad/s] (a range, to which the resonances are added, or an explicit list answered at exactly
+those values).  Its ``run`` is the plain library call
+(:func:`pipeflow.frequency.frequency_response` at each operating point); the result's JSON
+has one block per operating point (:func:`frequency_result`).
+
+Same conventions as :mod:`pipeflow.schema.stability`: strict models, units in every
+description, bounds on everything a request can spend (:data:`MAX_FRF_VALUES`),
+:meth:`FrequencyResponseSpec.canonical` for the cache key (one shape: the operating points
+as a list, a range's or a list's fields only), refusals naming the request field.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import ConfigDict, Field, model_validator
+
+from pipeflow._types import Progress
+from pipeflow.errors import InvalidField
+from pipeflow.frequency import (
+    MAX_FREQUENCIES,
+    MAX_GRID_POINTS,
+    MAX_OPERATING_POINTS,
+    QUANTITIES,
+    UNITS,
+    BaseAcceleration,
+    FrequencyResponse,
+    Load,
+    PointForce,
+    frequency_grid,
+    frequency_response,
+    resonances,
+)
+from pipeflow.paper import PAPER_PIPE_JSON
+from pipeflow.schema.simulation import PipeSpec, StrictModel
+from pipeflow.schema.stability import (
+    MAX_SPEED,
+    MAX_SPIN,
+    ConstantFlow,
+    ConstantRotation,
+    Modes,
+    _Mounted,
+)
+
+#: the most output positions of one request
+MAX_FRF_POSITIONS = 64
+#: the most numbers H of one answer: positions x frequencies x operating points
+MAX_FRF_VALUES = 1_000_000
+#: the highest frequency a request may ask for [rad/s]
+MAX_FREQUENCY = 1e7
+#: points a resonance adds to a range (its damped frequency and two half-power points)
+POINTS_PER_RESONANCE = 3
+
+#: library parameter -> request field (pipeflow.frequency's names)
+FREQUENCY_FIELDS: dict[str, str] = {
+    "pipe": "pipe",
+    "tip_mass": "pipe.tip_mass",
+    "tip_inertia": "pipe.tip_inertia",
+    "velocity": "operating_points",
+    "omega0": "operating_points",
+    "modes": "modes",
+    "load": "load.position",
+    "positions": "response.positions",
+    "quantity": "response.quantity",
+    "frequencies": "frequencies",
+    "w_min": "frequencies.min",
+    "count": "frequencies.count",
+    "spacing": "frequencies.spacing",
+}
+
+Frequency = Annotated[float, Field(ge=0, le=MAX_FREQUENCY)]
+
+
+class PointForceLoad(StrictModel):
+    """A transverse harmonic point force F e^(i W t); H is per unit force [N]."""
+
+    kind: Literal["point_force"] = "point_force"
+    position: float = Field(
+        gt=0,
+        le=1e4,
+        description="Where the force acts, x [m] in (0, L]; at L it acts on the tip body "
+        "(a hammer test at the tip).",
+        examples=[0.025],
+    )
+
+    def to_load(self) -> Load:
+        return PointForce(self.position)
+
+
+class BaseAccelerationLoad(StrictModel):
+    """A transverse harmonic acceleration A e^(i W t) [m/s^2] of the clamp (shaker test); H
+    is per unit base acceleration and the response is relative to the clamp."""
+
+    kind: Literal["base_acceleration"] = "base_acceleration"
+
+    def to_load(self) -> Load:
+        return BaseAcceleration()
+
+
+LoadSpec = Annotated[
+    PointForceLoad | BaseAccelerationLoad,
+    Field(
+        discriminator="kind",
+        description="The harmonic load: 'point_force' at a position [m] (H per newton) or "
+        "'base_acceleration' of the clamp (H per m/s^2, motion relative to the clamp).",
+    ),
+]
+
+
+class ResponseSpec(StrictModel):
+    """Where and what: the response at each position, as displacement, velocity or
+    acceleration per unit load."""
+
+    positions: list[Annotated[float, Field(gt=0, le=1e4)]] = Field(
+        min_length=1,
+        max_length=MAX_FRF_POSITIONS,
+        description="Positions x along the pipe [m], each in (0, L], in the order wanted. "
+        "Many positions along the pipe give the operating deflection shape (amplitude and "
+        "phase along the pipe at each frequency; plot 'deflection_shape').",
+        examples=[[0.025]],
+    )
+    quantity: Literal[tuple(QUANTITIES)] = Field(  # type: ignore[valid-type]
+        "displacement",
+        description="'displacement' (receptance [m/N]; per unit base acceleration [s^2]), "
+        "'velocity' (mobility i W H [m/(N s)]; [s]) or 'acceleration' (accelerance -W^2 H "
+        "[1/kg]; [-]), per unit load.",
+    )
+
+
+class FrequencySpec(StrictModel):
+    """The excitation frequencies W [rad/s]: either a range (``min``, ``max``, ``count``,
+    ``spacing``; the operating points' resonances inside it are added, each with its two
+    half-power points, so that no peak falls between grid points) or an explicit list
+    (``values``, answered at exactly those values)."""
+
+    min: float | None = Field(
+        None,
+        ge=0,
+        le=MAX_FREQUENCY,
+        description="Lowest frequency of the range [rad/s] (> 0 for a log spacing).",
+    )
+    max: float | None = Field(
+        None, gt=0, le=MAX_FREQUENCY, description="Highest frequency of the range [rad/s]."
+    )
+    count: int = Field(
+        1000,
+        ge=2,
+        le=MAX_GRID_POINTS,
+        description="Points of the range [-], before the resonances are added.",
+    )
+    spacing: Literal["linear", "log"] = Field(
+        "linear", description="'linear' or 'log' (logarithmic) spacing of the range."
+    )
+    values: list[Frequency] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_GRID_POINTS,
+        description="Explicit frequencies [rad/s] >= 0, answered at exactly these values in "
+        "this order (instead of min, max, count and spacing).",
+    )
+
+    @model_validator(mode="after")
+    def _one_form(self) -> FrequencySpec:
+        given = self.model_fields_set & {"min", "max", "count", "spacing"}
+        if self.values is not None:
+            if given:
+                raise InvalidField(
+                    f"give either values or a range (min, max, count, spacing), not both "
+                    f"(got values and {', '.join(sorted(given))})",
+                    "values",
+                )
+            return self
+        if self.min is None or self.max is None:
+            missing = "min" if self.min is None else "max"
+            raise InvalidField(
+                "give a range (min and max [rad/s], count, spacing) or a list of values",
+                missing,
+            )
+        if not self.min < self.max:
+            raise InvalidField(
+                f"min must be below max: got min = {self.min} >= max = {self.max} rad/s", "min"
+            )
+        if self.spacing == "log" and self.min <= 0:
+            raise InvalidField("a log spacing needs min > 0 rad/s", "min")
+        return self
+
+    def canonical(self) -> dict[str, Any]:
+        """Only the fields of the form given (the range's, or the values)."""
+        if self.values is not None:
+            return {"values": list(self.values)}
+        return {"min": self.min, "max": self.max, "count": self.count, "spacing": self.spacing}
+
+
+class OperatingPoint(StrictModel):
+    """One frozen operating point: constant flow velocity and spin."""
+
+    velocity: float = Field(
+        ge=-MAX_SPEED,
+        le=MAX_SPEED,
+        description="Constant flow velocity v [m/s]; v > 0 flows from the clamped end to the "
+        "tip (v < 0: reverse flow, answered with the aspirating-pipe caveat).",
+    )
+    omega0: float = Field(ge=-MAX_SPIN, le=MAX_SPIN, description="Constant spin w0 [rad/s].")
+
+
+#: the paper's pipe, a hammer test at the tip at w0 = 100 rad/s and v = 5 m/s (README)
+HAMMER_EXAMPLE: dict[str, Any] = {
+    "pipe": dict(PAPER_PIPE_JSON),
+    "flow": {"velocity": {"kind": "constant", "value": 5.0}},
+    "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
+    "modes": 10,
+    "load": {"kind": "point_force", "position": 0.025},
+    "response": {"positions": [0.025], "quantity": "displacement"},
+    "frequencies": {"min": 10.0, "max": 8000.0, "count": 2000, "spacing": "log"},
+}
+
+#: the same pipe and load at four flow velocities (a waterfall of operating points)
+WATERFALL_EXAMPLE: dict[str, Any] = {
+    "pipe": dict(PAPER_PIPE_JSON),
+    "operating_points": [{"velocity": v, "omega0": 100.0} for v in (0.0, 5.0, 10.0, 20.0)],
+    "modes": 10,
+    "load": {"kind": "point_force", "position": 0.025},
+    "response": {"positions": [0.025]},
+    "frequencies": {"min": 10.0, "max": 8000.0, "count": 1000, "spacing": "log"},
+}
+
+_FROZEN = (
+    "a frequency response is taken at a frozen operating point: give a constant profile "
+    "({{'kind': 'constant', 'value': ...}}) or operating_points, not a {kind!r} profile "
+    "(time-variant flow or spin: run a simulation)"
+)
+
+
+class FrequencyResponseSpec(_Mounted):
+    """Frequency response functions of the pipe at one or several frozen operating points."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [HAMMER_EXAMPLE]})
+
+    pipe: PipeSpec
+    flow: ConstantFlow = Field(
+        default_factory=ConstantFlow,
+        description="Constant flow velocity of the one operating point (or operating_points).",
+    )
+    rotation: ConstantRotation = Field(
+        default_factory=ConstantRotation,
+        description="Constant spin w0 [rad/s] of the one operating point (or operating_points) "
+        "and the hub radius [m] (which applies to every point).",
+    )
+    operating_points: list[OperatingPoint] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_OPERATING_POINTS,
+        description=f"Several operating points (at most {MAX_OPERATING_POINTS}), each "
+        "{velocity [m/s], omega0 [rad/s]}, instead of flow.velocity and rotation.omega0; "
+        "the answer has one block per point, in this order, all at the same frequencies.",
+    )
+    modes: Modes = 10
+    load: LoadSpec
+    response: ResponseSpec
+    frequencies: FrequencySpec
+
+    @model_validator(mode="before")
+    @classmethod
+    def _constant_profiles(cls, data: Any) -> Any:
+        """A time-variant profile is refused by name, not as a tag mismatch."""
+        if isinstance(data, dict):
+            for group, name in (("flow", "velocity"), ("rotation", "omega0")):
+                block = data.get(group)
+                prof = block.get(name) if isinstance(block, dict) else None
+                kind = prof.get("kind") if isinstance(prof, dict) else None
+                if isinstance(kind, str) and kind != "constant":
+                    raise InvalidField(_FROZEN.format(kind=kind), f"{group}.{name}")
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self) -> FrequencyResponseSpec:
+        if self.operating_points is not None:
+            if "flow" in self.model_fields_set or "omega0" in self.rotation.model_fields_set:
+                raise InvalidField(
+                    "give operating_points or flow.velocity and rotation.omega0, not both",
+                    "operating_points",
+                )
+        for name, value in (("flow.velocity", self.flow.velocity.value),):
+            if abs(value) > MAX_SPEED:
+                raise InvalidField(f"{name} must lie within +-{MAX_SPEED:g} m/s", f"{name}.value")
+        if abs(self.rotation.omega0.value) > MAX_SPIN:
+            raise InvalidField(
+                f"rotation.omega0 must lie within +-{MAX_SPIN:g} rad/s", "rotation.omega0.value"
+            )
+        L = self.pipe.L
+        for i, x in enumerate(self.response.positions):
+            if x > L:
+                raise InvalidField(
+                    f"response.positions[{i}] = {x} m is outside (0, L = {L} m]",
+                    "response.positions",
+                )
+        if isinstance(self.load, PointForceLoad) and self.load.position > L:
+            raise InvalidField(
+                f"load.position = {self.load.position} m is outside (0, L = {L} m]",
+                "load.position",
+            )
+        self._check_work()
+        return self
+
+    def points(self) -> list[tuple[float, float]]:
+        """The operating points (v [m/s], w0 [rad/s]), in order."""
+        if self.operating_points is None:
+            return [(self.flow.velocity.value, self.rotation.omega0.value)]
+        return [(p.velocity, p.omega0) for p in self.operating_points]
+
+    def frequency_bound(self) -> int:
+        """The most frequencies the answer can have: the list's length, or the range's count
+        plus 3 points per resonance of every operating point."""
+        f = self.frequencies
+        if f.values is not None:
+            return len(f.values)
+        return f.count + POINTS_PER_RESONANCE * self.modes * len(self.points())
+
+    def _check_work(self) -> None:
+        f = self.frequencies
+        where = "frequencies.values" if f.values is not None else "frequencies.count"
+        n_freq = self.frequency_bound()
+        if n_freq > MAX_FREQUENCIES:
+            raise InvalidField(
+                f"count + {POINTS_PER_RESONANCE} x modes x operating points (the resonance "
+                f"points added to the range) is {n_freq}, over {MAX_FREQUENCIES}: lower "
+                "count, modes or the number of operating points",
+                where,
+            )
+        work = len(self.response.positions) * n_freq * len(self.points())
+        if work > MAX_FRF_VALUES:
+            raise InvalidField(
+                f"positions x frequencies x operating points = {len(self.response.positions)}"
+                f" x {n_freq} x {len(self.points())} = {work} values, over the bound "
+                f"{MAX_FRF_VALUES:,}: ask for fewer frequencies, positions or points",
+                where,
+            )
+
+    def canonical(self) -> dict[str, Any]:
+        """One shape for the cache key: the operating points always as a list, the hub
+        radius, and only the frequency form given (defaults filled in)."""
+        return {
+            "pipe": self.pipe.model_dump(mode="json"),
+            "rotation": {"hub_radius": self.rotation.hub_radius},
+            "plane": self.plane,
+            "operating_points": [{"velocity": v, "omega0": w} for v, w in self.points()],
+            "modes": self.modes,
+            "load": self.load.model_dump(mode="json"),
+            "response": self.response.model_dump(mode="json"),
+            "frequencies": self.frequencies.canonical(),
+        }
+
+    def grid(self) -> list[float] | Any:
+        """The frequencies [rad/s]: the explicit list, or the range with every operating
+        point's resonances in it (:func:`~pipeflow.frequency.frequency_grid`)."""
+        f = self.frequencies
+        if f.values is not None:
+            return list(f.values)
+        pipe = self.mounted_pipe()
+        found = [r for v, w in self.points() for r in resonances(pipe, v, w, modes=self.modes)]
+        assert f.min is not None and f.max is not None  # the validator's range form
+        return frequency_grid(f.min, f.max, f.count, f.spacing, resonances=found)
+
+    def responses(self, progress: Progress | None = None) -> list[FrequencyResponse]:
+        """:func:`~pipeflow.frequency.frequency_response` at each operating point."""
+        pipe = self.mounted_pipe()
+        W = self.grid()
+        points = self.points()
+        out = []
+        for i, (v, w) in enumerate(points):
+            out.append(
+                frequency_response(
+                    pipe,
+                    v,
+                    w,
+                    load=self.load.to_load(),
+                    positions=self.response.positions,
+                    frequencies=W,
+                    quantity=self.response.quantity,
+                    modes=self.modes,
+                )
+            )
+            if progress is not None:
+                progress((i + 1) / len(points))
+        return out
+
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """The responses at every operating point as JSON (:func:`frequency_result`)."""
+        return frequency_result(self.responses(progress))
+
+
+def _load_json(load: Load) -> dict[str, Any]:
+    if isinstance(load, PointForce):
+        return {"kind": "point_force", "position": load.position}
+    return {"kind": "base_acceleration"}
+
+
+def point_result(r: FrequencyResponse) -> dict[str, Any]:
+    """One operating point's block of the answer (numbers as the library gives them)."""
+    d = r.diagnostics
+    return {
+        "velocity": r.velocity,
+        "omega0": r.omega0,
+        "stable": r.stable,
+        "max_growth_rate": r.max_growth_rate,
+        "responses": [
+            {
+                "position": float(x),
+                "real": r.H[i].real.tolist(),
+                "imag": r.H[i].imag.tolist(),
+                "magnitude": r.magnitude[i].tolist(),
+                "phase": r.phase[i].tolist(),
+            }
+            for i, x in enumerate(r.positions)
+        ],
+        "peaks": [
+            {
+                "frequency": p.frequency,
+                "natural_frequency": p.natural_frequency,
+                "damping_ratio": p.damping_ratio,
+                "mode": p.mode,
+                "magnitude": list(p.magnitude),
+            }
+            for p in r.peaks
+        ],
+        "diagnostics": {
+            "check_frequencies": list(d.check_frequencies),
+            "max_relative_difference": d.max_relative_difference,
+            "eigenvector_condition": d.eigenvector_condition,
+            "method": d.method,
+        },
+        "warnings": list(r.warnings),
+    }
+
+
+def frequency_result(responses: list[FrequencyResponse]) -> dict[str, Any]:
+    """The JSON of the responses at several operating points (same load, positions,
+    quantity and frequencies): shared fields once, one block per point.
+
+    The top-level ``warnings`` are every point's, once: a warning every point has as is,
+    another prefixed with its operating point."""
+    first = responses[0]
+    warnings: list[str] = []
+    for r in responses:
+        for w in r.warnings:
+            shared = all(w in o.warnings for o in responses)
+            text = w if shared else f"at v = {r.velocity:g} m/s, w0 = {r.omega0:g} rad/s: {w}"
+            if text not in warnings:
+                warnings.append(text)
+    return {
+        "quantity": first.quantity,
+        "unit": first.unit,
+        "load": _load_json(first.load),
+        "modes": first.modes,
+        "positions": first.positions.tolist(),
+        "frequencies": first.frequencies.tolist(),
+        "stable": all(r.stable for r in responses),
+        "max_growth_rate": max(r.max_growth_rate for r in responses),
+        "operating_points": [point_result(r) for r in responses],
+        "warnings": warnings,
+    }
+
+
+__all__ = [
+    "FREQUENCY_FIELDS",
+    "HAMMER_EXAMPLE",
+    "MAX_FRF_POSITIONS",
+    "MAX_FRF_VALUES",
+    "UNITS",
+    "FrequencyResponseSpec",
+    "frequency_result",
+]

@@ -1,0 +1,236 @@
+// pipeflow frequency-response page: a form generated from the request schema of
+// POST /v1/frequency-responses in /openapi.json (SchemaForm), one run on this service, and
+// uPlot charts of the answer: |H| against frequency on log-log axes with the peaks marked
+// (one curve per operating point and position), the phase [rad], a table of the peaks
+// (frequency, damping ratio, |H|) and the server's figures (bode, nyquist, waterfall, ...).
+"use strict";
+
+(function () {
+  const SF = window.SchemaForm;
+  const form = document.getElementById("frf-form");
+  const host = document.getElementById("fields");
+  const runButton = document.getElementById("run");
+  const statusEl = document.getElementById("status");
+  const formError = document.getElementById("form-error");
+  const ENDPOINT = "v1/frequency-responses";
+  const COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"];
+  const state = { doc: null, schema: null, example: null, result: null, charts: {}, run: 0 };
+  window.pipeflowFrequency = { state };
+
+  const fmt = (v, digits) => (v === null || v === undefined ? "—"
+    : typeof v === "number" ? (Number.isInteger(v) ? String(v) : +v.toPrecision(digits || 6) + "")
+      : String(v));
+
+  function tick(v) {
+    if (v === null || !Number.isFinite(v)) return "";
+    if (v === 0) return "0";
+    const a = Math.abs(v);
+    if (a >= 1e4 || a < 1e-2) return v.toExponential(1).replace("e+", "e");
+    return String(+v.toPrecision(6));
+  }
+
+  const positive = (values) => values.map((v) => (typeof v === "number" && Number.isFinite(v) && v > 0 ? v : null));
+  const finite = (values) => values.map((v) => (typeof v === "number" && Number.isFinite(v) ? v : null));
+
+  // ---- the curves of a result -------------------------------------------------------------
+
+  function curves(r) {
+    // one curve per operating point and position, labelled only by what varies
+    const out = [];
+    const many = r.operating_points.length > 1;
+    r.operating_points.forEach((p, i) => {
+      p.responses.forEach((c, j) => {
+        const parts = [];
+        if (many) parts.push("v = " + fmt(p.velocity) + " m/s, ω0 = " + fmt(p.omega0) + " rad/s");
+        if (r.positions.length > 1 || !many) parts.push("x = " + fmt(c.position) + " m");
+        out.push({ label: parts.join(", "), point: p, pointIndex: i, positionIndex: j, curve: c });
+      });
+    });
+    return out;
+  }
+
+  function peakSeries(r, k) {
+    // |H| at the peaks of curve k, null elsewhere: the peaks drawn as markers
+    const W = r.frequencies;
+    const y = W.map(() => null);
+    for (const p of k.point.peaks) {
+      const m = p.magnitude[k.positionIndex];
+      if (m === null || m === undefined) continue;
+      let best = 0;
+      for (let i = 1; i < W.length; i++) if (Math.abs(W[i] - p.frequency) < Math.abs(W[best] - p.frequency)) best = i;
+      y[best] = m;
+    }
+    return y;
+  }
+
+  function chart(id, yLabel, series, logY) {
+    const chartHost = document.getElementById(id);
+    if (state.charts[id]) { state.charts[id].destroy(); delete state.charts[id]; }
+    const r = state.result;
+    const width = Math.max(320, Math.min(chartHost.clientWidth || 900, 1000));
+    const plot = new uPlot({
+      width, height: 280,
+      scales: { x: { time: false, distr: 3 }, y: logY ? { distr: 3 } : { auto: true } },
+      axes: [{ label: "frequency Ω [rad/s]", values: (u, s) => s.map(tick) },
+        { label: yLabel, size: 80, values: (u, s) => s.map(tick) }],
+      series: [{ label: "Ω [rad/s]" }].concat(series.map((s) => s.opts)),
+      cursor: { drag: { x: true, y: false } },
+    }, [r.frequencies.map((w) => (w > 0 ? w : null))].concat(series.map((s) => s.y)), chartHost);
+    state.charts[id] = plot;
+    chartHost.dataset.points = String(r.frequencies.length);
+    chartHost.dataset.series = String(series.length);
+  }
+
+  function draw(r) {
+    const ks = curves(r);
+    const mag = [];
+    const phase = [];
+    let markers = 0;
+    ks.forEach((k, i) => {
+      const color = COLORS[i % COLORS.length];
+      mag.push({ y: positive(k.curve.magnitude), opts: { label: k.label || "|H|", stroke: color, width: 1.3 } });
+      const peaks = peakSeries(r, k);
+      markers += peaks.filter((v) => v !== null).length;
+      mag.push({
+        y: peaks,
+        opts: { label: "peaks", stroke: color, width: 0, paths: () => null, points: { show: true, size: 9, fill: color } },
+      });
+      phase.push({ y: finite(k.curve.phase), opts: { label: k.label || "arg H", stroke: color, width: 1.1 } });
+    });
+    document.getElementById("magnitude-title").textContent = "Magnitude |H| [" + r.unit + "] (" + r.quantity + " per unit load; ● peaks)";
+    chart("chart-magnitude", "|H| [" + r.unit + "]", mag, true);
+    chart("chart-phase", "arg H [rad]", phase, false);
+    document.getElementById("chart-magnitude").dataset.peaks = String(markers);
+  }
+
+  // ---- tables, summary, figures ----------------------------------------------------------
+
+  function table(title, columns, rows) {
+    const wrap = document.createElement("div");
+    const h = document.createElement("h2");
+    h.textContent = title + " (" + rows.length + ")";
+    const t = document.createElement("table");
+    t.className = "data";
+    const head = t.createTHead().insertRow();
+    for (const [label] of columns) {
+      const th = document.createElement("th");
+      th.textContent = label;
+      head.appendChild(th);
+    }
+    const body = t.createTBody();
+    for (const row of rows) {
+      const tr = body.insertRow();
+      for (const [, get] of columns) tr.insertCell().textContent = fmt(get(row));
+    }
+    wrap.append(h, t);
+    return wrap;
+  }
+
+  function render(r) {
+    state.result = r;
+    document.getElementById("results").hidden = false;
+    const summary = document.getElementById("summary");
+    const unstable = r.operating_points.filter((p) => !p.stable);
+    const n = r.operating_points.reduce((s, p) => s + p.peaks.length, 0);
+    summary.textContent = unstable.length
+      ? "Unstable: " + unstable.length + " of " + r.operating_points.length + " operating points grow (largest growth rate "
+        + fmt(r.max_growth_rate, 4) + " 1/s); there is no steady state and H is formal there."
+      : "Stable at every operating point: " + n + " peaks in " + fmt(r.frequencies[0]) + " … "
+        + fmt(r.frequencies[r.frequencies.length - 1]) + " rad/s (" + r.frequencies.length + " frequencies).";
+    summary.classList.toggle("ok", unstable.length === 0);
+    const rows = [];
+    for (const p of r.operating_points) for (const k of p.peaks) rows.push(Object.assign({ point: p }, k));
+    const columns = [["v [m/s]", (x) => x.point.velocity], ["ω0 [rad/s]", (x) => x.point.omega0],
+      ["mode", (x) => x.mode], ["frequency [rad/s]", (x) => x.frequency],
+      ["natural frequency [rad/s]", (x) => x.natural_frequency], ["damping ratio ζ [-]", (x) => x.damping_ratio]];
+    r.positions.forEach((x, j) => columns.push(["|H(x = " + fmt(x) + " m)| [" + r.unit + "]", (k) => k.magnitude[j]]));
+    const tables = document.getElementById("tables");
+    tables.textContent = "";
+    tables.appendChild(table("Peaks", columns, rows));
+    draw(r);
+    const plots = document.getElementById("plots");
+    plots.textContent = "";
+    for (const name of r.plots || []) {
+      const fig = document.createElement("figure");
+      const img = document.createElement("img");
+      const base = "v1/results/" + encodeURIComponent(r.key) + "/plots/" + name;
+      img.src = base + ".svg";
+      img.alt = name;
+      img.dataset.plot = name;
+      const cap = document.createElement("figcaption");
+      const a = document.createElement("a");
+      a.href = base + ".png";
+      a.textContent = name + " (PNG)";
+      cap.appendChild(a);
+      fig.append(img, cap);
+      plots.appendChild(fig);
+    }
+    SF.showWarnings(document.getElementById("warnings"), r.warnings);
+  }
+
+  function share(key, spec) {
+    SF.shareLink(document.getElementById("share-link"), { key, spec });
+    const base = "v1/results/" + encodeURIComponent(key);
+    document.getElementById("json-link").href = base;
+    document.getElementById("csv-frf").href = base + "?format=csv&table=frequency_response";
+    document.getElementById("csv-peaks").href = base + "?format=csv&table=peaks";
+  }
+
+  // ---- API calls -------------------------------------------------------------------------
+
+  async function fetchResult(key) {
+    const response = await fetch("v1/results/" + encodeURIComponent(key), { headers: { Accept: "application/json" } });
+    if (!response.ok) throw await SF.problemOf(response);
+    return await response.json();
+  }
+
+  async function run(event) {
+    if (event) event.preventDefault();
+    SF.clearErrors(form);
+    const spec = SF.collect(host, state.doc, state.schema);
+    const token = ++state.run;
+    runButton.disabled = true;
+    statusEl.textContent = "computing…";
+    try {
+      const answer = await SF.post(ENDPOINT, spec, form, formError);
+      if (!answer.ok) { statusEl.textContent = answer.title; return; }
+      if (token !== state.run) return;
+      render(answer.body);
+      share(answer.body.key, spec);
+      statusEl.textContent = "done (" + (answer.body.cached ? "cached" : "computed") + ")";
+    } catch (problem) {
+      statusEl.textContent = problem && problem.title !== undefined
+        ? SF.showProblem(form, problem, formError) : "error: " + String(problem && problem.message || problem);
+    } finally {
+      if (token === state.run) runButton.disabled = false;
+    }
+  }
+
+  async function start() {
+    state.doc = await (await fetch("openapi.json")).json();
+    const req = SF.requestSchema(state.doc, "/" + ENDPOINT);
+    state.schema = req.schema;
+    state.example = (req.examples.hammer || {}).value || (req.schema.examples || [])[0] || {};
+    const params = new URLSearchParams(window.location.search);
+    let spec = null;
+    if (params.get("spec")) {
+      try { spec = JSON.parse(params.get("spec")); } catch (e) { statusEl.textContent = "bad spec in link"; }
+    }
+    SF.render(host, state.doc, state.schema, spec || state.example);
+    runButton.disabled = false;
+    const key = params.get("key");
+    if (!key) return;
+    statusEl.textContent = "loading " + key.slice(0, 12) + "…";
+    try {
+      const result = await fetchResult(key);
+      render(result);
+      share(key, spec);
+      statusEl.textContent = "loaded result " + key.slice(0, 12) + "…";
+    } catch (problem) {
+      statusEl.textContent = SF.showProblem(form, problem, formError);
+    }
+  }
+
+  form.addEventListener("submit", run);
+  window.pipeflowFrequency.ready = start().catch((e) => { statusEl.textContent = String(e); });
+})();
