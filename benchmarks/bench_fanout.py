@@ -56,9 +56,9 @@ from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
 
 
 def _service_bench() -> Any:
-    """benchmarks/service.py (its server start-up, machine line and section writer),
+    """benchmarks/bench_service.py (its server start-up, machine line and section writer),
     loaded by path: as a script's neighbour its name would shadow the ``service`` package."""
-    path = ROOT / "benchmarks" / "service.py"
+    path = ROOT / "benchmarks" / "bench_service.py"
     spec = importlib.util.spec_from_file_location("pipeflow_bench_service", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

@@ -68,7 +68,7 @@ def test_quick_run_prints_every_issue_9_target(capsys) -> None:  # type: ignore[
 
 @pytest.mark.slow  # a benchmark's smoke run, 15-55 s
 def test_service_benchmark_smoke(tmp_path: Path) -> None:
-    """benchmarks/service.py --smoke runs every row against a real server (wrk included)
+    """benchmarks/bench_service.py --smoke runs every row against a real server (wrk included)
     and writes its section; the mixed load has no errors.  No timing is asserted: the
     targets are the benchmark's business, not CI's."""
     import re
@@ -81,7 +81,15 @@ def test_service_benchmark_smoke(tmp_path: Path) -> None:
     out = tmp_path / "RESULTS.md"
     out.write_text("# results\n\n## other section\n\nkept\n")
     proc = subprocess.run(
-        [sys.executable, "benchmarks/service.py", "--smoke", "--label", "smoke", "--out", str(out)],
+        [
+            sys.executable,
+            "benchmarks/bench_service.py",
+            "--smoke",
+            "--label",
+            "smoke",
+            "--out",
+            str(out),
+        ],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -1,8 +1,8 @@
 """Service benchmark of issue 12: the HTTP service against its own probes and the library.
 
-    python benchmarks/service.py                  # ~3 min on the 2-core machine
-    python benchmarks/service.py --smoke          # seconds: every row, tiny counts (CI)
-    python benchmarks/service.py --label after    # names the section written to RESULTS.md
+    python benchmarks/bench_service.py                  # ~3 min on the 2-core machine
+    python benchmarks/bench_service.py --smoke          # seconds: every row, tiny counts (CI)
+    python benchmarks/bench_service.py --label after    # names the section written to RESULTS.md
 
 Starts the server the README's way (``uvicorn service.main:app --port P`` from the repo
 root, data in a fresh temporary directory, the default settings otherwise) and measures,
@@ -579,7 +579,7 @@ def main(argv: list[str] | None = None) -> int:
     rows, raw = run(plan, args.label, env)
     text = "\n".join(
         [
-            f"`python benchmarks/service.py{' --smoke' if args.smoke else ''}` "
+            f"`python benchmarks/bench_service.py{' --smoke' if args.smoke else ''}` "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"{time.monotonic() - started:.0f} s): {desc}. Server: `uvicorn service.main:app` "
             "with the default settings (2 workers, JSON request logs at INFO; HTTP "
