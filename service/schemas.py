@@ -10,6 +10,7 @@ from pydantic import BaseModel, Field
 
 from service.http.problems import Problem
 from service.routes.endpoints import served
+from service.store.jobs import JobState
 
 KEY_PATTERN = r"^[0-9a-f]{64}$"
 
@@ -23,7 +24,7 @@ class JobStatus(BaseModel):
         + ", ".join(f"'{c.name}'" for c in served())
         + "."
     )
-    status: Literal["queued", "running", "succeeded", "failed", "cancelled"]
+    status: JobState
     progress: float = Field(ge=0, le=1, description="Fraction done [-].")
     created: datetime = Field(description="When the job was (last) accepted (UTC).")
     started: datetime | None = Field(description="When its current run started (UTC).")

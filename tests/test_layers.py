@@ -42,7 +42,6 @@ LIBRARY_FORBIDDEN = (
 HTTP_LAYER = (
     "service.http",
     "service.routes",
-    "service.problems",
     "service.orchestration",
     "service.main",
     "service.deps",

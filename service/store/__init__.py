@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from service.store.connection import PROBE_BYTES, StoreConnection, sqlite_url
 from service.store.errors import StorageError, StoreRefused
-from service.store.jobs import ACTIVE, STATUSES, Claim, Job, JobStore
+from service.store.jobs import ACTIVE, STATUSES, Claim, Job, JobState, JobStore
 from service.store.memory import MemoryLRU
 from service.store.results import ZLIB_LEVEL, ResultStore
 
@@ -29,6 +29,7 @@ __all__ = [
     "ZLIB_LEVEL",
     "Claim",
     "Job",
+    "JobState",
     "MemoryLRU",
     "StorageError",
     "Store",

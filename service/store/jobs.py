@@ -10,15 +10,17 @@ import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, get_args
 
 from sqlalchemy import Connection, Row, case, delete, func, select, update
 
 from service.store.connection import StoreConnection
 from service.store.tables import jobs
 
-ACTIVE = ("queued", "running")
-STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
+#: a job's status: the one definition (the job record's column, the HTTP job document)
+JobState = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+STATUSES: tuple[str, ...] = get_args(JobState)
+ACTIVE = ("queued", "running")  # not yet ended
 
 
 @dataclass(frozen=True)
