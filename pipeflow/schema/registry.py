@@ -19,7 +19,6 @@ it, one line of the service's table).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Any, Union
@@ -248,7 +247,7 @@ def summarize_simulations(requests: Sequence[SimulationSpec]) -> list[dict[str, 
     out: list[dict[str, Any] | None] = []
     for sim in sims:
         row = next(found) if sim is not None else None
-        out.append(None if row is None else {"status": "ok", **dataclasses.asdict(row)})
+        out.append(None if row is None else {"status": "ok", **vars(row)})
     return out
 
 

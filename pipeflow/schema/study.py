@@ -145,9 +145,8 @@ def _assign_copy(sparse: Any, full: Any, parts: Sequence[str], value: Any) -> An
         node[key] = value
         return node
     node = copy.copy(sparse)
-    child = node[key] if (isinstance(node, dict) and key in node) or isinstance(node, list) else None
-    if child is None:
-        child = copy.deepcopy(full[key])
+    inside = isinstance(node, list) or key in node
+    child = node[key] if inside else full[key]  # a default: shared too, copied along the path
     node[key] = _assign_copy(child, full[key], parts[1:], value)
     return node
 
