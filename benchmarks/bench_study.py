@@ -209,9 +209,7 @@ def report(side: int, modes: int, raw: dict[str, Any], started: float, smoke: bo
     ]  # fmt: skip
     if warm:
         w = min(r["wall"] for r in warm)
-        rows.append(
-            ["POST to result over HTTP, warm (memo: one new case)", w, cases / w, w / fl]
-        )
+        rows.append(["POST to result over HTTP, warm (memo: one new case)", w, cases / w, w / fl])
     load = " ".join(f"{x:.1f}" for x in raw["load_after"])
     lines = [
         f"`python benchmarks/bench_study.py{' --smoke' if smoke else f' --cases {cases}'}` "

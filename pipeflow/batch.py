@@ -211,9 +211,7 @@ def _stack(cases: list[_Case], t: FloatArray) -> list[LTISummary | None]:
         j = int(order_lowest(w[b], 1, True)[0]) if damped[b] else int(mode1[b])
         status = SimulationStatus.DIVERGING if diverging[b] else SimulationStatus.OK
         out.append(
-            LTISummary(
-                float(peak[b]), float(w[b, j].real), float(w[b, j].imag), "cma", str(status)
-            )
+            LTISummary(float(peak[b]), float(w[b, j].real), float(w[b, j].imag), "cma", str(status))
         )
     return out
 

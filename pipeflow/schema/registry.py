@@ -45,9 +45,9 @@ from pipeflow.schema.simulation import (
 )
 from pipeflow.schema.simulation import run_simulation as simulate_request
 from pipeflow.schema.stability import STABILITY_FIELDS
-from pipeflow.simulation import Simulation
 from pipeflow.schema.study import MAX_CASES, STABILITY_STUDY_EXAMPLE, STUDY_EXAMPLE, StudySpec
 from pipeflow.schema.study_runner import Column, run_study
+from pipeflow.simulation import Simulation
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
 

@@ -185,7 +185,9 @@ def _leaf_adapter(model: BaseModel, path: str) -> TypeAdapter[Any] | None:
             info = type(node).model_fields.get(part)
             if info is None:
                 return None
-            annotation = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+            annotation = (
+                Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+            )
             node = getattr(node, part)
         elif isinstance(node, list) and part.isdigit():
             item = [a for a in typing.get_args(_strip(annotation))]

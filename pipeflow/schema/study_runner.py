@@ -262,7 +262,9 @@ def _cut(text: Any, marks: Sequence[Any], once: bool) -> tuple[list[Any], list[i
     """``text`` cut at each of ``marks`` (a number's text, followed by ``,``, ``}`` or
     ``]``): the parts and, per cut, which mark; None when a mark occurs twice (or, with
     ``once``, not at all)."""
-    ends = (",", "}", "]") if isinstance(text, str) else (b",", b"}", b"]")
+    textual = isinstance(text, str)
+    ends = (",", "}", "]") if textual else (b",", b"}", b"]")
+    starts = (":", ",", "[") if textual else (b":", b",", b"[")
     cuts: list[tuple[int, int, int]] = []
     for j, mark in enumerate(marks):
         hits = []
@@ -270,7 +272,7 @@ def _cut(text: Any, marks: Sequence[Any], once: bool) -> tuple[list[Any], list[i
         while start >= 0:
             end = start + len(mark)
             before = text[start - 1 : start]
-            if text[end : end + 1] in ends and before in ((":", ",", "[") if isinstance(text, str) else (b":", b",", b"[")):
+            if text[end : end + 1] in ends and before in starts:
                 hits.append(start)
             start = text.find(mark, start + 1)
         if len(hits) > 1 or (once and not hits):
@@ -360,7 +362,7 @@ def run_study(
         idx = [first[todo[j]] for j in chunk]
         if shipped:
             return Piece(base, spec=spec, overrides=[overrides[i] for i in idx])
-        return Piece(base, requests=[requests[i] for i in idx if requests[i] is not None])
+        return Piece(base, requests=[r for r in (requests[i] for i in idx) if r is not None])
 
     pieces = [piece(chunk) for chunk in chunks]
     for c, results in _closing(parallel.fan_out(run_cases, pieces)):

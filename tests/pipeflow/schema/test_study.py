@@ -175,7 +175,10 @@ def test_a_rule_across_fields_is_a_failed_row_naming_the_case_and_the_base_field
     assert err["loc"] == ("cases", 1)
     assert "case 1 (pipe.L = 0.01)" in err["msg"] and "output.positions[0]" in err["msg"]
     result = COMPUTATIONS["study"].execute(s)
-    rows = [dict(zip([c["name"] for c in result["columns"]], row, strict=True)) for row in result["rows"]]
+    rows = [
+        dict(zip([c["name"] for c in result["columns"]], row, strict=True))
+        for row in result["rows"]
+    ]
     assert [r["status"] for r in rows] == ["ok", "failed"]
     bad = rows[1]
     assert bad["key"] is None and bad["error_type"] == "invalid-input"
