@@ -149,3 +149,28 @@ def test_frequency_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-d
     for ratio in ("/ bare modal sum", "direct batched /", "direct per-frequency /"):
         line = next(ln for ln in text.splitlines() if ratio in ln)
         assert line.rstrip().endswith(("met |", "**missed** |")), line
+
+
+@pytest.mark.slow  # a benchmark's smoke run with a server of its own, ~30 s
+def test_study_benchmark_smoke(tmp_path: Path) -> None:
+    """benchmarks/bench_study.py --smoke (a 6 x 6 LTI grid) prints the floor, the library
+    runner and the HTTP rows with their targets and writes its section; every case of the
+    cold job is computed.  No timing is asserted."""
+    import subprocess
+
+    from tests.live import ROOT
+
+    out = tmp_path / "RESULTS.md"
+    out.write_text("# results\n\n## other section\n\nkept\n")
+    proc = subprocess.run(
+        [sys.executable, "benchmarks/bench_study.py", "--smoke", "--label", "smoke", "--out",
+         str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    text = out.read_text()
+    assert "## other section\n\nkept" in text
+    section = text.split("## Study benchmark (issue 19): smoke", 1)[1]
+    for row in ("batched numpy floor", "library study runner", "POST to result over HTTP"):
+        assert row in section, row
+    assert "'computed': 36" in section and "'failed': 0" in section

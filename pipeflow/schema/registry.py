@@ -26,6 +26,7 @@ from typing import Annotated, Any, Union
 from pydantic import BaseModel, Field, TypeAdapter
 
 from pipeflow._types import Progress
+from pipeflow.batch import eligible, lti_summaries
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
 from pipeflow.frequency import MAX_FREQUENCIES
@@ -46,6 +47,7 @@ from pipeflow.schema.simulation import run_simulation as simulate_request
 from pipeflow.schema.stability import STABILITY_FIELDS
 from pipeflow.schema.study import MAX_CASES, STABILITY_STUDY_EXAMPLE, STUDY_EXAMPLE, StudySpec
 from pipeflow.schema.study_runner import Column, run_study
+from pipeflow.simulation import Simulation
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
 
@@ -74,6 +76,13 @@ class Computation:
     #: cannot vary it) and the function reducing the JSON of :meth:`execute` to them
     summary_columns: tuple[Column, ...] = ()
     summarize: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    #: optional: the summaries of a chunk of validated requests at once (``{"status": "ok",
+    #: **summary}``, equal to :attr:`summarize` of :meth:`execute`), None for the requests
+    #: it leaves to :meth:`execute` (the study runner gives it each chunk first)
+    summarize_many: Callable[[Sequence[Any]], list[dict[str, Any] | None]] | None = None
+    #: whether :attr:`summarize_many` takes a request of this kind (a study whose base it
+    #: takes runs in larger chunks)
+    batchable: Callable[[Any], bool] | None = None
 
     @property
     def cost(self) -> str:
@@ -224,6 +233,33 @@ def summarize_simulation(result: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def summarize_simulations(requests: Sequence[SimulationSpec]) -> list[dict[str, Any] | None]:
+    """The study rows of the constant-coefficient cases among ``requests`` by one stacked
+    computation (:func:`pipeflow.batch.lti_summaries`, equal to
+    :func:`summarize_simulation` of each one's result); None for the others."""
+    sims: list[Simulation | None] = []
+    for spec in requests:
+        try:
+            sims.append(spec.to_simulation())
+        except Exception:  # the single run reports it
+            sims.append(None)
+    found = iter(lti_summaries([s for s in sims if s is not None]))
+    out: list[dict[str, Any] | None] = []
+    for sim in sims:
+        row = next(found) if sim is not None else None
+        out.append(None if row is None else {"status": "ok", **vars(row)})
+    return out
+
+
+def simulation_batchable(spec: SimulationSpec) -> bool:
+    """Whether :func:`summarize_simulations` computes ``spec`` itself
+    (:func:`pipeflow.batch.eligible`)."""
+    try:
+        return eligible(spec.to_simulation())
+    except Exception:
+        return False
+
+
 SIMULATION = register(
     Computation(
         name="simulation",
@@ -249,6 +285,8 @@ SIMULATION = register(
         fields=SIMULATION_FIELDS,
         summary_columns=SIMULATION_SUMMARY,
         summarize=summarize_simulation,
+        summarize_many=summarize_simulations,
+        batchable=simulation_batchable,
     )
 )
 

@@ -11,8 +11,19 @@ host (:func:`pipeflow.parallel.fan_out`); cases with the same key are computed o
 Each case is run by its base computation's ``execute`` (the same call as a standalone
 request) and reduced on the spot to a summary by the base computation's own
 ``summarize`` (a few numbers, not its time histories, under its ``summary_columns``),
-which is what the memo stores.  One failing case does not fail the study: its row says
-``failed`` with the problem's type, field and detail.
+which is what the memo stores.  A base computation with ``summarize_many`` (simulation:
+:mod:`pipeflow.batch`, one stacked computation for the constant-coefficient cases) is
+given a whole chunk first, in chunks of up to :data:`BATCH_CHUNK_CASES`; the cases it
+leaves (``None``) run one by one as above.  One failing case does not fail the study: its
+row says ``failed`` with the problem's type, field and detail; a case its base model
+refuses (a rule across fields) is such a row too (``invalid-input``, no key).
+
+Cases are validated and keyed here, in the job's process; the pieces carry the study's
+base and each case's overrides (plain JSON, small to ship) and validate them again where
+they run, except on the serial host (no shipping), where they carry the requests.  A case's
+key is its standalone request's :func:`~pipeflow.schema.keys.canonical_key`, computed by
+:class:`CaseKeys` from a template of the base where the case's dump shows that only its
+override fields differ from the base (else from its own canonical form, as before).
 
 Progress is exact: the fraction of cases done (served by the memo or computed), reported
 after the memo look-up and after each chunk.
@@ -23,22 +34,27 @@ and ``counts``; :mod:`pipeflow.io.export` writes it as the ``study`` CSV table.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from pydantic import BaseModel
+import rfc8785
+from pydantic import BaseModel, TypeAdapter
 
-from pipeflow import parallel
+from pipeflow import __version__, parallel
 from pipeflow._types import Progress
-from pipeflow.errors import classify
+from pipeflow.errors import InvalidInput, classify
 from pipeflow.schema import results as r
 from pipeflow.schema.keys import canonical_key
-from pipeflow.schema.study import StudySpec, field_unit
+from pipeflow.schema.study import BASE_MODELS, StudySpec, field_unit, get_path, set_path
 
 #: most cases in one fanned-out piece (amortises a dispatch of ~10 ms over several cases,
 #: and bounds the cases between two progress reports) [-]
 CHUNK_CASES = 16
+#: most cases in one piece when the base summarises a chunk at once (one stacked
+#: computation: larger pieces amortise it and the dispatch; ~40 pieces for 10,000 cases) [-]
+BATCH_CHUNK_CASES = 256
 #: most keys in one memo look-up [-]
 MEMO_BATCH = 500
 #: the memo's name for per-case summaries: memo key = "study_case:<case key>"
@@ -103,6 +119,14 @@ class BaseComputation(Protocol):
     @property
     def summarize(self) -> Callable[[dict[str, Any]], dict[str, Any]] | None: ...
 
+    @property
+    def summarize_many(
+        self,
+    ) -> Callable[[Sequence[BaseModel]], list[dict[str, Any] | None]] | None: ...
+
+    @property
+    def batchable(self) -> Callable[[BaseModel], bool] | None: ...
+
     def execute(self, request: BaseModel, progress: Progress | None = None) -> dict[str, Any]: ...
 
 
@@ -132,11 +156,136 @@ def run_case(base: BaseComputation, request: BaseModel) -> dict[str, Any]:
     return {"status": "ok", **_summarize(base, result)}
 
 
-def run_cases(piece: tuple[BaseComputation, Sequence[BaseModel]]) -> list[dict[str, Any]]:
-    """The fanned-out piece: ``(base computation, requests)`` -> their summaries
-    (:func:`run_case`)."""
-    base, requests = piece
-    return [run_case(base, r) for r in requests]
+@dataclass(frozen=True)
+class Piece:
+    """A fanned-out piece of a study: its base computation and its cases, as validated
+    ``requests`` or as the ``overrides`` of ``spec``'s base (validated where it runs)."""
+
+    base: BaseComputation
+    requests: Sequence[BaseModel] | None = None
+    spec: StudySpec | None = None
+    overrides: Sequence[dict[str, int | float]] = ()
+
+    def cases(self) -> list[BaseModel]:
+        if self.requests is not None:
+            return list(self.requests)
+        assert self.spec is not None
+        out: list[BaseModel] = []
+        model = BASE_MODELS[self.spec.base_kind]
+        for o in self.overrides:
+            out.append(model.model_validate(self.spec.case_data(o)))
+        return out
+
+
+def run_cases(piece: Piece | tuple[BaseComputation, Sequence[BaseModel]]) -> list[dict[str, Any]]:
+    """The fanned-out piece -> its cases' summaries: the base's ``summarize_many`` first
+    where it has one, :func:`run_case` for the cases it leaves."""
+    if isinstance(piece, tuple):
+        piece = Piece(piece[0], requests=piece[1])
+    base, requests = piece.base, piece.cases()
+    many = getattr(base, "summarize_many", None)
+    found: list[dict[str, Any] | None] = list(many(requests)) if many else [None] * len(requests)
+    return [s if s is not None else run_case(base, r) for s, r in zip(found, requests, strict=True)]
+
+
+class CaseKeys:
+    """The key of each case of a study, as its standalone request's
+    (:func:`~pipeflow.schema.keys.canonical_key` of its canonical form), computed fast.
+
+    The RFC 8785 form and its hash are pure Python (~0.1 ms a case); a case differs from
+    the base in its override fields only, so its key is a template: the base's canonical
+    JSON with a sentinel at each override path, cut there, rejoined with the case's values.
+    That holds when the case's own ``model_dump_json`` is the base's dump with the case's
+    values at those paths (the canonical form is a function of the model's fields, as the
+    service's key memo relies on: equal dumps, equal normal forms); a case whose dump shows
+    anything else (a validator normalised another field) is keyed from its own canonical
+    form, and so is every case when the template cannot be cut cleanly."""
+
+    def __init__(self, kind: str, base: BaseModel, paths: Sequence[str]) -> None:
+        self.kind, self.paths = kind, list(paths)
+        self._dump: tuple[list[str], list[int]] | None = None
+        self._jcs: tuple[list[bytes], list[int]] | None = None
+        self._texts: dict[tuple[type, Any], tuple[str, bytes]] = {}
+        try:
+            self._template(base)
+        except Exception:  # no template: every case keyed from its canonical form
+            self._dump = self._jcs = None
+
+    def _template(self, base: BaseModel) -> None:
+        model = base.model_copy(deep=True)
+        sentinels: list[Any] = []
+        for i, path in enumerate(self.paths):
+            current = get_path(model, path)
+            if isinstance(current, int) and not isinstance(current, bool):
+                sentinel: Any = -(7_340_000_001 + i)
+            else:
+                sentinel = float(f"-1.2345678901{i:02d}e-299")
+            set_path(model, path, sentinel)
+            sentinels.append(sentinel)
+        canonical = getattr(model, "canonical", None)
+        canon = canonical() if callable(canonical) else model.model_dump(mode="json")
+        payload = {"pipeflow": __version__, "kind": self.kind, "spec": canon}
+        dump = _cut(model.model_dump_json(), [self._text(v)[0] for v in sentinels], once=True)
+        jcs = _cut(rfc8785.dumps(payload), [self._text(v)[1] for v in sentinels], once=False)
+        if dump is not None and jcs is not None:
+            self._dump, self._jcs = dump, jcs
+
+    def _text(self, value: Any) -> tuple[str, bytes]:
+        """(pydantic's JSON, RFC 8785's) of a number."""
+        memo = (type(value), value)
+        found = self._texts.get(memo)
+        if found is None:
+            pyd = TypeAdapter(type(value)).dump_json(value).decode()
+            found = self._texts[memo] = (pyd, rfc8785.dumps(value))
+        return found
+
+    def key(self, request: BaseModel) -> str:
+        """The key of ``request``, a validated case of the study."""
+        if self._dump is not None and self._jcs is not None:
+            texts = [self._text(get_path(request, p)) for p in self.paths]
+            parts, order = self._dump
+            predicted = parts[0] + "".join(
+                texts[j][0] + part for j, part in zip(order, parts[1:], strict=True)
+            )
+            if request.model_dump_json() == predicted:
+                jparts, jorder = self._jcs
+                body = jparts[0] + b"".join(
+                    texts[j][1] + part for j, part in zip(jorder, jparts[1:], strict=True)
+                )
+                return hashlib.sha256(body).hexdigest()
+        canonical = getattr(request, "canonical", None)
+        canon = canonical() if callable(canonical) else request.model_dump(mode="json")
+        return canonical_key(self.kind, canon)
+
+
+def _cut(text: Any, marks: Sequence[Any], once: bool) -> tuple[list[Any], list[int]] | None:
+    """``text`` cut at each of ``marks`` (a number's text, followed by ``,``, ``}`` or
+    ``]``): the parts and, per cut, which mark; None when a mark occurs twice (or, with
+    ``once``, not at all)."""
+    textual = isinstance(text, str)
+    ends = (",", "}", "]") if textual else (b",", b"}", b"]")
+    starts = (":", ",", "[") if textual else (b":", b",", b"[")
+    cuts: list[tuple[int, int, int]] = []
+    for j, mark in enumerate(marks):
+        hits = []
+        start = text.find(mark)
+        while start >= 0:
+            end = start + len(mark)
+            before = text[start - 1 : start]
+            if text[end : end + 1] in ends and before in starts:
+                hits.append(start)
+            start = text.find(mark, start + 1)
+        if len(hits) > 1 or (once and not hits):
+            return None
+        cuts += [(h, h + len(mark), j) for h in hits]
+    cuts.sort()
+    parts, order, at = [], [], 0
+    for s0, s1, j in cuts:
+        parts.append(text[at:s0])
+        order.append(j)
+        at = s1
+    parts.append(text[at:])
+    return parts, order
 
 
 def _memoised(memo: parallel.Memo | None, keys: Sequence[str]) -> dict[str, dict[str, Any]]:
@@ -167,26 +316,55 @@ def run_study(
     if base.name != spec.base_kind or base.summarize is None:
         raise ValueError(f"a {spec.base_kind} study cannot run cases of {base.name!r}")
     kind = base.name
-    cases = spec.expand()
-    total = len(cases)
-    keys = [canonical_key(kind, case.request.canonical()) for case in cases]
+    overrides = list(spec.overrides())
+    total = len(overrides)
+    keyer = CaseKeys(kind, spec.base.spec, spec.paths())
+    requests: list[BaseModel | None] = []
+    keys: list[str | None] = []
+    summaries: dict[str, dict[str, Any]] = {}
     # one computation per distinct key (cases that normalise alike share it)
     first: dict[str, int] = {}
     multiplicity: dict[str, int] = {}
-    for i, key in enumerate(keys):
+    invalid = 0
+    for i, o in enumerate(overrides):
+        request, problem = spec.validate_case(o)
+        requests.append(request)
+        if request is None:
+            assert problem is not None
+            field, message = problem
+            detail = f"case {i}: {field or 'the request'}: {message}"
+            keys.append(None)
+            summaries[f"invalid:{i}"] = {
+                "status": "failed",
+                **_failure(InvalidInput(detail).slug, field or None, detail),
+            }
+            invalid += 1
+            continue
+        key = keyer.key(request)
+        keys.append(key)
         first.setdefault(key, i)
         multiplicity[key] = multiplicity.get(key, 0) + 1
 
     memo = parallel.current_memo()
-    summaries = _memoised(memo, list(first))
-    cached = set(summaries)
-    done = sum(multiplicity[k] for k in cached)
+    summaries.update(_memoised(memo, list(first)))
+    cached = {k for k in summaries if k in first}
+    done = invalid + sum(multiplicity[k] for k in cached)
     if progress is not None:
         progress(done / total)
 
     todo = [k for k in first if k not in cached]
-    chunks = parallel.split(len(todo), max_size=CHUNK_CASES)
-    pieces = [(base, [cases[first[todo[j]]].request for j in chunk]) for chunk in chunks]
+    batchable = getattr(base, "batchable", None)
+    many = batchable is not None and batchable(spec.base.spec)
+    chunks = parallel.split(len(todo), max_size=BATCH_CHUNK_CASES if many else CHUNK_CASES)
+    shipped = not isinstance(parallel.current_host(), parallel.Serial)
+
+    def piece(chunk: range) -> Piece:
+        idx = [first[todo[j]] for j in chunk]
+        if shipped:
+            return Piece(base, spec=spec, overrides=[overrides[i] for i in idx])
+        return Piece(base, requests=[r for r in (requests[i] for i in idx) if r is not None])
+
+    pieces = [piece(chunk) for chunk in chunks]
     for c, results in _closing(parallel.fan_out(run_cases, pieces)):
         chunk_keys = [todo[j] for j in chunks[c]]
         summaries.update(zip(chunk_keys, results, strict=True))
@@ -201,7 +379,7 @@ def run_study(
         done += sum(multiplicity[k] for k in chunk_keys)
         if progress is not None:
             progress(done / total)
-    return _table(spec, base, cases, keys, summaries, cached, computed=len(todo))
+    return _table(spec, base, overrides, keys, summaries, cached, computed=len(todo))
 
 
 def columns(spec: StudySpec, base: BaseComputation) -> list[Column]:
@@ -218,8 +396,8 @@ def columns(spec: StudySpec, base: BaseComputation) -> list[Column]:
 def _table(
     spec: StudySpec,
     base: BaseComputation,
-    cases: Sequence[Any],
-    keys: Sequence[str],
+    overrides: Sequence[dict[str, int | float]],
+    keys: Sequence[str | None],
     summaries: dict[str, dict[str, Any]],
     cached: set[str],
     computed: int,
@@ -228,15 +406,15 @@ def _table(
     paths = spec.paths()
     metrics = [c.name for c in (*base.summary_columns, *TRAILING)]
     rows = []
-    for case, key in zip(cases, keys, strict=True):
-        s = summaries[key]
+    for i, (case, key) in enumerate(zip(overrides, keys, strict=True)):
+        s = summaries[key if key is not None else f"invalid:{i}"]
         rows.append(
             [
-                case.index,
+                i,
                 key,
                 s["status"],
                 key in cached,
-                *(case.overrides.get(p) for p in paths),
+                *(case.get(p) for p in paths),
                 *(s.get(m) for m in metrics),
             ]
         )
@@ -253,7 +431,7 @@ def _table(
             total=len(rows),
             ok=len(rows) - failed,
             failed=failed,
-            cached=sum(1 for k in keys if k in cached),
+            cached=sum(1 for k in keys if k is not None and k in cached),
             computed=computed,
         ),
         warnings=warnings,

@@ -161,11 +161,29 @@ def test_an_invalid_value_names_the_case_and_its_field() -> None:
     assert loc == ("cases", 0, "modes") and "valid integer" in msg
 
 
-def test_a_rule_across_fields_names_the_case_and_the_base_field() -> None:
+def test_a_rule_across_fields_is_a_failed_row_naming_the_case_and_the_base_field() -> None:
+    """The bulk check at submission sees each value against its own field only; a rule
+    across fields is the case's own validation, when the study runs: a failed row (no key)
+    naming the field, the other cases computed.  ``expand`` (every case at once) raises."""
     base = {"kind": "simulation", "spec": {**BASE_SIM, "output": {"positions": [0.02]}}}
-    [(loc, msg)] = errors({"base": base, "cases": [{}, {"pipe.L": 0.01}]})
-    assert loc == ("cases", 1)
-    assert "case 1 (pipe.L = 0.01)" in msg and "output.positions[0]" in msg
+    body = {"base": base, "cases": [{}, {"pipe.L": 0.01}]}
+    s = StudySpec.model_validate(body)
+    s.check()  # accepted: 0.01 is a valid length on its own
+    with pytest.raises(ValidationError) as info:
+        s.expand()
+    [err] = info.value.errors()
+    assert err["loc"] == ("cases", 1)
+    assert "case 1 (pipe.L = 0.01)" in err["msg"] and "output.positions[0]" in err["msg"]
+    result = COMPUTATIONS["study"].execute(s)
+    rows = [
+        dict(zip([c["name"] for c in result["columns"]], row, strict=True))
+        for row in result["rows"]
+    ]
+    assert [r["status"] for r in rows] == ["ok", "failed"]
+    bad = rows[1]
+    assert bad["key"] is None and bad["error_type"] == "invalid-input"
+    assert bad["error_field"] == "output.positions" and "case 1" in bad["error_detail"]
+    assert result["counts"]["failed"] == 1 and result["counts"]["computed"] == 1
 
 
 @pytest.mark.parametrize(
@@ -384,3 +402,46 @@ def test_parquet_table_of_a_study_keeps_text_flags_and_floats() -> None:
     assert str(t.schema.field("cached").type) == "bool"
     peak = names.index("peak_tip_displacement")
     assert t.column("peak_tip_displacement").to_pylist() == [r[peak] for r in result["rows"]]
+
+
+def test_an_lti_study_runs_batched_with_the_standalone_keys_and_summaries(
+    counted: list[Any],
+) -> None:
+    """Constant flow and spin (``auto`` = cma): the chunk is summarised by one stacked
+    computation (no case runs alone), each row equal to its standalone request's summary to
+    1e-10 (sigma relative to the eigenvalue's modulus) and keyed as that request, integers
+    given for float fields included; overriding ``modes`` (which the model normalises
+    ``output.eigen_modes`` against) keys from the case's own canonical form."""
+    base = {
+        "pipe": PAPER_EXAMPLE["pipe"],
+        "modes": 4,
+        "time": {"t_end": 0.2, "samples": 51},
+        "output": {"eigen_modes": 4},
+    }
+    grid = {"flow.velocity.value": [0, 10.0, 40.0], "rotation.omega0.value": [0, 150.0]}
+    for extra in ({}, {"modes": [3, 4]}):
+        s = StudySpec.model_validate(
+            {"base": {"kind": "simulation", "spec": base}, "grid": {**grid, **extra}}
+        )
+        result = COMPUTATIONS["study"].execute(s)
+        assert counted == []  # all batched
+        names = [c["name"] for c in result["columns"]]
+        statuses = set()
+        for row in result["rows"]:
+            r = dict(zip(names, row, strict=True))
+            spec = copy.deepcopy(base)
+            spec["flow"] = {"velocity": {"kind": "constant", "value": r["flow.velocity.value"]}}
+            spec["rotation"] = {"omega0": {"kind": "constant", "value": r["rotation.omega0.value"]}}
+            if "modes" in r:
+                spec["modes"] = r["modes"]
+            key, single = _standalone(spec)
+            want = COMPUTATIONS["simulation"].summarize(single)  # type: ignore[misc]
+            assert r["key"] == key
+            assert (r["method_used"], r["result_status"]) == ("cma", want["result_status"])
+            statuses.add(r["result_status"])
+            peak = want["peak_tip_displacement"]
+            assert abs(r["peak_tip_displacement"] - peak) <= 1e-10 * peak
+            scale = abs(complex(want["final_sigma_1"], want["final_omega_1"]))
+            for col in ("final_sigma_1", "final_omega_1"):
+                assert abs(r[col] - want[col]) <= 1e-10 * scale
+        assert statuses == {"ok", "diverging"}

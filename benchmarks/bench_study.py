@@ -1,0 +1,267 @@
+"""Study benchmark of issue 19: a 10,000-case LTI design study, three ways.
+
+    python benchmarks/bench_study.py                # ~1 min on the 2-core machine
+    python benchmarks/bench_study.py --cases 2500   # a 50 x 50 grid
+    python benchmarks/bench_study.py --smoke        # seconds: a 6 x 6 grid, 2 modes
+    python benchmarks/bench_study.py --label x      # names the section written to RESULTS.md
+
+The study: the paper's pipe, a grid of constant flow v in [0, 20] m/s by constant spin w0 in
+[0, 200] rad/s (sqrt(cases) values each), 10 modes, 1 s, 201 samples, method ``auto``
+(= cma), each case summarised in one row (peak tip displacement, the fundamental's final
+sigma and omega, method_used, result_status).  Measured in the same run:
+
+- the floor: a batched numpy computation written here, on one core (OMP/OpenBLAS threads
+  = 1): the state matrices of every case stacked from the model's pieces, one
+  ``np.linalg.eig`` per chunk of 256, the tip history by broadcasting
+  V exp(Lambda t) V^-1 z0, the peak and the lowest-frequency eigenvalue per case;
+- the library study runner (``COMPUTATIONS["study"].execute``, serial, this process);
+- over HTTP: ``POST /v1/studies`` on a server started with :func:`service.launch.serve`
+  (the README's ``uvicorn service.main:app``; a fresh data directory, default workers),
+  then ``GET /v1/jobs/{key}`` every 20 ms until it succeeded and ``GET /v1/results/{key}``:
+  the time from the POST to the result's last byte, and the POST's own answer time.  Each
+  repetition moves one grid value by 1e-9 relative: a new study, whose other cases the
+  store's memo then serves, so the first (cold) repetition is the one that computes
+  everything; later ones are reported apart (warm);
+- the resident memory of the server and its workers (:func:`rss_bytes` of the process
+  tree, sampled every 20 ms) idle before the first study and at its peak.
+
+Prints the ratios against the floor with the targets (HTTP within 2.5x of the floor, peak
+RSS within 1.5x of idle) and writes a section to benchmarks/RESULTS.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")  # the floor and the library on one core
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+# this tree first, and not this directory: benchmarks/service.py would shadow the package
+sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != ROOT / "benchmarks"]
+
+from pipeflow.model import build_model  # noqa: E402
+from pipeflow.paper import PAPER_PIPE  # noqa: E402
+from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
+from pipeflow.schema.simulation import PAPER_EXAMPLE  # noqa: E402
+from pipeflow.schema.study import StudySpec  # noqa: E402
+
+
+def _service_bench() -> Any:
+    """benchmarks/service.py (server start-up, RSS of a process tree, machine line,
+    section writer), loaded by path (its name would shadow the ``service`` package)."""
+    path = ROOT / "benchmarks" / "service.py"
+    spec = importlib.util.spec_from_file_location("pipeflow_bench_service", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+BENCH = _service_bench()
+RESULTS = ROOT / "benchmarks" / "RESULTS.md"
+HTTP_TARGET = 2.5
+RSS_TARGET = 1.5
+POLL_S = 0.02
+CHUNK = 256
+
+
+def study_body(side: int, modes: int, shift: float = 0.0) -> dict[str, Any]:
+    """The issue's grid: ``side`` x ``side`` cases; ``shift`` moves v's top value (a
+    distinct study)."""
+    v = np.linspace(0.0, 20.0, side)
+    v[-1] *= 1.0 + shift
+    base = {
+        "pipe": PAPER_EXAMPLE["pipe"],
+        "modes": modes,
+        "time": {"t_end": 1.0, "samples": 201},
+    }
+    return {
+        "base": {"kind": "simulation", "spec": base},
+        "grid": {
+            "flow.velocity.value": [float(x) for x in v],
+            "rotation.omega0.value": [float(x) for x in np.linspace(0.0, 200.0, side)],
+        },
+    }
+
+
+def floor(side: int, modes: int) -> tuple[float, np.ndarray]:
+    """The batched numpy computation of every row's numbers [s] (and the peaks)."""
+    model = build_model(PAPER_PIPE, modes)
+    started = time.perf_counter()
+    vv, ww = np.meshgrid(np.linspace(0.0, 20.0, side), np.linspace(0.0, 200.0, side))
+    v, w2 = vv.T.ravel(), (ww.T.ravel()) ** 2
+    n = modes
+    weights = np.stack([np.ones_like(v), v, np.zeros_like(v), v * v, w2], axis=1)
+    pieces = model.state_pieces.reshape(5, -1)
+    d0, v0 = model.initial_state(0.001, 0.0)
+    z0 = model.to_balanced(d0, v0).astype(complex)
+    t = np.linspace(0.0, 1.0, 201)
+    peaks, fund = [], []
+    for s in range(0, v.size, CHUNK):
+        S = (weights[s : s + CHUNK] @ pieces).reshape(-1, 2 * n, 2 * n)
+        lam, V = np.linalg.eig(S)
+        c = np.linalg.solve(V, np.broadcast_to(z0, lam.shape)[..., None])[..., 0]
+        amp = (model.tip @ V[:, n:, :]) * c
+        tip = np.einsum("btk,bk->bt", np.exp(lam[:, None, :] * t[None, :, None]), amp).real
+        peaks.append(np.abs(tip).max(axis=1))
+        upper = np.where(lam.imag > 0, lam.imag, np.inf)
+        fund.append(np.take_along_axis(lam, upper.argmin(axis=1)[:, None], axis=1)[:, 0])
+    out = np.concatenate(peaks)
+    return time.perf_counter() - started, out
+
+
+def library(side: int, modes: int) -> tuple[float, dict[str, Any]]:
+    spec = StudySpec.model_validate(study_body(side, modes, shift=-1e-9))
+    started = time.perf_counter()
+    result = COMPUTATIONS["study"].execute(spec)
+    return time.perf_counter() - started, result
+
+
+class Sampler(threading.Thread):
+    """The peak RSS of a process tree, sampled every 20 ms until stopped."""
+
+    def __init__(self, pid: int) -> None:
+        super().__init__(daemon=True)
+        self.pid, self.peak, self._done = pid, 0, threading.Event()
+
+    def run(self) -> None:
+        while not self._done.is_set():
+            self.peak = max(self.peak, BENCH.rss_bytes(self.pid))
+            time.sleep(0.02)
+
+    def stop(self) -> int:
+        self._done.set()
+        self.join()
+        return self.peak
+
+
+def over_http(side: int, modes: int, repeats: int) -> dict[str, Any]:
+    import httpx
+
+    tmp = Path(tempfile.mkdtemp(prefix="pipeflow-bench-study-"))
+    runs: list[dict[str, float]] = []
+    with (
+        BENCH.server(tmp / "data", tmp / "server.log", {"PIPEFLOW_LOG_LEVEL": "WARNING"}) as (
+            url,
+            pid,
+        ),
+        httpx.Client(timeout=600) as client,
+    ):
+        # first use of the workers (imports), unmeasured: a tiny study of another shape
+        warm = study_body(2, modes + 1)  # no case in common with the measured ones
+        one_job(client, url, warm)
+        time.sleep(1.0)
+        idle = BENCH.rss_bytes(pid)
+        sampler = Sampler(pid)
+        sampler.start()
+        for i in range(repeats):
+            runs.append(one_job(client, url, study_body(side, modes, shift=1e-9 * (i + 1))))
+        peak = sampler.stop()
+    return {"runs": runs, "idle": idle, "peak": peak}
+
+
+def one_job(client: Any, url: str, body: dict[str, Any]) -> dict[str, Any]:
+    started = time.perf_counter()
+    r = client.post(f"{url}/v1/studies", json=body)
+    posted = time.perf_counter() - started
+    r.raise_for_status()
+    key = r.json()["key"]
+    while True:
+        job = client.get(f"{url}/v1/jobs/{key}").json()
+        if job["status"] == "succeeded":
+            break
+        if job["status"] in ("failed", "cancelled"):
+            raise RuntimeError(f"job {key} {job['status']}: {job.get('error')}")
+        time.sleep(POLL_S)
+    doc = client.get(f"{url}/v1/results/{key}").json()
+    return {"wall": time.perf_counter() - started, "post": posted, "counts": doc["counts"]}
+
+
+def report(side: int, modes: int, raw: dict[str, Any], started: float, smoke: bool) -> str:
+    cases = side * side
+    fl, lib = raw["floor"], raw["library"]
+    runs = raw["http"]["runs"]
+    cold = runs[0]
+    warm = runs[1:]
+    idle, peak = raw["http"]["idle"], raw["http"]["peak"]
+    http_ratio = cold["wall"] / fl
+    rss_ratio = peak / idle
+    verdict = "met" if http_ratio <= HTTP_TARGET else "**missed**"
+    rss_verdict = "met" if rss_ratio <= RSS_TARGET else "**missed**"
+    post_verdict = "met" if cold["post"] <= 0.1 else "**missed**"
+    rows = [
+        ["batched numpy floor (written here, one core)", fl, cases / fl, 1.0],
+        ["library study runner (`execute`, serial)", lib, cases / lib, lib / fl],
+        ["POST to result over HTTP, cold (every case computed)", cold["wall"],
+         cases / cold["wall"], cold["wall"] / fl],
+    ]  # fmt: skip
+    if warm:
+        w = min(r["wall"] for r in warm)
+        rows.append(["POST to result over HTTP, warm (memo: one new case)", w, cases / w, w / fl])
+    load = " ".join(f"{x:.1f}" for x in raw["load_after"])
+    lines = [
+        f"`python benchmarks/bench_study.py{' --smoke' if smoke else f' --cases {cases}'}` "
+        f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+        f"{time.monotonic() - started:.0f} s): {raw['machine']}; load average {load} at the "
+        f"end. Grid {side} x {side} (v in [0, 20] m/s x w0 in [0, 200] rad/s), {modes} modes, "
+        "1 s, 201 samples, auto (= cma).",
+        "",
+        "| what | wall [s] | cases/s | / floor |",
+        "|---|---:|---:|---:|",
+        *(f"| {r[0]} | {r[1]:.3f} | {r[2]:,.0f} | {r[3]:.2f}x |" for r in rows),
+        "",
+        "| target | measured | verdict |",
+        "|---|---:|---|",
+        f"| HTTP POST to result within {HTTP_TARGET}x of the floor | {http_ratio:.2f}x | "
+        f"{verdict} |",
+        f"| POST answered in < 100 ms | {cold['post'] * 1e3:.0f} ms | {post_verdict} |",
+        f"| peak RSS of server + workers within {RSS_TARGET}x of idle | "
+        f"{peak / 2**20:.0f} / {idle / 2**20:.0f} MiB = {rss_ratio:.2f}x | {rss_verdict} |",
+        "",
+        f"counts of the cold job: {cold['counts']}; POST answer times [ms]: "
+        + ", ".join(f"{r['post'] * 1e3:.0f}" for r in runs),
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=10_000, help="grid size (a square)")
+    ap.add_argument("--smoke", action="store_true", help="a 6 x 6 grid, 2 modes")
+    ap.add_argument("--repeats", type=int, default=2, help="HTTP jobs (the first cold)")
+    ap.add_argument("--label", default="latest", help="section name in RESULTS.md")
+    ap.add_argument("--out", type=Path, default=RESULTS, help="Markdown file to write into")
+    ap.add_argument("--no-write", action="store_true", help="print only")
+    args = ap.parse_args(argv)
+    side = 6 if args.smoke else max(2, round(args.cases**0.5))
+    modes = 2 if args.smoke else 10
+    started = time.monotonic()
+    raw: dict[str, Any] = {"machine": BENCH.machine()}
+    floor(2, modes)  # first use, unmeasured
+    raw["floor"] = min(floor(side, modes)[0] for _ in range(3))
+    library(2, modes)
+    raw["library"] = library(side, modes)[0]
+    raw["http"] = over_http(side, modes, 1 if args.smoke else args.repeats)
+    raw["load_after"] = os.getloadavg()
+    text = report(side, modes, raw, started, args.smoke)
+    print(text, flush=True)
+    if not args.no_write:
+        BENCH.write_section(args.out, args.label, text, prefix="Study benchmark (issue 19)")
+        print(f"\nwritten to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
