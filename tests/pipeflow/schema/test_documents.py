@@ -32,6 +32,38 @@ REQUESTS: list[tuple[str, dict[str, Any]]] = [
             "output": {"modal": True, "positions": [0.01], "mode_shapes": {"times": [0.0]}},
         },
     ),
+    (  # every load kind, each with another profile kind (the echo of the inputs)
+        "simulation",
+        {
+            **SIM,
+            "loads": [
+                {
+                    "kind": "point_force",
+                    "position": 0.02,
+                    "force": {"kind": "constant", "value": 1e-6},
+                },
+                {
+                    "kind": "distributed_force",
+                    "intensity": {
+                        "kind": "harmonic",
+                        "mean": 0.0,
+                        "amplitude": 1e-5,
+                        "frequency": 300.0,
+                    },
+                    "start": 0.005,
+                },
+                {
+                    "kind": "base_acceleration",
+                    "acceleration": {"kind": "polynomial", "coefficients": [0.0, 1.0]},
+                },
+                {
+                    "kind": "point_force",
+                    "position": 0.025,
+                    "force": {"kind": "table", "t": [0.0, 1.0], "values": [0.0, 1e-6]},
+                },
+            ],
+        },
+    ),
     ("stability", {**TINY["stability"], "velocity_range": [-10.0, 40.0]}),
     ("argand", {**TINY["argand"], "points": 21}),
     ("campbell", {**TINY["campbell"], "spin_range": [0.0, 3000.0], "points": 21}),
@@ -63,8 +95,21 @@ def _walk(model: type[BaseModel], doc: Any, seen: dict[type[BaseModel], set[str]
     assert set(doc) <= set(model.model_fields), (model.__name__, set(doc) - set(model.model_fields))
     seen.setdefault(model, set()).update(doc)
     for name, value in doc.items():
-        for sub in _models(model.model_fields[name].annotation):
-            _walk(sub, value, seen)
+        for item in value if isinstance(value, list) else [value]:
+            for sub in _models(model.model_fields[name].annotation):
+                if _matches(sub, item):
+                    _walk(sub, item, seen)
+
+
+def _matches(model: type[BaseModel], doc: Any) -> bool:
+    """Whether ``doc`` can be ``model``: a member of a union told apart by ``kind`` (the
+    echoed loads and profiles) is only the model whose ``kind`` literal it carries."""
+    field = model.model_fields.get("kind")
+    if not isinstance(doc, dict) or "kind" not in doc or field is None:
+        return True
+    if typing.get_origin(field.annotation) is not typing.Literal:
+        return True
+    return doc["kind"] in typing.get_args(field.annotation)
 
 
 def _reachable(model: type[BaseModel], out: set[type[BaseModel]]) -> set[type[BaseModel]]:
