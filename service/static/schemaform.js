@@ -59,6 +59,22 @@ window.SchemaForm = (function () {
     return m ? m[1] : null;
   }
 
+  function groupUnit(s) {
+    // the unit of a whole group (a profile: "Force F(t) [N] ..."): a bracket in the
+    // description's opening words, not one inside a list of examples ("'point_force' at a
+    // position [m]", "{velocity [m/s], ...}")
+    const d = s.description || "";
+    const i = d.indexOf("[");
+    if (i < 0 || /['{:;]/.test(d.slice(0, i))) return null;
+    const u = unitOf(s);
+    return u && u !== "-" ? u : null;
+  }
+
+  function isProfile(s) {
+    // an object tagged by a constant kind (ConstantProfile behind a plain $ref)
+    return isObject(s) && !!s.properties.kind && s.properties.kind.const !== undefined;
+  }
+
   function isUnion(s) {
     return Array.isArray(s.oneOf) && s.discriminator && s.discriminator.mapping;
   }
@@ -169,7 +185,7 @@ window.SchemaForm = (function () {
     const kinds = Object.keys(s.discriminator.mapping);
     const chosen = (value && value[disc]) || (s.default && s.default[disc]) || kinds[0];
     const fs = el("fieldset", { class: "union", "data-union": path });
-    const unit = unitOf(s);
+    const unit = groupUnit(s);
     fs.append(el("legend", {}, name + (unit ? " [" + unit + "]" : "")));
     if (s.description) fs.append(el("small", { class: "help block" }, s.description));
     const label = el("label", { class: "field" });
@@ -185,7 +201,7 @@ window.SchemaForm = (function () {
       const block = el("div", { class: "kind", "data-kind": k });
       if (variant.description) block.append(el("small", { class: "help block" }, k + ": " + variant.description));
       const given = value && value[disc] === k ? value : undefined;
-      fields(doc, variant, path, given, block, disc, unit && unit !== "-" ? unit : null);
+      fields(doc, variant, path, given, block, disc, unit);
       block.hidden = k !== chosen;
       fs.append(block);
     }
@@ -221,10 +237,11 @@ window.SchemaForm = (function () {
         fs.append(body);
         fs.classList.add("collapsed");
       } else {
-        fs.append(el("legend", {}, name));
+        const unit = isProfile(s) ? groupUnit(s) : null;
+        fs.append(el("legend", {}, name + (unit ? " [" + unit + "]" : "")));
       }
       if (s.description) body.append(el("small", { class: "help block" }, s.description));
-      fields(doc, s, path, value, body);
+      fields(doc, s, path, value, body, undefined, isProfile(s) ? groupUnit(s) : undefined);
       return fs;
     }
     return leaf(doc, s, path, name, value, required, inherit);
@@ -258,7 +275,7 @@ window.SchemaForm = (function () {
     const items = el("div", { class: "items" });
     const kinds = isUnion(item) ? Object.keys(item.discriminator.mapping) : null;
     const add = el("button", { type: "button", class: "add", "data-add": path },
-      "+ add " + (kinds ? "(" + kinds.join(" / ") + ")" : "item"));
+      "+ add " + name + " item" + (kinds ? " (" + kinds.join(" / ") + ")" : ""));
     fs.append(items, add);
 
     function one(i, v) {
