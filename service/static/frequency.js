@@ -190,7 +190,8 @@
 
   // ---- one operating point or several ------------------------------------------------------
 
-  const SINGLE = ["[data-group='flow']", "[data-union='rotation.omega0']"];
+  // the single point's fields (a constant profile: a group, or a kind union)
+  const SINGLE = ["[data-group='flow']", "[data-group='rotation.omega0'], [data-union='rotation.omega0']"];
 
   function pointsCount() {
     const list = host.querySelector("[data-list='operating_points']");
