@@ -290,6 +290,7 @@
     }
     SF.onNewItem("operating_points", newPoint);
     const examples = document.getElementById("example");
+    examples.add(new Option("(as in the link)", ""));
     for (const [name, ex] of Object.entries(req.examples)) {
       examples.add(new Option(name + (ex.summary ? ": " + ex.summary : ""), name));
     }

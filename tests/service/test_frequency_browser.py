@@ -149,8 +149,7 @@ def test_two_operating_points_from_the_form(server: str, page: Page, screenshot:
     assert rows[0][6] == "∞ (undamped)"
     assert "waterfall" in result["plots"]
     page.wait_for_function(
-        "[...document.querySelectorAll('#plots img')]"
-        ".every(i => i.complete && i.naturalWidth > 0)",
+        "[...document.querySelectorAll('#plots img')].every(i => i.complete && i.naturalWidth > 0)",
         timeout=120_000,
     )
     page.locator("#results").scroll_into_view_if_needed()

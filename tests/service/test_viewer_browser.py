@@ -205,7 +205,7 @@ def test_harmonic_tip_force_from_rest(server: str, page: Page, screenshot: Any) 
     from zero is not divergence); the result's echoed loads are listed; an out-of-range
     position is flagged while typing and a position beyond the tip by the API, next to the
     item's field."""
-    doc, spec = _schema(server)
+    _, spec = _schema(server)
     open_page(page, server + "/")
     loads = page.locator("[data-list='loads']")
     assert loads.get_attribute("data-count") == "0"
