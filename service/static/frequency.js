@@ -3,6 +3,10 @@
 // uPlot charts of the answer: |H| against frequency on log-log axes with the peaks marked
 // (one curve per operating point and position), the phase [rad], a table of the peaks
 // (frequency, damping ratio, |H|) and the server's figures (bode, nyquist, waterfall, ...).
+// One operating point (flow.velocity, rotation.omega0) or several (operating_points, a list
+// in the form): with operating points given, the single point's fields are greyed out and
+// not sent (the API refuses both at once).  The request's named examples (hammer test,
+// waterfall) can be loaded into the form.
 "use strict";
 
 (function () {
@@ -53,18 +57,24 @@
     // |H| at the peaks of curve k, null elsewhere: the peaks drawn as markers
     const W = r.frequencies;
     const y = W.map(() => null);
+    const H = k.curve.magnitude;
     for (const p of k.point.peaks) {
-      const m = p.magnitude[k.positionIndex];
-      if (m === null || m === undefined) continue;
       let best = 0;
       for (let i = 1; i < W.length; i++) if (Math.abs(W[i] - p.frequency) < Math.abs(W[best] - p.frequency)) best = i;
-      y[best] = m;
+      // an undamped peak's |H| is infinite (null): marked at the curve's nearest value
+      const m = p.magnitude[k.positionIndex];
+      const at = typeof m === "number" && Number.isFinite(m) && m > 0 ? m : H[best];
+      if (typeof at === "number" && Number.isFinite(at) && at > 0) y[best] = at;
     }
     return y;
   }
 
   function chart(id, yLabel, series, logY) {
     const chartHost = document.getElementById(id);
+    // a log axis needs a positive value to span: |H| = 0 everywhere (or all missing) is
+    // drawn on a linear axis instead of an empty log one
+    if (logY && !series.some((s) => s.y.some((v) => v !== null && v > 0))) logY = false;
+    chartHost.dataset.scale = logY ? "log" : "linear";
     if (state.charts[id]) { state.charts[id].destroy(); delete state.charts[id]; }
     const r = state.result;
     const width = Math.max(320, Math.min(chartHost.clientWidth || 900, 1000));
@@ -143,7 +153,9 @@
     const columns = [["v [m/s]", (x) => x.point.velocity], ["ω0 [rad/s]", (x) => x.point.omega0],
       ["mode", (x) => x.mode], ["frequency [rad/s]", (x) => x.frequency],
       ["natural frequency [rad/s]", (x) => x.natural_frequency], ["damping ratio ζ [-]", (x) => x.damping_ratio]];
-    r.positions.forEach((x, j) => columns.push(["|H(x = " + fmt(x) + " m)| [" + r.unit + "]", (k) => k.magnitude[j]]));
+    // an undamped peak (ζ = 0) has no finite |H|: the answer's null is shown as ∞
+    const peakMagnitude = (k, j) => (k.magnitude[j] === null && k.damping_ratio === 0 ? "∞ (undamped)" : k.magnitude[j]);
+    r.positions.forEach((x, j) => columns.push(["|H(x = " + fmt(x) + " m)| [" + r.unit + "]", (k) => peakMagnitude(k, j)]));
     const tables = document.getElementById("tables");
     tables.textContent = "";
     tables.appendChild(table("Peaks", columns, rows));
@@ -176,6 +188,66 @@
     document.getElementById("csv-peaks").href = base + "?format=csv&table=peaks";
   }
 
+  // ---- one operating point or several ------------------------------------------------------
+
+  // the single point's fields (a constant profile: a group, or a kind union)
+  const SINGLE = ["[data-group='flow']", "[data-group='rotation.omega0'], [data-union='rotation.omega0']"];
+
+  function pointsCount() {
+    const list = host.querySelector("[data-list='operating_points']");
+    return list ? Number(list.dataset.count || 0) : 0;
+  }
+
+  function syncMode() {
+    // with operating points, flow.velocity and rotation.omega0 are not used: greyed out
+    const several = pointsCount() > 0;
+    for (const sel of SINGLE) {
+      const box = host.querySelector(sel);
+      if (!box) continue;
+      box.classList.toggle("superseded", several);
+      for (const input of box.querySelectorAll("input, select")) input.disabled = several;
+      let note = box.querySelector(":scope > .superseded-note");
+      if (several && !note) {
+        note = document.createElement("p");
+        note.className = "superseded-note";
+        note.textContent = "not used: the operating points below give v and ω0";
+        box.appendChild(note);
+      } else if (!several && note) {
+        note.remove();
+      }
+    }
+    form.dataset.mode = several ? "operating_points" : "single";
+  }
+
+  function specFromForm() {
+    const spec = SF.collect(host, state.doc, state.schema);
+    if (spec.operating_points) {
+      // the API answers 422 to both forms at once: the list wins (hub_radius still applies)
+      delete spec.flow;
+      if (spec.rotation) {
+        delete spec.rotation.omega0;
+        if (!Object.keys(spec.rotation).length) delete spec.rotation;
+      }
+    }
+    return spec;
+  }
+
+  function newPoint(current) {
+    // the first operating point: the single point's v and ω0 as typed; then a copy of the last
+    if (current.length) return current[current.length - 1];
+    const num = (name) => {
+      const input = host.querySelector("input[name='" + name + "']");
+      const x = input ? Number(input.value) : NaN;
+      return Number.isFinite(x) && input.value.trim() !== "" ? x : undefined;
+    };
+    return { velocity: num("flow.velocity.value"), omega0: num("rotation.omega0.value") };
+  }
+
+  function fillForm(values) {
+    SF.render(host, state.doc, state.schema, values);
+    syncMode();
+  }
+
   // ---- API calls -------------------------------------------------------------------------
 
   async function fetchResult(key) {
@@ -187,7 +259,7 @@
   async function run(event) {
     if (event) event.preventDefault();
     SF.clearErrors(form);
-    const spec = SF.collect(host, state.doc, state.schema);
+    const spec = specFromForm();
     const token = ++state.run;
     runButton.disabled = true;
     statusEl.textContent = "computing…";
@@ -216,7 +288,18 @@
     if (params.get("spec")) {
       try { spec = JSON.parse(params.get("spec")); } catch (e) { statusEl.textContent = "bad spec in link"; }
     }
-    SF.render(host, state.doc, state.schema, spec || state.example);
+    SF.onNewItem("operating_points", newPoint);
+    const examples = document.getElementById("example");
+    examples.add(new Option("(as in the link)", ""));
+    for (const [name, ex] of Object.entries(req.examples)) {
+      examples.add(new Option(name + (ex.summary ? ": " + ex.summary : ""), name));
+    }
+    examples.value = spec ? "" : req.examples.hammer ? "hammer" : examples.value;
+    examples.addEventListener("change", () => {
+      const ex = req.examples[examples.value];
+      if (ex) fillForm(JSON.parse(JSON.stringify(ex.value)));
+    });
+    fillForm(spec || state.example);
     runButton.disabled = false;
     const key = params.get("key");
     if (!key) return;
@@ -232,5 +315,6 @@
   }
 
   form.addEventListener("submit", run);
+  form.addEventListener("listchange", syncMode);
   window.pipeflowFrequency.ready = start().catch((e) => { statusEl.textContent = String(e); });
 })();

@@ -7,12 +7,19 @@
 //   collapsed in a <details>), a discriminated union (oneOf + discriminator, e.g. the
 //   profiles constant / polynomial / harmonic / table) a kind <select> with one block
 //   of fields per kind;
+// - an array of objects (e.g. the simulation's loads, the frequency response's
+//   operating_points) a list editor: one block per item (a discriminated item with its kind
+//   <select>), "add" and "remove" buttons within the schema's minItems / maxItems; an empty
+//   list is not sent (its default, or null, applies);
 // - an enum becomes a <select>, a boolean a checkbox, a number, string or array of numbers
 //   a text input (arrays as "a, b, c"); "X or null" is X, left empty for null, and an
 //   optional block ("object or null") is sent only when its "include" box is ticked;
 // - every field shows its description, with the unit the description states in brackets
 //   ("[m/s]") next to its name; initial values are the given values (an example), else the
-//   schema's defaults.
+//   schema's defaults.  A number's bounds (minimum, maximum, exclusive ones) are its
+//   input's tooltip and are checked as it is typed; a profile's fields without a unit of
+//   their own (value, mean, amplitude, ...) show the unit of the quantity they profile
+//   ("force [N]": "amplitude [N]").
 // Inputs are named by the dotted JSON path ("flow.velocity.coefficients"), which is also
 // how the API names a bad field in problem+json errors[].field.
 "use strict";
@@ -52,12 +59,52 @@ window.SchemaForm = (function () {
     return m ? m[1] : null;
   }
 
+  function groupUnit(s) {
+    // the unit of a whole group (a profile: "Force F(t) [N] ..."): a bracket in the
+    // description's opening words, not one inside a list of examples ("'point_force' at a
+    // position [m]", "{velocity [m/s], ...}")
+    const d = s.description || "";
+    const i = d.indexOf("[");
+    if (i < 0 || /['{:;]/.test(d.slice(0, i))) return null;
+    const u = unitOf(s);
+    return u && u !== "-" ? u : null;
+  }
+
+  function isProfile(s) {
+    // an object tagged by a constant kind (ConstantProfile behind a plain $ref)
+    return isObject(s) && !!s.properties.kind && s.properties.kind.const !== undefined;
+  }
+
   function isUnion(s) {
     return Array.isArray(s.oneOf) && s.discriminator && s.discriminator.mapping;
   }
 
   function isObject(s) {
     return !!s.properties;
+  }
+
+  function itemSchema(doc, s) {
+    // the item schema of an array of objects (a union or an object), else null
+    if (s.type !== "array" || !s.items || typeof s.items !== "object") return null;
+    const item = deref(doc, s.items);
+    return isUnion(item) || isObject(item) ? item : null;
+  }
+
+  function bounds(s) {
+    // "(0, 1e4]" from the schema's (exclusive) minimum and maximum, or null
+    const lo = s.exclusiveMinimum !== undefined ? ["(", s.exclusiveMinimum]
+      : s.minimum !== undefined ? ["[", s.minimum] : null;
+    const hi = s.exclusiveMaximum !== undefined ? [s.exclusiveMaximum, ")"]
+      : s.maximum !== undefined ? [s.maximum, "]"] : null;
+    if (!lo && !hi) return null;
+    return (lo ? lo[0] + show(lo[1]) : "(-∞") + ", " + (hi ? show(hi[0]) + hi[1] : "∞)");
+  }
+
+  function outOfRange(s, x) {
+    return (s.minimum !== undefined && x < s.minimum) || (s.maximum !== undefined && x > s.maximum)
+      || (s.exclusiveMinimum !== undefined && x <= s.exclusiveMinimum)
+      || (s.exclusiveMaximum !== undefined && x >= s.exclusiveMaximum)
+      || (s.type === "integer" && !Number.isInteger(x));
   }
 
   function show(x) {
@@ -85,9 +132,14 @@ window.SchemaForm = (function () {
       && Object.values(s.properties).every((p) => allDefaults(doc, deref(doc, p)));
   }
 
-  function leaf(doc, s, path, name, value, required) {
+  function leaf(doc, s, path, name, value, required, inherit) {
     const v = value !== undefined ? value : s.default;
-    const unit = unitOf(s);
+    const numeric = s.type === "number" || s.type === "integer"
+      || (s.type === "array" && s.items && s.items.type === "number");
+    // a profile's value/mean/amplitude/values: the unit of the profiled quantity
+    // (coefficients c_k: that unit per s^k, as their description says)
+    const unit = unitOf(s) || (inherit && numeric
+      ? inherit + (/\/s\^k/.test(s.description || "") ? "/s^k" : "") : null);
     const label = el("label", { class: "field", title: s.description || "" });
     label.append(el("span", { class: "name" }, name + (unit && unit !== "-" ? " [" + unit + "]" : "")));
     let input;
@@ -107,6 +159,19 @@ window.SchemaForm = (function () {
         placeholder: s.nullable ? "auto (null)" : required ? "required" : "",
       });
       if (kind === "array") input.classList.add("wide");
+      const range = bounds(s);
+      if (range && kind !== "array") {
+        input.title = "allowed: " + range;
+        input.dataset.bounds = range;
+        input.addEventListener("input", () => {
+          // the schema's bounds, checked while typing (the API checks them again)
+          const x = Number(input.value.trim());
+          const bad = input.value.trim() !== "" && Number.isFinite(x) && outOfRange(s, x);
+          input.classList.toggle("invalid", bad);
+          const slot = input.closest(".leaf").querySelector("[data-error-for]");
+          slot.textContent = bad ? "allowed: " + range : "";
+        });
+      }
     }
     label.append(input);
     if (s.description) label.append(el("small", { class: "help" }, s.description));
@@ -120,7 +185,7 @@ window.SchemaForm = (function () {
     const kinds = Object.keys(s.discriminator.mapping);
     const chosen = (value && value[disc]) || (s.default && s.default[disc]) || kinds[0];
     const fs = el("fieldset", { class: "union", "data-union": path });
-    const unit = unitOf(s);
+    const unit = groupUnit(s);
     fs.append(el("legend", {}, name + (unit ? " [" + unit + "]" : "")));
     if (s.description) fs.append(el("small", { class: "help block" }, s.description));
     const label = el("label", { class: "field" });
@@ -136,7 +201,7 @@ window.SchemaForm = (function () {
       const block = el("div", { class: "kind", "data-kind": k });
       if (variant.description) block.append(el("small", { class: "help block" }, k + ": " + variant.description));
       const given = value && value[disc] === k ? value : undefined;
-      fields(doc, variant, path, given, block, disc);
+      fields(doc, variant, path, given, block, disc, unit);
       block.hidden = k !== chosen;
       fs.append(block);
     }
@@ -146,9 +211,10 @@ window.SchemaForm = (function () {
     return fs;
   }
 
-  function node(doc, schema, path, name, value, required) {
+  function node(doc, schema, path, name, value, required, inherit) {
     const s = deref(doc, schema);
     if (isUnion(s)) return union(doc, s, path, name, value);
+    if (itemSchema(doc, s)) return list(doc, s, path, name, value);
     if (isObject(s)) {
       const fs = el("fieldset", { class: "group", "data-group": path });
       let body = fs;
@@ -171,22 +237,126 @@ window.SchemaForm = (function () {
         fs.append(body);
         fs.classList.add("collapsed");
       } else {
-        fs.append(el("legend", {}, name));
+        const unit = isProfile(s) ? groupUnit(s) : null;
+        fs.append(el("legend", {}, name + (unit ? " [" + unit + "]" : "")));
       }
       if (s.description) body.append(el("small", { class: "help block" }, s.description));
-      fields(doc, s, path, value, body);
+      fields(doc, s, path, value, body, undefined, isProfile(s) ? groupUnit(s) : undefined);
       return fs;
     }
-    return leaf(doc, s, path, name, value, required);
+    return leaf(doc, s, path, name, value, required, inherit);
   }
 
-  function fields(doc, s, prefix, value, host, skip) {
+  // ---- lists of objects (loads, operating points) ----------------------------------------
+
+  //: page hooks giving the initial value of a new item of a list, by the list's path
+  const newItemHooks = {};
+
+  function onNewItem(path, hook) {
+    newItemHooks[path] = hook;
+  }
+
+  function list(doc, s, path, name, value) {
+    // one block per item (named path.0, path.1, ... as the API names them in its errors),
+    // add / remove within minItems..maxItems; redrawn from the collected values on a change
+    const item = itemSchema(doc, s);
+    const max = s.maxItems !== undefined ? s.maxItems : Infinity;
+    const min = s.nullable ? 0 : s.minItems || 0;
+    const fs = el("fieldset", { class: "list", "data-list": path, "data-group": path });
+    const legend = el("legend", {});
+    const title = el("span", {}, name);
+    const count = el("span", { class: "count" });
+    legend.append(title, " ", count);
+    fs.append(legend);
+    if (s.description) fs.append(el("small", { class: "help block" }, s.description));
+    const head = el("div", { class: "leaf list-error" });
+    head.append(el("span", { class: "error", "data-error-for": path }));
+    fs.append(head);
+    const items = el("div", { class: "items" });
+    const kinds = isUnion(item) ? Object.keys(item.discriminator.mapping) : null;
+    const add = el("button", { type: "button", class: "add", "data-add": path },
+      "+ add " + name + " item" + (kinds ? " (" + kinds.join(" / ") + ")" : ""));
+    fs.append(items, add);
+
+    function one(i, v) {
+      const p = path + "." + i;
+      const label = name + " #" + (i + 1);
+      let box;
+      if (kinds) {
+        box = union(doc, item, p, label, v);
+      } else {
+        box = el("fieldset", { class: "group", "data-group": p });
+        box.append(el("legend", {}, label));
+        if (item.description) box.append(el("small", { class: "help block" }, item.description));
+        const slot = el("div", { class: "leaf" });
+        slot.append(el("span", { class: "error", "data-error-for": p }));
+        box.append(slot);
+        fields(doc, item, p, v, box);
+      }
+      box.classList.add("item");
+      box.dataset.item = p;
+      const remove = el("button", { type: "button", class: "remove", "data-remove": p, title: "remove " + label }, "remove");
+      remove.addEventListener("click", () => {
+        const current = values();
+        current.splice(i, 1);
+        draw(current);
+      });
+      box.querySelector(":scope > legend").append(" ", remove);
+      return box;
+    }
+
+    function values() {
+      return collectList(doc, s, path, fs) || [];
+    }
+
+    function draw(vals) {
+      items.textContent = "";
+      vals.forEach((v, i) => items.append(one(i, v)));
+      const n = vals.length;
+      count.textContent = "(" + n + (max !== Infinity ? " of at most " + max : "") + ")";
+      add.disabled = n >= max;
+      for (const b of items.querySelectorAll("[data-remove]")) b.disabled = n <= min;
+      fs.dataset.count = String(n);
+      fs.dispatchEvent(new CustomEvent("listchange", { bubbles: true, detail: { path, count: n } }));
+    }
+
+    add.addEventListener("click", () => {
+      const current = values();
+      const hook = newItemHooks[path];
+      const last = current.length ? JSON.parse(JSON.stringify(current[current.length - 1])) : undefined;
+      current.push(hook ? hook(current) : last);
+      draw(current);
+      const added = items.lastElementChild;
+      if (added) {
+        const first = added.querySelector("input, select");
+        if (first) first.focus();
+      }
+    });
+    const initial = Array.isArray(value) ? value : Array.isArray(s.default) ? s.default : [];
+    draw(initial);
+    return fs;
+  }
+
+  function collectList(doc, s, path, scope) {
+    const host = scope.matches && scope.matches('[data-list="' + CSS.escape(path) + '"]') ? scope
+      : scope.querySelector('[data-list="' + CSS.escape(path) + '"]');
+    if (!host) return undefined;
+    const item = itemSchema(doc, s);
+    const out = [];
+    for (const box of host.querySelectorAll(":scope > .items > .item")) {
+      const p = box.dataset.item;
+      out.push(isUnion(item) ? collectNode(doc, item, p, box) : collectObject(doc, item, p, box));
+    }
+    return out;
+  }
+
+  function fields(doc, s, prefix, value, host, skip, inherit) {
     const required = new Set(s.required || []);
     for (const [name, sub] of Object.entries(s.properties || {})) {
       if (name === skip || sub.const !== undefined) continue;
       const path = prefix ? prefix + "." + name : name;
       const v = value ? value[name] : undefined;
-      host.append(node(doc, sub, path, name, v, required.has(name)));
+      host.append(node(doc, sub, path, name, v, required.has(name), inherit));
     }
   }
 
@@ -239,6 +409,11 @@ window.SchemaForm = (function () {
       const block = select.closest("fieldset").querySelector(':scope > .kind[data-kind="' + CSS.escape(kind) + '"]');
       const variant = deref(doc, { $ref: s.discriminator.mapping[kind] });
       return Object.assign({ [disc]: kind }, collectObject(doc, variant, path, block, disc));
+    }
+    if (itemSchema(doc, s)) {
+      // an empty list is left out: its default (none, or null) applies
+      const items = collectList(doc, s, path, scope);
+      return items && items.length ? items : undefined;
     }
     if (isObject(s)) {
       const on = s.nullable ? find(scope, path + ".enabled") : null;
@@ -343,7 +518,7 @@ window.SchemaForm = (function () {
   }
 
   return {
-    deref, requestSchema, render, collect, clearErrors, showProblem, problemOf, show, unitOf,
+    deref, requestSchema, render, collect, clearErrors, onNewItem, showProblem, problemOf, show, unitOf,
     showWarnings, shareLink, post,
   };
 })();

@@ -2,7 +2,9 @@
 // (SchemaForm), a run on this service, and uPlot charts (vendored, works offline) of the
 // tip displacement, damping and frequency.  An unstable run says so in a banner (first
 // time of instability, growth rate of the least-stable branch) and draws a diverging tip
-// on a symmetric-log (asinh) scale with readable axis labels.
+// on a symmetric-log (asinh) scale with readable axis labels.  A forced run (loads) says
+// which loads were applied (the result echoes them); a start at rest (u0 = 0: zero initial
+// tip) is a forced vibration, drawn on a linear axis unless the library calls it unstable.
 "use strict";
 
 (function () {
@@ -147,17 +149,90 @@
   function tipScale(result) {
     const choice = document.getElementById("tip-scale").value;
     const y = finite(result.tip_displacement).filter((v) => v !== null);
-    const start = Math.abs(result.initial_tip_displacement || y[0] || 0) || 1e-9;
     const peak = y.reduce((m, v) => Math.max(m, Math.abs(v)), 0);
-    const diverging = instability(result).unstable || peak > 100 * start;
+    const initial = Math.abs(finite([result.initial_tip_displacement])[0] || y[0] || 0);
+    // below the linear threshold the axis is linear: the initial tip amplitude, or for a
+    // start at rest (a forced run) the early response (first 5 % of the samples), or a
+    // millionth of the peak; 1e-9 m for an all-zero history (no log of zero, no 0 / 0)
+    let linear = initial;
+    if (!(linear > 0)) {
+      const early = y.slice(0, Math.max(2, Math.ceil(y.length / 20)));
+      linear = early.reduce((m, v) => Math.max(m, Math.abs(v)), 0) || peak * 1e-6;
+    }
+    if (!(linear > 0)) linear = 1e-9;
+    // growth past 100 x the initial amplitude is divergence only when there was one; from
+    // rest any response is growth from zero, so there only the library's verdict counts
+    const diverging = instability(result).unstable || (initial > 0 && peak > 100 * initial);
     const log = choice === "symlog" || (choice === "auto" && diverging);
-    return log ? symlog(start, peak) : null;
+    return log ? symlog(linear, peak) : null;
+  }
+
+  // ---- the loads of a forced run (echoed by the result) ------------------------------
+
+  function profileText(p, unit) {
+    const S = SF.show;
+    const u = unit ? " " + unit : "";
+    if (!p || typeof p !== "object") return String(p);
+    if (p.kind === "constant") return S(p.value) + u;
+    if (p.kind === "harmonic") {
+      const wave = S(p.amplitude) + " sin(" + S(p.frequency) + " t" + (p.phase ? " + " + S(p.phase) : "") + ")";
+      return (p.mean ? S(p.mean) + " + " : "") + wave + u;
+    }
+    if (p.kind === "polynomial") {
+      const terms = (p.coefficients || []).map((c, k) => S(c) + (k === 0 ? "" : k === 1 ? " t" : " t^" + k));
+      return terms.join(" + ") + u;
+    }
+    if (p.kind === "table") {
+      const t = p.t || [];
+      return "table of " + t.length + " values" + u + " over t = " + S(t[0]) + " … " + S(t[t.length - 1])
+        + " s (" + p.interpolation + ")";
+    }
+    return JSON.stringify(p);
+  }
+
+  function loadText(load) {
+    // "point_force: position 0.025 m, force 1e-5 sin(244 t) N", the fields and units from
+    // the request schema's load kinds
+    const doc = state.doc;
+    const items = doc && state.schema.properties.loads ? SF.deref(doc, state.schema.properties.loads.items) : null;
+    const ref = items && items.discriminator && items.discriminator.mapping[load.kind];
+    const variant = ref ? SF.deref(doc, { $ref: ref }) : { properties: {} };
+    const parts = [];
+    for (const [name, value] of Object.entries(load)) {
+      if (name === "kind") continue;
+      const sub = SF.deref(doc, variant.properties[name] || {});
+      const unit = SF.unitOf(sub);
+      if (value === null || value === undefined) continue;
+      parts.push(name + " " + (typeof value === "object" ? profileText(value, unit) : SF.show(value) + (unit ? " " + unit : "")));
+    }
+    return load.kind.replace(/_/g, " ") + ": " + parts.join(", ");
+  }
+
+  function showLoads(result) {
+    const box = document.getElementById("loads-applied");
+    const list = box.querySelector("ol");
+    list.textContent = "";
+    const loads = Array.isArray(result.loads) ? result.loads : [];
+    box.hidden = loads.length === 0;
+    box.dataset.count = String(loads.length);
+    for (const load of loads) {
+      const li = document.createElement("li");
+      li.textContent = loadText(load);
+      li.dataset.kind = load.kind;
+      list.appendChild(li);
+    }
+    const relative = loads.some((l) => l.kind === "base_acceleration");
+    box.querySelector(".note").hidden = !relative;
+    const start = document.getElementById("start-note");
+    const initial = result.initial_tip_displacement;
+    start.hidden = !(loads.length && initial === 0);
   }
 
   function render(result) {
     state.result = result;
     document.getElementById("results").hidden = false;
     banner(result);
+    showLoads(result);
     drawChart("chart-tip", "t [s]", "u(L, t) [m]", result.t,
       [{ label: "tip displacement [m]", y: result.tip_displacement }], tipScale(result));
     const ev = result.eigenvalues;
@@ -225,6 +300,12 @@
         statusEl.textContent = "bad spec in link";
       }
     }
+    // a new load: a point force at the tip (x = pipe.L as typed), harmonic, to be filled in
+    SF.onNewItem("loads", (current) => (current.length ? current[current.length - 1] : {
+      kind: "point_force",
+      position: Number((form.querySelector("input[name='pipe.L']") || {}).value) || undefined,
+      force: { kind: "harmonic" },
+    }));
     SF.render(host, doc, state.schema, spec || initialValues(state.schema));
     runButton.disabled = false;
     const key = params.get("key");

@@ -196,3 +196,107 @@ def test_unstable_run_shows_the_banner_and_a_readable_log_axis(
     # the linear choice is still offered and redraws
     page.select_option("#tip-scale", "linear")
     assert tip.get_attribute("data-scale") == "linear"
+
+
+def test_harmonic_tip_force_from_rest(server: str, page: Page, screenshot: Any) -> None:
+    """Forced vibration from rest, built in the form: u0 = 0 and one load, a harmonic point
+    force at the tip (the list editor generated from the schema's discriminated loads).
+    The tip history starts at zero and is not zero after; the tip axis stays linear (growth
+    from zero is not divergence); the result's echoed loads are listed; an out-of-range
+    position is flagged while typing and a position beyond the tip by the API, next to the
+    item's field."""
+    _, spec = _schema(server)
+    open_page(page, server + "/")
+    loads = page.locator("[data-list='loads']")
+    assert loads.get_attribute("data-count") == "0"
+    mapping = spec["properties"]["loads"]["items"]["discriminator"]["mapping"]
+    assert str(spec["properties"]["loads"]["maxItems"]) in loads.locator("legend").inner_text()
+    page.select_option("select[name='flow.velocity.kind']", "constant")
+    page.fill("input[name='flow.velocity.value']", "5")
+    page.fill("input[name='initial.u0']", "0")
+    page.fill("input[name='time.t_end']", "0.2")
+    page.click("[data-add='loads']")
+    assert loads.get_attribute("data-count") == "1"
+    kinds = page.eval_on_selector_all(
+        "select[name='loads.0.kind'] option", "os => os.map(o => o.value)"
+    )
+    assert kinds == list(mapping)
+    # a new load is a point force at the tip (x = pipe.L as typed), its force harmonic
+    assert page.input_value("select[name='loads.0.kind']") == "point_force"
+    assert page.input_value("input[name='loads.0.position']") == "0.025"
+    assert page.input_value("select[name='loads.0.force.kind']") == "harmonic"
+    # the units are the schema's: position [m], the force's amplitude in N
+    item = page.locator("[data-item='loads.0']")
+    assert "position [m]" in item.inner_text()
+    assert "amplitude [N]" in item.inner_text()
+    # the schema's bounds, checked while typing
+    page.fill("input[name='loads.0.position']", "-1")
+    slot = page.locator("[data-error-for='loads.0.position']")
+    assert slot.inner_text().startswith("allowed: (0, ")
+    # a position beyond the tip: the API's message next to the item's field
+    page.fill("input[name='loads.0.position']", "0.05")
+    page.fill("input[name='loads.0.force.amplitude']", "1e-5")
+    page.fill("input[name='loads.0.force.frequency']", "244")
+    page.click("#run")
+    page.wait_for_function("document.getElementById('status').textContent === 'Invalid input'")
+    assert "beyond the tip" in slot.inner_text()
+    # a second load added and removed again
+    page.click("[data-add='loads']")
+    assert loads.get_attribute("data-count") == "2"
+    page.click("[data-remove='loads.1']")
+    assert loads.get_attribute("data-count") == "1"
+    page.fill("input[name='loads.0.position']", "0.025")
+    page.click("#run")
+    page.wait_for_function("document.getElementById('status').textContent.startsWith('done')")
+    page.wait_for_selector("#chart-tip[data-points='2001']")
+    result = page.evaluate("window.pipeflowViewer.state.result")
+    sent = page.evaluate("JSON.parse(new URL(location.href).searchParams.get('spec'))")
+    force = {"kind": "harmonic", "mean": 0, "amplitude": 1e-5, "frequency": 244, "phase": 0}
+    assert sent["loads"] == [{"kind": "point_force", "position": 0.025, "force": force}]
+    assert result["loads"] == sent["loads"]
+    tip = result["tip_displacement"]
+    assert result["initial_tip_displacement"] == 0 and tip[0] == 0
+    assert max(abs(v) for v in tip) > 1e-5  # the force's response (about 4e-4 m)
+    assert result["first_unstable_time"] is None
+    assert page.locator("#unstable").is_hidden()
+    chart = page.locator("#chart-tip")
+    assert chart.get_attribute("data-scale") == "linear"
+    drawn = page.evaluate("window.pipeflowViewer.charts['chart-tip'].data[1]")
+    assert max(abs(v) for v in drawn) == max(abs(v) for v in tip)
+    labels = page.evaluate("window.pipeflowViewer.axisLabels('chart-tip')")
+    assert len(labels) > 2 and not [x for x in labels if "NaN" in x or "Infinity" in x]
+    applied = page.locator("#loads-applied")
+    assert applied.is_visible() and applied.get_attribute("data-count") == "1"
+    text = applied.inner_text()
+    assert "point force: position 0.025 m, force 1e-5 sin(244 t) N" in text
+    assert page.locator("#start-note").is_visible()
+    page.locator("#results").scroll_into_view_if_needed()
+    path = screenshot(page, "viewer-forced-from-rest")
+    assert path.stat().st_size > 10_000
+    # the symmetric-log choice on a history from zero: finite, readable labels
+    page.select_option("#tip-scale", "symlog")
+    assert chart.get_attribute("data-scale") == "symlog"
+    labels = page.evaluate("window.pipeflowViewer.axisLabels('chart-tip')")
+    assert "0" in labels
+    assert all(len(x) <= 8 and "NaN" not in x and "Infinity" not in x for x in labels), labels
+
+
+def test_all_zero_history(server: str, page: Page) -> None:
+    """u0 = 0 without loads: the tip stays zero; the charts, the scale choice and the banner
+    cope (no division by zero, no error in the page's console, checked by ``page``)."""
+    open_page(page, server + "/")
+    page.select_option("select[name='flow.velocity.kind']", "constant")
+    page.fill("input[name='initial.u0']", "0")
+    page.fill("input[name='time.t_end']", "0.1")
+    page.fill("input[name='time.samples']", "101")
+    page.click("#run")
+    page.wait_for_selector("#chart-tip[data-points='101']")
+    result = page.evaluate("window.pipeflowViewer.state.result")
+    assert max(abs(v) for v in result["tip_displacement"]) == 0
+    assert page.locator("#unstable").is_hidden()
+    assert page.locator("#loads-applied").is_hidden()
+    for scale in ("linear", "symlog", "auto"):
+        page.select_option("#tip-scale", scale)
+        labels = page.evaluate("window.pipeflowViewer.axisLabels('chart-tip')")
+        assert labels and all("NaN" not in x and "Infinity" not in x for x in labels), labels
+    assert page.get_attribute("#chart-tip", "data-scale") == "linear"
