@@ -23,13 +23,14 @@ and ``counts``; :mod:`pipeflow.io.export` writes it as the ``study`` CSV table.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 from pydantic import BaseModel
 
-from pipeflow import parallel
+from pipeflow import parallel, uq
 from pipeflow._types import Progress
 from pipeflow.errors import classify
 from pipeflow.schema import results as r
@@ -242,6 +243,14 @@ def _table(
         )
     failed = sum(1 for r in rows if r[2] == "failed")
     warnings = [f"{failed} of {len(rows)} cases failed (see error_detail)"] if failed else []
+    records = [summaries[key] for key in keys]
+    sensitivity = _sensitivity(spec, base, records)
+    if sensitivity is not None:
+        warnings += [
+            f"no Sobol' indices of {name}: {c['reason']}"
+            for name, c in sensitivity["columns"].items()
+            if not c["available"]
+        ]
     return r.document(
         r.StudyResponse,
         base_kind=spec.base_kind,
@@ -256,5 +265,112 @@ def _table(
             cached=sum(1 for k in keys if k in cached),
             computed=computed,
         ),
+        statistics=statistics(spec, base, cases, records),
+        sensitivity=sensitivity,
         warnings=warnings,
+    )
+
+
+def numeric_columns(base: BaseComputation) -> list[Column]:
+    """The summary columns statistics are taken of: those with a unit (numbers)."""
+    return [c for c in base.summary_columns if c.unit != ""]
+
+
+def _unstable(spec: StudySpec, case: Any, record: dict[str, Any]) -> bool | None:
+    """Whether a case is unstable (see :class:`~pipeflow.schema.results.StudyInstability`),
+    None when undecided."""
+    if record["status"] != "ok":
+        return None
+    if spec.base_kind == "simulation":
+        return bool(record.get("result_status") != "ok")
+    v_op = spec.operating_velocity
+    assert v_op is not None
+    if record.get("stable_at_start") is False:
+        return True
+    critical = record.get("critical_velocity")
+    if critical is not None and critical <= v_op:
+        return True
+    if float(case.request.velocity_range[1]) < v_op:
+        return None  # its range ends before the operating velocity
+    return False
+
+
+#: how a case counts as unstable, by base kind (the result's instability.criterion)
+CRITERIA = {
+    "simulation": "result_status is diverging or overflow (a growing branch of the frozen "
+    "spectrum at t_end, the tip past its divergence bound, or overflow)",
+    "stability": "stable_at_start is false, or critical_velocity <= operating_velocity",
+}
+
+
+def statistics(
+    spec: StudySpec,
+    base: BaseComputation,
+    cases: Sequence[Any],
+    records: Sequence[dict[str, Any]],
+) -> dict[str, Any]:
+    """:class:`~pipeflow.schema.results.StudyStatistics` of the cases' summaries
+    (``records``, in case order)."""
+    ok = [rec for rec in records if rec["status"] == "ok"]
+    cols = {
+        c.name: r.document(
+            r.ColumnStatistics, unit=c.unit, **uq.column_statistics([rec.get(c.name) for rec in ok])
+        )
+        for c in numeric_columns(base)
+    }
+    instability = None
+    if spec.base_kind == "simulation" or spec.operating_velocity is not None:
+        flags = [_unstable(spec, case, rec) for case, rec in zip(cases, records, strict=True)]
+        instability = r.document(
+            r.StudyInstability,
+            criterion=CRITERIA[spec.base_kind],
+            **uq.instability_probability([f for f in flags if f is not None]),
+        )
+    return r.document(
+        r.StudyStatistics,
+        ok=len(ok),
+        failed=len(records) - len(ok),
+        columns=cols,
+        instability=instability,
+    )
+
+
+def _sensitivity(
+    spec: StudySpec, base: BaseComputation, records: Sequence[dict[str, Any]]
+) -> dict[str, Any] | None:
+    """:class:`~pipeflow.schema.results.StudySensitivity` of a saltelli study, else None."""
+    samples = spec.samples
+    if samples is None or samples.method != "saltelli":
+        return None
+    paths = spec.paths()
+    out: dict[str, Any] = {}
+    for c in numeric_columns(base):
+        values = [rec.get(c.name) if rec["status"] == "ok" else None for rec in records]
+        missing = sum(1 for v in values if v is None or not math.isfinite(v))
+        reason = None
+        if missing:
+            reason = (
+                f"{missing} of {len(values)} cases have no value (failed, or null): the "
+                "estimators need every case of the design"
+            )
+        elif min(values) == max(values):  # type: ignore[type-var]
+            reason = "the column does not vary over the design (its variance is 0)"
+        if reason is not None:
+            out[c.name] = r.document(
+                r.ColumnSensitivity, available=False, reason=reason, parameters=None
+            )
+            continue
+        indices = uq.sobol_indices(paths, [float(v) for v in values], seed=samples.seed)
+        out[c.name] = r.document(
+            r.ColumnSensitivity,
+            available=True,
+            reason=None,
+            parameters={p: r.document(r.SobolIndices, **indices[p]) for p in paths},
+        )
+    return r.document(
+        r.StudySensitivity,
+        method="saltelli",
+        base_points=samples.count,
+        conf_level=uq.CONF_LEVEL,
+        columns=out,
     )
