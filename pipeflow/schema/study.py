@@ -410,12 +410,12 @@ class StudySpec(StrictModel):
     def _valid(self) -> StudySpec:
         given = [m for m in ("cases", "grid", "samples") if getattr(self, m) is not None]
         if len(given) != 1:
+            field = "samples" if "samples" in given else "cases"
             raise InvalidField(
-                f"{given[-1] if given else 'cases'}: give exactly one of cases (a list of "
-                "overrides), grid (values per field, combined as a cartesian product) and "
-                "samples (distributions per field)"
+                f"{field}: give exactly one of cases (a list of overrides), grid (values per "
+                "field, combined as a cartesian product) and samples (distributions per field)"
                 + (f"; this study gives {' and '.join(given)}" if given else ""),
-                given[-1] if given else "cases",
+                field,
             )
         if self.operating_velocity is not None and self.base_kind != "stability":
             raise InvalidField(

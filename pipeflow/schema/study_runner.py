@@ -244,11 +244,11 @@ def _table(
     failed = sum(1 for r in rows if r[2] == "failed")
     warnings = [f"{failed} of {len(rows)} cases failed (see error_detail)"] if failed else []
     records = [summaries[key] for key in keys]
-    sensitivity = _sensitivity(spec, base, records)
-    if sensitivity is not None:
+    sens = sensitivity(spec, base, records)
+    if sens is not None:
         warnings += [
             f"no Sobol' indices of {name}: {c['reason']}"
-            for name, c in sensitivity["columns"].items()
+            for name, c in sens["columns"].items()
             if not c["available"]
         ]
     return r.document(
@@ -266,7 +266,7 @@ def _table(
             computed=computed,
         ),
         statistics=statistics(spec, base, cases, records),
-        sensitivity=sensitivity,
+        sensitivity=sens,
         warnings=warnings,
     )
 
@@ -335,7 +335,7 @@ def statistics(
     )
 
 
-def _sensitivity(
+def sensitivity(
     spec: StudySpec, base: BaseComputation, records: Sequence[dict[str, Any]]
 ) -> dict[str, Any] | None:
     """:class:`~pipeflow.schema.results.StudySensitivity` of a saltelli study, else None."""
