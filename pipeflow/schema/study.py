@@ -21,6 +21,16 @@ Validation happens before any work, so a bad study is one 422 naming its field:
   case's override (``cases.3.pipe.E``, ``grid.pipe.L.2``: the JSON paths of the offending
   number in the study body), and the message says which field of the case and why.
 
+``samples`` instead draws the cases (uncertainty quantification): independent
+distributions of numeric fields (normal, truncated normal, uniform, lognormal, each in the
+field's own SI unit), ``count`` points of a design in [0, 1)^D (scrambled Sobol',
+Latin hypercube, independent uniform draws, or Saltelli's design of ``count (2 D + 2)``
+points for Sobol' indices) drawn from ``seed`` and mapped through each inverse CDF
+(:mod:`pipeflow.uq`); the same seed is the same study and key.  A bad distribution names
+its parameter (``samples.parameters.pipe.E.sigma``), a design over :data:`MAX_CASES`
+cases ``samples.count``, a draw the base model refuses ``samples.parameters.<path>``;
+integer fields (counts) cannot be sampled.
+
 Each case is then a standalone request of the base kind (:meth:`StudySpec.expand`); its
 cost is bounded by that model's own bounds, so a study costs at most :data:`MAX_CASES`
 times the base computation's bound.
@@ -336,8 +346,7 @@ class StudySpec(StrictModel):
                 yield {path: value for (path, _), value in zip(axes, values, strict=True)}
         elif self.samples is not None:
             paths = self.paths()
-            values = self.sample_values()
-            for row in values.tolist():
+            for row in self.sample_values().tolist():
                 yield dict(zip(paths, row, strict=True))
         else:
             yield from (dict(c) for c in self.cases or [])

@@ -17,8 +17,11 @@ which is what the memo stores.  One failing case does not fail the study: its ro
 Progress is exact: the fraction of cases done (served by the memo or computed), reported
 after the memo look-up and after each chunk.
 
-The result is a table (``columns`` with their units, one ``row`` per case in case order)
-and ``counts``; :mod:`pipeflow.io.export` writes it as the ``study`` CSV table.
+The result is a table (``columns`` with their units, one ``row`` per case in case order),
+``counts``, ``statistics`` of the numeric summary columns over the ok cases (with the
+probability that a case is unstable, :func:`statistics`) and, for a ``saltelli`` sampled
+study, the Sobol' indices of each column (:func:`sensitivity`); :mod:`pipeflow.io.export`
+writes the table as the ``study`` CSV table.
 """
 
 from __future__ import annotations
@@ -345,22 +348,22 @@ def sensitivity(
     paths = spec.paths()
     out: dict[str, Any] = {}
     for c in numeric_columns(base):
-        values = [rec.get(c.name) if rec["status"] == "ok" else None for rec in records]
-        missing = sum(1 for v in values if v is None or not math.isfinite(v))
+        given = [rec.get(c.name) if rec["status"] == "ok" else None for rec in records]
+        values = [float(v) for v in given if v is not None and math.isfinite(v)]
         reason = None
-        if missing:
+        if len(values) < len(given):
             reason = (
-                f"{missing} of {len(values)} cases have no value (failed, or null): the "
-                "estimators need every case of the design"
+                f"{len(given) - len(values)} of {len(given)} cases have no value (failed, or "
+                "null): the estimators need every case of the design"
             )
-        elif min(values) == max(values):  # type: ignore[type-var]
+        elif min(values) == max(values):
             reason = "the column does not vary over the design (its variance is 0)"
         if reason is not None:
             out[c.name] = r.document(
                 r.ColumnSensitivity, available=False, reason=reason, parameters=None
             )
             continue
-        indices = uq.sobol_indices(paths, [float(v) for v in values], seed=samples.seed)
+        indices = uq.sobol_indices(paths, values, seed=samples.seed)
         out[c.name] = r.document(
             r.ColumnSensitivity,
             available=True,
