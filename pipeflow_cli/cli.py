@@ -308,6 +308,55 @@ def cmd_stability(args: argparse.Namespace) -> int:
     return 0
 
 
+def _g(value: Any) -> str:
+    return "-" if value is None else f"{value:.6g}"
+
+
+def study_report(result: dict[str, Any]) -> list[str]:
+    """A study's statistics (and Sobol' indices) as lines of text, units from its columns."""
+    st = result["statistics"]
+    lines = [f"{result['counts']['total']} cases: {st['ok']} ok, {st['failed']} failed"]
+    for name, c in st["columns"].items():
+        q = c["quantiles"]
+        lines.append(
+            f"{name} [{c['unit']}]: mean {_g(c['mean'])}, std {_g(c['std'])}, "
+            f"min {_g(c['min'])}, max {_g(c['max'])}, 5/50/95% {_g(q['0.05'])} / "
+            f"{_g(q['0.5'])} / {_g(q['0.95'])} (n = {c['count']})"
+        )
+    inst = st.get("instability")
+    if inst is not None and inst["probability"] is not None:
+        lines.append(
+            f"P(unstable) = {inst['probability']:.4g} +- {inst['standard_error']:.2g} "
+            f"({inst['unstable']} of {inst['decided']}: {inst['criterion']})"
+        )
+    sens = result.get("sensitivity")
+    for name, c in (sens or {}).get("columns", {}).items():
+        if not c["available"]:
+            continue
+        for path, ix in c["parameters"].items():
+            lines.append(
+                f"Sobol {name} / {path}: S1 {ix['S1']:.3f} +- {ix['S1_conf']:.3f}, "
+                f"ST {ix['ST']:.3f} +- {ix['ST_conf']:.3f}"
+            )
+    return lines
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    data = _unwrap(_read_json(args.spec))
+    result = _result_for(args, data, "study", ("study",))
+    if args.format in ("csv", "parquet"):
+        from pipeflow.io.export import to_csv, to_parquet
+
+        export = to_csv if args.format == "csv" else to_parquet
+        _write(args.output, export(result, "study"))
+    else:
+        _write_json(args, result)
+    for line in study_report(result):
+        print(line, file=sys.stderr)
+    _print_warnings(result)
+    return 0
+
+
 def cmd_frequency_response(args: argparse.Namespace) -> int:
     data = _unwrap(_read_json(args.spec))
     result = _result_for(args, data, "frequency_response", ("frequency_response",))
@@ -468,6 +517,27 @@ def build_parser() -> argparse.ArgumentParser:
     kind_flag(sp, "stability", ("stability", *_sweep_kinds()))
     json_output_flags(sp)
     sp.set_defaults(func=cmd_stability)
+
+    sp = sub.add_parser(
+        "study",
+        help="a design study (cases, grid or sampled parameters): table and statistics",
+        description=(
+            "Run the design study SPEC (a /v1/studies body: base, and cases, grid or samples "
+            "with distributions per field for uncertainty quantification) locally (or with "
+            "--server) and write its JSON (or its table with --format csv); the statistics "
+            "of the summary columns, the probability of instability and, for saltelli "
+            "samples, the Sobol' indices are printed on stderr."
+        ),
+    )
+    sp.add_argument("spec", help="study spec JSON file ('-': stdin)")
+    sp.add_argument(
+        "--format",
+        choices=("json", "csv", "parquet"),
+        default="json",
+        help="output format: the result JSON, or the study table (one row per case)",
+    )
+    json_output_flags(sp)
+    sp.set_defaults(func=cmd_study)
 
     sp = sub.add_parser(
         "frequency-response",

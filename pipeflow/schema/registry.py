@@ -339,6 +339,13 @@ STABILITY_SUMMARY = (
     Column("critical_velocity", "m/s", "First loss of stability in the range (null: none)."),
     Column("critical_mode", "-", "The mode that loses stability there."),
     Column("critical_kind", "", "flutter or divergence."),
+    Column(
+        "critical_frequency",
+        "rad/s",
+        "Frequency omega of the branch that loses stability, at the critical velocity (0 for "
+        "divergence).",
+    ),
+    Column("stable_at_start", "", "Stable at the start of the v >= 0 part of the range."),
     Column("stable_throughout", "", "Stable over the whole v >= 0 part of the range."),
 )
 
@@ -354,6 +361,8 @@ def summarize_stability(result: dict[str, Any]) -> dict[str, Any]:
         "critical_velocity": critical,
         "critical_mode": first["mode"] if first else None,
         "critical_kind": first["kind"] if first else None,
+        "critical_frequency": first["frequency"] if first else None,
+        "stable_at_start": result["stable_at_start"],
         "stable_throughout": result["stable_throughout"],
     }
 

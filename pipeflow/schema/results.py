@@ -564,7 +564,8 @@ class StudyColumn(BaseModel):
         description="Column name: index, key, status, cached, each overridden field's path, "
         "the base kind's summary (simulation: peak_tip_displacement, final_sigma_1, "
         "final_omega_1, method_used, result_status; stability: critical_velocity, "
-        "critical_mode, critical_kind, stable_throughout), error_type, error_field, "
+        "critical_mode, critical_kind, critical_frequency, stable_at_start, "
+        "stable_throughout), error_type, error_field, "
         "error_detail."
     )
     unit: str = Field(
@@ -583,6 +584,110 @@ class StudyCounts(BaseModel):
     )
 
 
+class ColumnStatistics(BaseModel):
+    """Statistics of one numeric summary column over the study's ok cases that have a value
+    in it, in the column's unit (``unit``)."""
+
+    unit: str = Field(description="SI unit of the column (and of every number here but count).")
+    count: int = Field(
+        description="Cases with a value [-] (ok cases; a null, e.g. no critical velocity in "
+        "the range, is left out)."
+    )
+    mean: float | None = Field(description="Sample mean [unit] (null: no value).")
+    std: float | None = Field(
+        description="Sample standard deviation, divisor count - 1 [unit] (null below 2 values)."
+    )
+    min: float | None = Field(description="Smallest value [unit].")
+    max: float | None = Field(description="Largest value [unit].")
+    quantiles: dict[str, float | None] = Field(
+        description="Empirical quantiles [unit] at the probabilities '0.05', '0.5', '0.95' "
+        "(linear interpolation between order statistics, numpy's default)."
+    )
+
+
+class StudyInstability(BaseModel):
+    """How many cases are unstable, as a proportion with its binomial standard error."""
+
+    criterion: str = Field(description="What makes a case unstable (see `probability`).")
+    probability: float | None = Field(
+        description="Fraction of the decided cases that are unstable [-]. Simulation bases: "
+        "a case is unstable when its result_status is diverging or overflow, i.e. some "
+        "branch of its frozen spectrum grows at t_end (sigma above the spectrum's rounding "
+        "level, which includes final_sigma_1 > 0), or its tip passed the divergence bound, "
+        "or the solution overflowed. Stability bases (with operating_velocity): a case is "
+        "unstable when it is unstable at the start of its range (stable_at_start false) or "
+        "its critical_velocity is at or below operating_velocity; a case whose range ends "
+        "below operating_velocity with no loss of stability is undecided. Failed cases are "
+        "undecided. Null when no case is decided."
+    )
+    standard_error: float | None = Field(
+        description="Binomial standard error sqrt(p (1 - p) / decided) [-] (independent "
+        "draws; a quasi-Monte Carlo design is usually more accurate than this)."
+    )
+    unstable: int = Field(description="Unstable cases [-].")
+    decided: int = Field(description="Cases decided stable or unstable [-].")
+
+
+class StudyStatistics(BaseModel):
+    """Statistics of the study's summary columns over its ok cases: for a sampled study,
+    estimates of each output's distribution; for cases or a grid, plain summaries."""
+
+    ok: int = Field(description="Cases that ran, over which the statistics are taken [-].")
+    failed: int = Field(description="Cases that failed, left out [-].")
+    columns: dict[str, ColumnStatistics] = Field(
+        description="Per numeric summary column (simulation: peak_tip_displacement [m], "
+        "final_sigma_1 [1/s], final_omega_1 [rad/s]; stability: critical_velocity [m/s], "
+        "critical_mode [-], critical_frequency [rad/s]): its statistics."
+    )
+    instability: StudyInstability | None = Field(
+        description="The probability that a case is unstable (null for a stability base "
+        "without operating_velocity)."
+    )
+
+
+class SobolIndices(BaseModel):
+    """Sobol' indices of one output with respect to one parameter (SALib.analyze.sobol)."""
+
+    S1: float = Field(
+        description="First-order index [-]: the share of the output's variance due to this "
+        "parameter alone."
+    )
+    S1_conf: float = Field(
+        description="Half-width of S1's bootstrap confidence interval at conf_level [-]."
+    )
+    ST: float = Field(
+        description="Total index [-]: the share of the variance involving this parameter, "
+        "interactions included."
+    )
+    ST_conf: float = Field(
+        description="Half-width of ST's bootstrap confidence interval at conf_level [-]."
+    )
+
+
+class ColumnSensitivity(BaseModel):
+    """Sobol' indices of one numeric summary column, per sampled parameter."""
+
+    available: bool = Field(
+        description="False when some case has no finite value in the column (a failed case, "
+        "or a null such as no critical velocity in the range): the estimators need all."
+    )
+    reason: str | None = Field(description="Why the indices are not available (else null).")
+    parameters: dict[str, SobolIndices] | None = Field(
+        description="Parameter path -> its indices (null when not available)."
+    )
+
+
+class StudySensitivity(BaseModel):
+    """Global sensitivity of a saltelli study (Sobol' indices by Saltelli's estimators)."""
+
+    method: Literal["saltelli"] = Field(description="The design and estimators used.")
+    base_points: int = Field(description="Base points N of the design (N (2 D + 2) cases) [-].")
+    conf_level: float = Field(description="Confidence level of the intervals [-].")
+    columns: dict[str, ColumnSensitivity] = Field(
+        description="Per numeric summary column: its indices per parameter."
+    )
+
+
 class StudyResponse(_Result):
     """A design study: one row of summaries per case (CSV: ``?format=csv&table=study``)."""
 
@@ -595,6 +700,14 @@ class StudyResponse(_Result):
         "where a case has no value (a field it does not override, a failed case's summary)."
     )
     counts: StudyCounts = Field(description="How many cases ran, failed, came from the cache.")
+    statistics: StudyStatistics = Field(
+        description="Statistics of the numeric summary columns over the ok cases, and the "
+        "probability that a case is unstable."
+    )
+    sensitivity: StudySensitivity | None = Field(
+        description="Sobol' sensitivity indices (studies sampled with method saltelli; null "
+        "otherwise)."
+    )
 
 
 # -- POST /v1/frequency-responses ------------------------------------------------------------

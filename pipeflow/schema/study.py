@@ -22,6 +22,16 @@ Validation happens before any work, so a bad study is one 422 naming its field:
   value names the case's override (``cases.3.pipe.E``, ``grid.pipe.L.2``: the JSON paths
   of the offending number in the study body), and the message says which field and why.
 
+``samples`` instead draws the cases (uncertainty quantification): independent
+distributions of numeric fields (normal, truncated normal, uniform, lognormal, each in the
+field's own SI unit), ``count`` points of a design in [0, 1)^D (scrambled Sobol',
+Latin hypercube, independent uniform draws, or Saltelli's design of ``count (2 D + 2)``
+points for Sobol' indices) drawn from ``seed`` and mapped through each inverse CDF
+(:mod:`pipeflow.uq`); the same seed is the same study and key.  A bad distribution names
+its parameter (``samples.parameters.pipe.E.sigma``), a design over :data:`MAX_CASES`
+cases ``samples.count``, a draw the base model refuses ``samples.parameters.<path>``;
+integer fields (counts) cannot be sampled.
+
 Each case is then a standalone request of the base kind, validated by the base model when
 the study runs (:meth:`StudySpec.validate_case`): a rule across fields that a case breaks
 (``output.positions`` beyond a shortened ``pipe.L``) makes that case a failed row naming
@@ -42,6 +52,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -54,6 +65,7 @@ from pydantic import (
 )
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
+from pipeflow import uq
 from pipeflow.errors import InvalidField
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec, StrictModel
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
@@ -110,6 +122,86 @@ class StabilityBase(StrictModel):
 
 
 BaseRequest = Annotated[SimulationBase | StabilityBase, Field(discriminator="kind")]
+
+
+class NormalDistribution(StrictModel):
+    """A normal distribution N(mean, std^2)."""
+
+    distribution: Literal["normal"] = Field(description="Normal: mean and std.")
+    mean: float = Field(description="Mean, in the field's own SI unit.")
+    std: float = Field(description="Standard deviation (> 0), in the field's own SI unit.")
+
+
+class TruncatedNormalDistribution(StrictModel):
+    """A normal distribution N(mean, std^2) restricted to [low, high] (renormalised)."""
+
+    distribution: Literal["truncated_normal"] = Field(
+        description="Truncated normal: the normal of mean and std restricted to [low, high]."
+    )
+    mean: float = Field(description="Mean of the untruncated normal, in the field's SI unit.")
+    std: float = Field(description="Its standard deviation (> 0), in the field's SI unit.")
+    low: float = Field(description="Lower end (< high), in the field's SI unit.")
+    high: float = Field(description="Upper end, in the field's SI unit.")
+
+
+class UniformDistribution(StrictModel):
+    """A uniform distribution on [low, high]."""
+
+    distribution: Literal["uniform"] = Field(description="Uniform on [low, high].")
+    low: float = Field(description="Lower end (< high), in the field's own SI unit.")
+    high: float = Field(description="Upper end, in the field's own SI unit.")
+
+
+class LognormalDistribution(StrictModel):
+    """A lognormal distribution: ln X ~ N(ln median, sigma^2)."""
+
+    distribution: Literal["lognormal"] = Field(
+        description="Lognormal: ln X normal with mean ln(median) and standard deviation sigma."
+    )
+    median: float = Field(description="Median (> 0), in the field's own SI unit.")
+    sigma: float = Field(description="Standard deviation of ln X (> 0) [-].")
+
+
+Distribution = Annotated[
+    NormalDistribution | TruncatedNormalDistribution | UniformDistribution | LognormalDistribution,
+    Field(discriminator="distribution"),
+]
+#: the distributions a sampled study draws from, by name
+DISTRIBUTIONS = ("normal", "truncated_normal", "uniform", "lognormal")
+
+
+class Samples(StrictModel):
+    """Sampling mode of a study: its cases are drawn from independent distributions of
+    numeric fields of the base request (uncertainty quantification)."""
+
+    count: int = Field(
+        ge=1,
+        le=MAX_CASES,
+        description="Design points [-]: the cases for sobol, latin_hypercube and random; "
+        "the base points N of saltelli, which gives N (2 D + 2) cases for D parameters. "
+        f"The cases are at most {MAX_CASES}. Sobol' designs balance best at a power of 2.",
+    )
+    method: Literal["sobol", "latin_hypercube", "random", "saltelli"] = Field(
+        "sobol",
+        description="How the points of the unit hypercube are drawn before each parameter's "
+        "inverse CDF maps them: sobol (scrambled Sobol' sequence, scipy.stats.qmc), "
+        "latin_hypercube (scipy.stats.qmc.LatinHypercube), random (independent uniform "
+        "draws, numpy's default generator), saltelli (Saltelli's design of SALib for "
+        "Sobol' sensitivity indices; the result then has `sensitivity`).",
+    )
+    seed: int = Field(
+        0,
+        ge=0,
+        le=2**32 - 1,
+        description="Seed of the design [-]: the same seed gives the same cases (and key).",
+    )
+    parameters: dict[Path, Distribution] = Field(
+        min_length=1,
+        max_length=MAX_OVERRIDES,
+        description="Field path -> its distribution, in that field's own SI unit (e.g. "
+        "{'pipe.E': {'distribution': 'lognormal', 'median': 7.8e9, 'sigma': 0.1}} [Pa]). "
+        "The parameters are independent; the design's dimensions follow the paths sorted.",
+    )
 
 
 @dataclass(frozen=True)
@@ -276,6 +368,19 @@ class StudySpec(StrictModel):
             f"product of the lengths is at most {MAX_CASES}.",
         )
     )
+    samples: Samples | None = Field(
+        None,
+        description="Sampling mode: the cases are drawn from distributions of numeric fields "
+        "(Monte Carlo or quasi-Monte Carlo), and the result's `statistics` estimate the "
+        "distribution of each summary column.",
+    )
+    operating_velocity: float | None = Field(
+        None,
+        ge=0,
+        description="Stability bases: the flow velocity [m/s] at which "
+        "statistics.instability counts a case unstable (its critical velocity at or below "
+        "it, or unstable at the start of its range). Simulation bases have their own flow.",
+    )
 
     @property
     def base_kind(self) -> str:
@@ -283,15 +388,21 @@ class StudySpec(StrictModel):
         return self.base.kind
 
     def paths(self) -> list[str]:
-        """The overridden fields, in order of first appearance (the table's columns)."""
+        """The overridden fields, in order of first appearance (the table's columns; grid
+        and samples: sorted by path)."""
         if self.grid is not None:
             return sorted(self.grid)
+        if self.samples is not None:
+            return sorted(self.samples.parameters)
         return list(dict.fromkeys(p for case in self.cases or [] for p in case))
 
     def count(self) -> int:
         """Number of cases [-]."""
         if self.grid is not None:
             return math.prod(len(v) for v in self.grid.values())
+        if self.samples is not None:
+            s = self.samples
+            return uq.rows(s.method, s.count, len(s.parameters))
         return len(self.cases or [])
 
     def overrides(self) -> Iterator[dict[str, int | float]]:
@@ -300,6 +411,10 @@ class StudySpec(StrictModel):
             axes = sorted(self.grid.items())
             for values in itertools.product(*(v for _, v in axes)):
                 yield {path: value for (path, _), value in zip(axes, values, strict=True)}
+        elif self.samples is not None:
+            paths = self.paths()
+            for row in self.sample_values().tolist():
+                yield dict(zip(paths, row, strict=True))
         else:
             yield from (dict(c) for c in self.cases or [])
 
@@ -328,6 +443,25 @@ class StudySpec(StrictModel):
         except ValidationError as exc:
             return None, _case_error(exc)
 
+    def unit_design(self) -> uq.FloatArray:
+        """Sampling mode: the design's points in [0, 1)^D, one row per case, a column per
+        parameter in :meth:`paths` order (:func:`pipeflow.uq.unit_design`)."""
+        s = self.samples
+        if s is None:
+            raise ValueError("a study of cases or a grid has no sampling design")
+        return uq.unit_design(s.method, s.count, len(s.parameters), s.seed)
+
+    def sample_values(self) -> uq.FloatArray:
+        """Sampling mode: each case's values (rows) of the parameters (columns, in
+        :meth:`paths` order), in their SI units: the design through each inverse CDF."""
+        s = self.samples
+        u = self.unit_design()
+        assert s is not None
+        columns = [
+            uq.ppf(s.parameters[path].model_dump(), u[:, j]) for j, path in enumerate(self.paths())
+        ]
+        return np.column_stack(columns)
+
     def expand(self) -> list[Case]:
         """Every case as a validated request of the base kind (raises ValidationError naming
         the study's field, as :class:`StudySpec` validation does)."""
@@ -352,6 +486,8 @@ class StudySpec(StrictModel):
             loc = ("grid",)
             if field in overrides:
                 loc = ("grid", field, self._grid_index(i)[field])
+        elif self.samples is not None:
+            loc = ("samples", "parameters", field) if field in overrides else ("samples",)
         else:
             loc = ("cases", i, field) if field in overrides else ("cases", i)
         value = overrides.get(field)
@@ -368,12 +504,23 @@ class StudySpec(StrictModel):
 
     @model_validator(mode="after")
     def _valid(self) -> StudySpec:
-        if (self.cases is None) == (self.grid is None):
+        given = [m for m in ("cases", "grid", "samples") if getattr(self, m) is not None]
+        if len(given) != 1:
+            field = "samples" if "samples" in given else "cases"
             raise InvalidField(
-                "cases: give exactly one of cases (a list of overrides) and grid (values per "
-                "field, combined as a cartesian product)",
-                "cases",
+                f"{field}: give exactly one of cases (a list of overrides), grid (values per "
+                "field, combined as a cartesian product) and samples (distributions per field)"
+                + (f"; this study gives {' and '.join(given)}" if given else ""),
+                field,
             )
+        if self.operating_velocity is not None and self.base_kind != "stability":
+            raise InvalidField(
+                "operating_velocity: only for stability bases (a simulation's own flow "
+                "decides its cases' growth)",
+                "operating_velocity",
+            )
+        if self.samples is not None:
+            self._check_samples(self.samples)
         if self.grid is not None and self.count() > MAX_CASES:
             sizes = " x ".join(str(len(v)) for _, v in sorted(self.grid.items()))
             raise InvalidField(
@@ -418,6 +565,17 @@ class StudySpec(StrictModel):
                             [_error("case_invalid", ("grid", path, j), text, value)],
                         )
             return
+        if self.samples is not None:  # draws: a value the field refuses names its parameter
+            for i, overrides in enumerate(self.overrides()):
+                for path, value in overrides.items():
+                    message = bad(path, value)
+                    if message is not None:
+                        text = f"case {i} ({path} = {value!r}): {path}: {message}"
+                        raise ValidationError.from_exception_data(
+                            "StudySpec",
+                            [_error("case_invalid", ("samples", "parameters", path), text, value)],
+                        )
+            return
         for i, overrides in enumerate(self.cases or []):
             for path, value in overrides.items():
                 message = bad(path, value)
@@ -440,6 +598,8 @@ class StudySpec(StrictModel):
         where: dict[str, tuple[Any, ...]] = {}
         if self.grid is not None:
             where = {p: ("grid", p) for p in self.grid}
+        elif self.samples is not None:
+            where = {p: ("samples", "parameters", p) for p in self.samples.parameters}
         else:
             for i, case in enumerate(self.cases or []):
                 for p in case:
@@ -452,6 +612,11 @@ class StudySpec(StrictModel):
             elif isinstance(value, bool) or not isinstance(value, int | float | None):
                 what = type(value).__name__.replace("dict", "object").replace("list", "array")
                 message = f"{path} is not a numeric field (it is {what} in the base request)"
+            elif self.samples is not None and isinstance(value, int):
+                message = (
+                    f"{path} is an integer field (a count): samples draw real numbers; vary "
+                    "it by cases or grid"
+                )
             else:
                 continue
             errors.append(_error("override_path", loc, message, path))
@@ -466,9 +631,44 @@ class StudySpec(StrictModel):
         }
         if self.grid is not None:
             out["grid"] = {path: list(values) for path, values in self.grid.items()}
+        elif self.samples is not None:
+            out["samples"] = self.samples.model_dump(mode="json")
         else:
             out["cases"] = [dict(c) for c in self.cases or []]
+        if self.operating_velocity is not None:
+            out["operating_velocity"] = self.operating_velocity
         return out
+
+    def _check_samples(self, samples: Samples) -> None:
+        """Each distribution's parameters, and the case count of a Saltelli design."""
+        errors = []
+        for path, d in samples.parameters.items():
+            loc = ("samples", "parameters", path)
+            checks: list[tuple[str, bool, str]] = []
+            if isinstance(d, NormalDistribution | TruncatedNormalDistribution):
+                checks.append(("std", d.std > 0, f"std must be > 0 (got {d.std!r})"))
+            if isinstance(d, LognormalDistribution):
+                checks.append(("median", d.median > 0, f"median must be > 0 (got {d.median!r})"))
+                checks.append(("sigma", d.sigma > 0, f"sigma must be > 0 (got {d.sigma!r})"))
+            if isinstance(d, UniformDistribution | TruncatedNormalDistribution):
+                checks.append(
+                    ("low", d.low < d.high, f"low ({d.low!r}) must be below high ({d.high!r})")
+                )
+            for name, ok, text in checks:
+                if not ok:
+                    message = f"{path}: {d.distribution} {text}"
+                    errors.append(_error("distribution_invalid", (*loc, name), message, path))
+        dims = len(samples.parameters)
+        cases = uq.rows(samples.method, samples.count, dims)
+        if cases > MAX_CASES:
+            largest = MAX_CASES // (2 * dims + 2)
+            message = (
+                f"saltelli: {samples.count} base points x (2 x {dims} + 2) = {cases} cases, "
+                f"more than {MAX_CASES}: count is at most {largest} for {dims} parameters"
+            )
+            errors.append(_error("too_many_cases", ("samples", "count"), message, cases))
+        if errors:
+            raise ValidationError.from_exception_data("StudySpec", errors)
 
 
 def field_unit(model: type[BaseModel], path: str) -> str:

@@ -28,13 +28,17 @@ override fields differ from the base (else from its own canonical form, as befor
 Progress is exact: the fraction of cases done (served by the memo or computed), reported
 after the memo look-up and after each chunk.
 
-The result is a table (``columns`` with their units, one ``row`` per case in case order)
-and ``counts``; :mod:`pipeflow.io.export` writes it as the ``study`` CSV table.
+The result is a table (``columns`` with their units, one ``row`` per case in case order),
+``counts``, ``statistics`` of the numeric summary columns over the ok cases (with the
+probability that a case is unstable, :func:`statistics`) and, for a ``saltelli`` sampled
+study, the Sobol' indices of each column (:func:`sensitivity`); :mod:`pipeflow.io.export`
+writes the table as the ``study`` CSV table.
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -42,11 +46,12 @@ from typing import Any, Protocol
 import rfc8785
 from pydantic import BaseModel, TypeAdapter
 
-from pipeflow import __version__, parallel
+from pipeflow import __version__, parallel, uq
 from pipeflow._types import Progress
 from pipeflow.errors import InvalidInput, classify
 from pipeflow.schema import results as r
 from pipeflow.schema.keys import canonical_key
+from pipeflow.schema.stability import StabilitySpec
 from pipeflow.schema.study import BASE_MODELS, StudySpec, field_unit, get_path, set_path
 
 #: most cases in one fanned-out piece (amortises a dispatch of ~10 ms over several cases,
@@ -420,6 +425,14 @@ def _table(
         )
     failed = sum(1 for r in rows if r[2] == "failed")
     warnings = [f"{failed} of {len(rows)} cases failed (see error_detail)"] if failed else []
+    records = [summaries[k if k is not None else f"invalid:{i}"] for i, k in enumerate(keys)]
+    sens = sensitivity(spec, base, records)
+    if sens is not None:
+        warnings += [
+            f"no Sobol' indices of {name}: {c['reason']}"
+            for name, c in sens["columns"].items()
+            if not c["available"]
+        ]
     return r.document(
         r.StudyResponse,
         base_kind=spec.base_kind,
@@ -434,5 +447,117 @@ def _table(
             cached=sum(1 for k in keys if k is not None and k in cached),
             computed=computed,
         ),
+        statistics=statistics(spec, base, overrides, records),
+        sensitivity=sens,
         warnings=warnings,
+    )
+
+
+def numeric_columns(base: BaseComputation) -> list[Column]:
+    """The summary columns statistics are taken of: those with a unit (numbers)."""
+    return [c for c in base.summary_columns if c.unit != ""]
+
+
+def _unstable(
+    spec: StudySpec, overrides: dict[str, int | float], record: dict[str, Any]
+) -> bool | None:
+    """Whether a case is unstable (see :class:`~pipeflow.schema.results.StudyInstability`),
+    None when undecided."""
+    if record["status"] != "ok":
+        return None
+    if spec.base_kind == "simulation":
+        return bool(record.get("result_status") != "ok")
+    v_op = spec.operating_velocity
+    assert v_op is not None
+    if record.get("stable_at_start") is False:
+        return True
+    critical = record.get("critical_velocity")
+    if critical is not None and critical <= v_op:
+        return True
+    base_spec = spec.base.spec
+    assert isinstance(base_spec, StabilitySpec)  # operating_velocity: stability bases only
+    top = overrides.get("velocity_range.1", base_spec.velocity_range[1])
+    if float(top) < v_op:
+        return None  # its range ends before the operating velocity
+    return False
+
+
+#: how a case counts as unstable, by base kind (the result's instability.criterion)
+CRITERIA = {
+    "simulation": "result_status is diverging or overflow (a growing branch of the frozen "
+    "spectrum at t_end, the tip past its divergence bound, or overflow)",
+    "stability": "stable_at_start is false, or critical_velocity <= operating_velocity",
+}
+
+
+def statistics(
+    spec: StudySpec,
+    base: BaseComputation,
+    overrides: Sequence[dict[str, int | float]],
+    records: Sequence[dict[str, Any]],
+) -> dict[str, Any]:
+    """:class:`~pipeflow.schema.results.StudyStatistics` of the cases' summaries
+    (``records``, in case order)."""
+    ok = [rec for rec in records if rec["status"] == "ok"]
+    cols = {
+        c.name: r.document(
+            r.ColumnStatistics, unit=c.unit, **uq.column_statistics([rec.get(c.name) for rec in ok])
+        )
+        for c in numeric_columns(base)
+    }
+    instability = None
+    if spec.base_kind == "simulation" or spec.operating_velocity is not None:
+        flags = [_unstable(spec, o, rec) for o, rec in zip(overrides, records, strict=True)]
+        instability = r.document(
+            r.StudyInstability,
+            criterion=CRITERIA[spec.base_kind],
+            **uq.instability_probability([f for f in flags if f is not None]),
+        )
+    return r.document(
+        r.StudyStatistics,
+        ok=len(ok),
+        failed=len(records) - len(ok),
+        columns=cols,
+        instability=instability,
+    )
+
+
+def sensitivity(
+    spec: StudySpec, base: BaseComputation, records: Sequence[dict[str, Any]]
+) -> dict[str, Any] | None:
+    """:class:`~pipeflow.schema.results.StudySensitivity` of a saltelli study, else None."""
+    samples = spec.samples
+    if samples is None or samples.method != "saltelli":
+        return None
+    paths = spec.paths()
+    out: dict[str, Any] = {}
+    for c in numeric_columns(base):
+        given = [rec.get(c.name) if rec["status"] == "ok" else None for rec in records]
+        values = [float(v) for v in given if v is not None and math.isfinite(v)]
+        reason = None
+        if len(values) < len(given):
+            reason = (
+                f"{len(given) - len(values)} of {len(given)} cases have no value (failed, or "
+                "null): the estimators need every case of the design"
+            )
+        elif min(values) == max(values):
+            reason = "the column does not vary over the design (its variance is 0)"
+        if reason is not None:
+            out[c.name] = r.document(
+                r.ColumnSensitivity, available=False, reason=reason, parameters=None
+            )
+            continue
+        indices = uq.sobol_indices(paths, values, seed=samples.seed)
+        out[c.name] = r.document(
+            r.ColumnSensitivity,
+            available=True,
+            reason=None,
+            parameters={p: r.document(r.SobolIndices, **indices[p]) for p in paths},
+        )
+    return r.document(
+        r.StudySensitivity,
+        method="saltelli",
+        base_points=samples.count,
+        conf_level=uq.CONF_LEVEL,
+        columns=out,
     )

@@ -247,8 +247,10 @@ def _walk(body: Any, loc: tuple[Any, ...]) -> list[Any]:
         if isinstance(node, dict) and part in node:
             node = node[part]
             path.append(part)
-        elif isinstance(node, dict) and node.get("kind") == part:
-            continue  # discriminated-union tag, e.g. ('velocity', 'polynomial', 'coefficients')
+        elif isinstance(node, dict) and part in (node.get("kind"), node.get("distribution")):
+            # discriminated-union tag, e.g. ('velocity', 'polynomial', 'coefficients'), or a
+            # study's ('samples', 'parameters', 'pipe.E', 'lognormal', 'sigma')
+            continue
         elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
             node = node[part]
             path.append(part)

@@ -225,3 +225,42 @@ def test_python_m_service_runs_one_server_process_with_n_compute_workers(
 
     assert service_main(["--workers", "0"]) == 2
     assert "workers: Input should be greater than or equal to 1" in capsys.readouterr().err
+
+
+def test_study_runs_a_sampled_study_and_prints_its_statistics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    spec = {
+        "base": {
+            "kind": "simulation",
+            "spec": {
+                "pipe": PAPER_EXAMPLE["pipe"],
+                "modes": 2,
+                "time": {"t_end": 0.01, "samples": 3},
+                "output": {"eigen_samples": 3},
+            },
+        },
+        "samples": {
+            "count": 2,
+            "method": "saltelli",
+            "parameters": {
+                "pipe.E": {"distribution": "lognormal", "median": 7.8e9, "sigma": 0.1},
+                "pipe.M2": {"distribution": "uniform", "low": 1e-5, "high": 2e-5},
+            },
+        },
+    }
+    path = tmp_path / "study.json"
+    path.write_text(json.dumps(spec))
+    out = tmp_path / "result.json"
+    assert main(["study", str(path), "-o", str(out), "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    err = capsys.readouterr().err
+    assert doc["kind"] == "study" and doc["counts"]["total"] == 12
+    assert "12 cases: 12 ok, 0 failed" in err
+    mean = doc["statistics"]["columns"]["final_omega_1"]["mean"]
+    assert f"final_omega_1 [rad/s]: mean {mean:.6g}" in err
+    assert "P(unstable) = 0 +- 0 (0 of 12" in err
+    assert "Sobol final_omega_1 / pipe.E: S1 " in err
+    assert main(["study", str(path), "--format", "csv", "-o", str(tmp_path / "t.csv")]) == 0
+    header = (tmp_path / "t.csv").read_text().splitlines()[0]
+    assert header.startswith("index [-],key,status,cached,pipe.E [Pa],pipe.M2 [kg/m]")

@@ -206,3 +206,82 @@ def test_the_client_runs_a_study_and_reads_its_csv(api: TestClient) -> None:
     assert rows[1]["critical_velocity"] == pytest.approx(alone["critical_velocity"], rel=1e-12)
     header = next(csv.reader(io.StringIO(text)))
     assert "critical_velocity [m/s]" in header and "rotation.omega0.value [rad/s]" in header
+
+
+def _close(a: Any, b: Any, rel: float = 1e-12) -> bool:
+    """Equal JSON trees, numbers to ``rel`` (relative; absolute below 1e-300)."""
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
+    if isinstance(a, list):
+        return isinstance(b, list) and len(a) == len(b) and all(map(_close, a, b))
+    if isinstance(a, float) and isinstance(b, int | float) and not isinstance(b, bool):
+        return abs(a - b) <= rel * max(abs(a), abs(b), 1e-300)
+    return bool(a == b)
+
+
+def test_a_sampled_study_gives_the_librarys_statistics_and_sensitivity(api: TestClient) -> None:
+    from pipeflow.schema import registry
+
+    body = {
+        "base": {"kind": "simulation", "spec": {**BASE, "time": {"t_end": 0.02, "samples": 5}}},
+        "samples": {
+            "count": 4,
+            "method": "saltelli",
+            "seed": 5,
+            "parameters": {
+                "pipe.E": {"distribution": "lognormal", "median": 7.8e9, "sigma": 0.1},
+                "pipe.M2": {
+                    "distribution": "truncated_normal",
+                    "mean": 1.6485e-5,
+                    "std": 2e-6,
+                    "low": 1e-5,
+                    "high": 2e-5,
+                },
+            },
+        },
+    }
+    doc = run(api, body)
+    StudyResponse.model_validate(doc)
+    assert doc["counts"]["total"] == 4 * 6 and doc["overrides"] == ["pipe.E", "pipe.M2"]
+    local = registry.COMPUTATIONS["study"].execute(registry.parse("study", body))
+    assert _close(doc["statistics"], local["statistics"]), (doc["statistics"], local)
+    assert _close(doc["sensitivity"], local["sensitivity"])
+    assert doc["sensitivity"]["columns"]["final_omega_1"]["available"]
+    assert _close(doc["rows"], local["rows"])
+    # the same body is the same study: the job's key
+    again = submit(api, body)
+    assert again["key"] == doc["key"]
+
+
+def test_bad_samples_are_refused_naming_the_field(api: TestClient) -> None:
+    base = {"kind": "simulation", "spec": BASE}
+    lognormal = {"distribution": "lognormal", "median": 7.8e9, "sigma": 0.1}
+
+    def samples(**parameters: Any) -> dict[str, Any]:
+        return {"base": base, "samples": {"count": 4, "parameters": parameters}}
+
+    sigma = samples(**{"pipe.E": {**lognormal, "sigma": 0.0}})
+    assert problem_fields(api, sigma) == [
+        ("samples.parameters.pipe.E.sigma", "#/samples/parameters/pipe.E/sigma")
+    ]
+    text = samples(**{"pipe.E": {**lognormal, "sigma": "0.1"}})  # below the union's tag
+    assert problem_fields(api, text) == [
+        ("samples.parameters.pipe.E.sigma", "#/samples/parameters/pipe.E/sigma")
+    ]
+    unknown = samples(**{"pipe.E": {"distribution": "weibull"}})
+    assert problem_fields(api, unknown) == [
+        ("samples.parameters.pipe.E", "#/samples/parameters/pipe.E")
+    ]
+    uniform = samples(**{"pipe.L": {"distribution": "uniform", "low": 0.03, "high": 0.02}})
+    assert problem_fields(api, uniform) == [
+        ("samples.parameters.pipe.L.low", "#/samples/parameters/pipe.L/low")
+    ]
+    obj = samples(pipe={"distribution": "uniform", "low": 1.0, "high": 2.0})
+    assert problem_fields(api, obj) == [("samples.parameters.pipe", "#/samples/parameters/pipe")]
+    both = {**samples(**{"pipe.E": lognormal}), "grid": {"pipe.L": [0.02]}}
+    assert problem_fields(api, both) == [("samples", "#/samples")]
+    many = samples(**{p: lognormal for p in ("pipe.E", "pipe.L", "pipe.M2")})
+    many["samples"].update(count=2000, method="saltelli")
+    r = api.post("/v1/studies", json=many)
+    assert r.status_code == 422 and r.json()["errors"][0]["field"] == "samples.count"
+    assert "count is at most 1250" in r.json()["errors"][0]["message"]

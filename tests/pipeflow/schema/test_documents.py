@@ -65,6 +65,19 @@ REQUESTS: list[tuple[str, dict[str, Any]]] = [
         },
     ),
     ("stability", {**TINY["stability"], "velocity_range": [-10.0, 40.0]}),
+    (  # a sampled study with Sobol' indices (2 x (2 x 1 + 2) = 8 cases)
+        "study",
+        {
+            "base": TINY["study"]["base"],
+            "samples": {
+                "count": 2,
+                "method": "saltelli",
+                "parameters": {
+                    "pipe.E": {"distribution": "lognormal", "median": 7.8e9, "sigma": 0.1}
+                },
+            },
+        },
+    ),
     ("argand", {**TINY["argand"], "points": 21}),
     ("campbell", {**TINY["campbell"], "spin_range": [0.0, 3000.0], "points": 21}),
     (  # one unstable region (a parametric resonance near 190 rad/s)
@@ -95,10 +108,22 @@ def _walk(model: type[BaseModel], doc: Any, seen: dict[type[BaseModel], set[str]
     assert set(doc) <= set(model.model_fields), (model.__name__, set(doc) - set(model.model_fields))
     seen.setdefault(model, set()).update(doc)
     for name, value in doc.items():
-        for item in value if isinstance(value, list) else [value]:
-            for sub in _models(model.model_fields[name].annotation):
+        annotation = model.model_fields[name].annotation
+        if _is_mapping(annotation) and isinstance(value, dict):
+            items = list(value.values())  # dict[str, Model]: a document per key
+        else:
+            items = value if isinstance(value, list) else [value]
+        for item in items:
+            for sub in _models(annotation):
                 if _matches(sub, item):
                     _walk(sub, item, seen)
+
+
+def _is_mapping(annotation: Any) -> bool:
+    """``dict[...]`` (or an optional one)."""
+    if typing.get_origin(annotation) is dict:
+        return True
+    return any(_is_mapping(arg) for arg in typing.get_args(annotation))
 
 
 def _matches(model: type[BaseModel], doc: Any) -> bool:
