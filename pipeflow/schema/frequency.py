@@ -78,7 +78,7 @@ FREQUENCY_FIELDS: dict[str, str] = {
 Frequency = Annotated[float, Field(ge=0, le=MAX_FREQUENCY)]
 
 
-class PointForceLoad(StrictModel):
+class HarmonicPointForce(StrictModel):
     """A transverse harmonic point force F e^(i W t); H is per unit force [N]."""
 
     kind: Literal["point_force"] = "point_force"
@@ -94,7 +94,7 @@ class PointForceLoad(StrictModel):
         return PointForce(self.position)
 
 
-class BaseAccelerationLoad(StrictModel):
+class HarmonicBaseAcceleration(StrictModel):
     """A transverse harmonic acceleration A e^(i W t) [m/s^2] of the clamp (shaker test); H
     is per unit base acceleration and the response is relative to the clamp."""
 
@@ -105,7 +105,7 @@ class BaseAccelerationLoad(StrictModel):
 
 
 LoadSpec = Annotated[
-    PointForceLoad | BaseAccelerationLoad,
+    HarmonicPointForce | HarmonicBaseAcceleration,
     Field(
         discriminator="kind",
         description="The harmonic load: 'point_force' at a position [m] (H per newton) or "
@@ -301,7 +301,7 @@ class FrequencyResponseSpec(_Mounted):
                     f"response.positions[{i}] = {x} m is outside (0, L = {L} m]",
                     "response.positions",
                 )
-        if isinstance(self.load, PointForceLoad) and self.load.position > L:
+        if isinstance(self.load, HarmonicPointForce) and self.load.position > L:
             raise InvalidField(
                 f"load.position = {self.load.position} m is outside (0, L = {L} m]",
                 "load.position",
