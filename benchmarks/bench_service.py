@@ -18,7 +18,8 @@ each row against a reference measured in the same run:
   ``simulate()`` of the same spec (what the worker runs: solve, error estimate, frozen
   spectrum; the difference is the service's own cost), called after the requests;
 - cold paper example (v = 0.4 t m/s) vs ``pipeflow.simulation.simulate`` of the same spec
-  (the target), and vs ``simulate().to_dict()``, the same document the service sends;
+  (the target), and vs ``documents.simulation(simulate())``, the same document the
+  service sends;
 - each worker's first cold request after start (told by the worker pid of the
   computation's log line) vs the later ones;
 - mixed load of 32 Python clients (90% hits, 10% misses): errors and the RSS of the server
@@ -57,6 +58,7 @@ import numpy as np
 from scipy import signal
 
 from pipeflow.model import Loading, build_model
+from pipeflow.schema import documents
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.simulation import simulate
 from service.launch import serve
@@ -236,15 +238,15 @@ def lsim_timer(spec: dict[str, Any]) -> Callable[[], float]:
 
 def simulate_timer(spec: dict[str, Any], document: bool = False) -> Callable[[], float]:
     """One timed library call ``simulate()`` of the spec [s]; with ``document``,
-    ``simulate().to_dict()``: the same result document the service sends (simulate()
-    defers the CMA exponents to their first use, which to_dict() is)."""
+    ``documents.simulation(simulate())``: the same result document the service sends
+    (simulate() defers the CMA exponents to their first use, which the document is)."""
     sim = SimulationSpec.model_validate(spec).to_simulation()
 
     def once() -> float:
         t0 = time.perf_counter()
         result = simulate(sim)
         if document:
-            result.to_dict()
+            documents.simulation(result)
         return time.perf_counter() - t0
 
     return once
@@ -463,7 +465,7 @@ def run(plan: Plan, label: str, env: dict[str, str]) -> tuple[list[list[str]], d
                     TODAY["paper"],
                     ms(paper_p50),
                     f"{paper_p50 / lib:.2f}x simulate() ({ms(lib)}); "
-                    f"{paper_p50 / lib_doc:.2f}x simulate().to_dict() ({ms(lib_doc)}); the "
+                    f"{paper_p50 / lib_doc:.2f}x simulate() + document ({ms(lib_doc)}); the "
                     f"computation in the worker {ms(paper_worker)}",
                     "<= 1.3x simulate()",
                     verdict(paper_p50 <= 1.3 * lib),

@@ -20,6 +20,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
+from pipeflow.schema import documents
 from pipeflow.stability import critical_velocities
 from pipeflow.stability.core import eigenvalues, nondimensional_pipe
 from pipeflow.stability.floquet import resonance_chart
@@ -56,7 +57,7 @@ def main() -> None:
         lambda: beta_map((0.05, 0.95), (0.0, 20.0), 0.0, 10, 100, 201),
         repeat=1,
     )
-    window = bm.to_dict()["multiple_crossings"]
+    window = documents.beta_map(bm)["multiple_crossings"]
     print(f"  betas with several crossings: {window}")
     pipe = nondimensional_pipe(0.2)
     v0 = 4.0 / math.sqrt(0.2)
@@ -67,14 +68,14 @@ def main() -> None:
         lambda: resonance_chart(pipe, v0, (0, 0.8 * v0), (1.5 * om2, 2.5 * om2), 0.0, 4, 21, 41),
         repeat=1,
     )
-    for r in ch.regions()[:2]:
+    for r in documents.resonance_regions(ch)[:2]:
         print("  region", r)
     print("u_cr(beta), 10 modes:")
     for beta in (0.1, 0.2, 0.3, 0.5, 0.8):
         p = nondimensional_pipe(beta)
         res = critical_velocities(p, 0.0, (0.0, 20.0 / math.sqrt(beta)), 10)
         first = next(c for c in res.crossings if c.boundary)
-        print(f"  beta {beta}: u_cr = {res.dimensionless()['u_cr']:.5f} (mode {first.mode})")
+        print(f"  beta {beta}: u_cr = {res.u_cr:.5f} (mode {first.mode})")
 
 
 if __name__ == "__main__":

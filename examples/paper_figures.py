@@ -30,6 +30,7 @@ from pathlib import Path
 from pipeflow.io.plots import figure, to_bytes
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Profile, polynomial
+from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 AMPLITUDES = (0.1, 0.2, 0.3, 0.4)  # a [m/s^(k+1)] for v = a t^k
@@ -107,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
                 method=args.method,
                 eigen_modes=1,
             )
-            series.append((label, simulate(sim).to_dict()))
+            series.append((label, documents.simulation(simulate(sim))))
         for number, kind in numbers.items():
             if wanted is not None and number not in wanted:
                 continue

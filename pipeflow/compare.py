@@ -3,22 +3,20 @@
 The user-side version of the paper's Tables 1 and 2 (CMA against RK4 CPU time), on any
 case: :func:`compare` runs the same :class:`~pipeflow.simulation.Simulation` with each
 method, times it, and reports each method's difference from the most accurate one.  It is
-a pure function returning a JSON-ready dictionary (no I/O); its request model is
-:class:`pipeflow.schema.simulation.CompareSpec` (``POST /v1/compare``).
+a pure function returning a :class:`Comparison` (no I/O); its request model is
+:class:`pipeflow.schema.simulation.CompareSpec` (``POST /v1/compare``), its JSON form
+:func:`pipeflow.schema.documents.compare`.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
-from dataclasses import replace
-from typing import Any
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from pipeflow._types import Progress
-from pipeflow.diagnostics import summary
 from pipeflow.errors import InvalidInput
 from pipeflow.model import build_model
 from pipeflow.simulation import Result, Simulation, simulate
@@ -26,6 +24,44 @@ from pipeflow.solvers import SOLVERS
 from pipeflow.solvers.base import relative_difference
 
 MAX_METHODS = 8
+
+
+@dataclass(frozen=True)
+class MethodRun:
+    """One method's run in a :class:`Comparison` (SI units).
+
+    result : the simulation it ran (``result.simulation.method``: the method asked).
+    wall_seconds : wall-clock time of :func:`~pipeflow.simulation.simulate` [s].
+    solve_seconds : the solver's own time (``diagnostics["solve_seconds"]``, else the wall
+        time) [s].
+    estimated_relative_error : the error the solver claims [-] (``Solver.claimed_error``;
+        inf when it claims none).
+    difference_from_baseline : max over time of the difference of the balanced state (modal
+        displacements and scaled velocities) from the baseline's, over the baseline's max [-].
+    tip_difference_from_baseline : the same on the tip displacement [-].
+    compared_samples : the samples both runs have (a run that overflowed has fewer).
+    """
+
+    result: Result
+    wall_seconds: float
+    solve_seconds: float
+    estimated_relative_error: float
+    difference_from_baseline: float
+    tip_difference_from_baseline: float
+    compared_samples: int
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Result of :func:`compare`: one run per method, in the order asked.
+
+    simulation : the case compared (its ``method`` aside); baseline : the run of the most
+    accurate method (the smallest claimed error), which the differences are measured from.
+    """
+
+    simulation: Simulation
+    runs: list[MethodRun]
+    baseline: Result
 
 
 def _accuracy(result: Result) -> float:
@@ -44,24 +80,15 @@ def compare(
     sim: Simulation,
     methods: Sequence[str] | None = None,
     progress: Progress | None = None,
-) -> dict[str, Any]:
+) -> Comparison:
     """Run ``sim`` with each of ``methods`` (default: :func:`default_methods`, every
-    registered method but ``reference`` and ``auto``) and compare.
-
-    Returns a JSON-ready dictionary (:class:`pipeflow.schema.results.CompareResponse`)::
-
-        {"baseline": name of the most accurate method (smallest estimated error),
-         "methods": [{"method", "method_used", "status", "solve_seconds" [s], "wall_seconds" [s],
-                      "speedup_vs_slowest" [-], "estimated_relative_error" [-],
-                      "difference_from_baseline" [-] (balanced state),
-                      "tip_difference_from_baseline" [-], "warnings", "diagnostics"}, ...],
-         "samples", "modes", "t_end" [s]}
+    registered method but ``reference`` and ``auto``) and compare (:class:`Comparison`:
+    each method's times, claimed error and difference from the most accurate one).
 
     Differences are relative: max over time of the difference over max over time of the
     baseline, on the balanced state (modal displacements and scaled velocities) and on the
     tip displacement.  Where a response overflowed, only the common finite part is compared.
     """
-    from pipeflow.schema import results as r  # the contract, imported on first use
 
     names = list(methods) if methods is not None else default_methods()
     if not names:
@@ -88,40 +115,24 @@ def compare(
         result = simulate(replace(sim, method=name), progress=part)
         runs.append((result, time.perf_counter() - t0))
 
-    accuracy = [_accuracy(r) for r, _ in runs]
-    best = int(np.argmin(accuracy))
-    base = runs[best][0]
+    accuracy = [_accuracy(result) for result, _ in runs]
+    base = runs[int(np.argmin(accuracy))][0]
     base_z = model.to_balanced(base.d, base.ddot)
-    solve_times = [float(r.diagnostics.get("solve_seconds", wall)) for r, wall in runs]
-    slowest = max(solve_times)
     rows = []
-    for (result, wall), solve_s, acc in zip(runs, solve_times, accuracy, strict=True):
+    for (result, wall), acc in zip(runs, accuracy, strict=True):
         z = model.to_balanced(result.d, result.ddot)
         n = min(z.shape[0], base_z.shape[0])
         rows.append(
-            r.document(
-                r.MethodComparison,
-                method=result.simulation.method,
-                method_used=result.method_used,
-                status=str(result.status),
-                solve_seconds=solve_s,
+            MethodRun(
+                result=result,
                 wall_seconds=wall,
-                speedup_vs_slowest=slowest / solve_s if solve_s > 0 else None,
-                estimated_relative_error=acc if math.isfinite(acc) else None,
+                solve_seconds=float(result.diagnostics.get("solve_seconds", wall)),
+                estimated_relative_error=acc,
                 difference_from_baseline=relative_difference(z[:n], base_z[:n]),
                 tip_difference_from_baseline=relative_difference(
                     result.tip_displacement[:n], base.tip_displacement[:n]
                 ),
                 compared_samples=n,
-                warnings=list(result.warnings),
-                diagnostics=summary(result.to_dict()["diagnostics"]),
             )
         )
-    return r.document(
-        r.CompareResponse,
-        baseline=base.simulation.method,
-        methods=rows,
-        samples=sim.samples,
-        modes=sim.modes,
-        t_end=sim.t_end,
-    )
+    return Comparison(simulation=sim, runs=rows, baseline=base)

@@ -23,7 +23,6 @@ eigenvalue times and the requested times by left/right eigenvector correlation
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,6 +51,8 @@ class ModeShapes:
     xi : eigenvalues sigma + i omega of the branches at those times [1/s], shape (T, B).
     shapes : Phi_j(x, t) [-], shape (T, B, P), max modulus 1 (see the module docstring).
     mode : mode number of each branch (``Traces.mode``), shape (B,); None: 1, 2, ...
+
+    JSON form: :func:`pipeflow.schema.documents.mode_shapes`.
     """
 
     t: FloatArray
@@ -59,29 +60,6 @@ class ModeShapes:
     xi: ComplexArray
     shapes: ComplexArray
     mode: NDArray[np.intp] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.ModeShapesBlock`, ``{"t", "x",
-        "modes": [{"mode", "sigma", "omega", "real", "imag"}]}`` with ``real``/``imag``
-        nested as [time][station]."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        return r.document(
-            r.ModeShapesBlock,
-            t=self.t.tolist(),
-            x=self.x.tolist(),
-            modes=[
-                r.document(
-                    r.ShapeTrace,
-                    mode=int(self.mode[j]) if self.mode is not None else j + 1,
-                    sigma=self.xi[:, j].real.tolist(),
-                    omega=self.xi[:, j].imag.tolist(),
-                    real=self.shapes[:, j].real.tolist(),
-                    imag=self.shapes[:, j].imag.tolist(),
-                )
-                for j in range(self.xi.shape[1])
-            ],
-        )
 
 
 def frozen_mode_shapes(

@@ -22,12 +22,10 @@ from pipeflow._types import FloatArray, Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
 from pipeflow.errors import InvalidInput
-from pipeflow.io.json import json_safe
 from pipeflow.loads import (
     BASE_ACCELERATION_NOTE,
     BaseAcceleration,
     Load,
-    load_to_dict,
     project_loads,
     validate_loads,
 )
@@ -111,11 +109,11 @@ class Simulation:
 
 @dataclass
 class Result:
-    """Outputs of :func:`simulate` (SI units; see :meth:`to_dict` for the JSON form).
+    """Outputs of :func:`simulate` (SI units).
 
-    In a notebook: :meth:`to_xarray`, :meth:`to_dataframe` and :meth:`plot`, shorthands of
-    the functions of :mod:`pipeflow.io.notebook` (imported on first use; xarray/pandas are
-    the ``notebook`` extra), which take this result or its JSON form.
+    Its JSON form (the service's document) is :func:`pipeflow.schema.documents.simulation`;
+    in a notebook, the functions of :mod:`pipeflow.io.notebook` take this result or that
+    JSON form (xarray/pandas are the ``notebook`` extra).
     """
 
     simulation: Simulation
@@ -145,7 +143,8 @@ class Result:
         branches of :attr:`frozen` (:func:`cma_exponents`).  Nothing in :func:`simulate`
         needs them (status, diagnostics and growth come from the frozen spectrum), so with
         time-varying coefficients their decompositions are deferred to the first use here
-        (:meth:`to_dict` uses them); the value is the same either way, and kept."""
+        (the JSON form, :func:`pipeflow.schema.documents.simulation`, uses them); the value
+        is the same either way, and kept."""
         if callable(self.cma_exponents):
             self.cma_exponents = self.cma_exponents()
         return self.cma_exponents
@@ -153,93 +152,6 @@ class Result:
     @property
     def fundamental(self) -> Traces:
         return Traces(self.frozen.xi[:, :1], self.frozen.confidence[:, :1])
-
-    # the views a notebook asks a result for (README): the io layer, imported on first use
-    def to_xarray(self) -> Any:
-        """The result as an :class:`xarray.Dataset`: :func:`pipeflow.io.notebook.to_xarray`."""
-        from pipeflow.io.notebook import to_xarray
-
-        return to_xarray(self.to_dict())
-
-    def to_dataframe(self, table: str = "history") -> Any:
-        """One table as a :class:`pandas.DataFrame`: :func:`pipeflow.io.notebook.to_dataframe`."""
-        from pipeflow.io.notebook import to_dataframe
-
-        return to_dataframe(self.to_dict(), table)
-
-    def plot(self, name: str = "tip_displacement", **kwargs: Any) -> Any:
-        """A matplotlib Figure of plot ``name``: :func:`pipeflow.io.notebook.plot`."""
-        from pipeflow.io.notebook import plot
-
-        return plot(self.to_dict(), name, **kwargs)
-
-    def to_dict(self, include_modal: bool | None = None) -> dict[str, Any]:
-        """JSON-ready dictionary: lists of floats, every number finite; its keys are the
-        fields of :class:`pipeflow.schema.results.SimulationResponse`
-        (:func:`~pipeflow.schema.results.document`)."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        modal = self.simulation.include_modal if include_modal is None else include_modal
-
-        def traces(tr: Traces, flagged: bool = False) -> list[dict[str, Any]]:
-            return [
-                r.document(
-                    r.Trace,
-                    mode=tr.mode_number(j),
-                    sigma=_finite(tr.sigma[:, j]),
-                    omega=_finite(tr.omega[:, j]),
-                    confidence=_finite(tr.confidence[:, j]),
-                    **({"least_stable": tr.least_stable == j} if flagged else {}),
-                )
-                for j in range(tr.xi.shape[1])
-            ]
-
-        optional: dict[str, Any] = {}
-        if self.mode_shapes is not None:
-            optional["mode_shapes"] = json_safe(self.mode_shapes.to_dict())
-        if self.simulation.loads:  # the inputs echoed: only when there are loads
-            L = self.simulation.pipe.L
-            optional["loads"] = [load_to_dict(load, L) for load in self.simulation.loads]
-        if modal:
-            optional["modal"] = r.document(r.Modal, d=_finite(self.d), ddot=_finite(self.ddot))
-        return r.document(
-            r.SimulationResponse,
-            status=str(self.status),
-            method=self.simulation.method,
-            method_used=self.method_used,
-            method_reason=self.method_reason,
-            first_unstable_time=self.first_unstable_time,
-            t=_finite(self.t),
-            tip_displacement=_finite(self.tip_displacement),
-            initial_tip_displacement=self.initial_tip_displacement,
-            divergence_time=self.divergence_time,
-            displacements=[
-                r.document(r.Station, x=x, u=_finite(self.displacements[i]))
-                for i, x in enumerate(self.simulation.positions)
-            ],
-            eigenvalues=r.document(
-                r.Spectrum, t=_finite(self.eigen_t), modes=traces(self.frozen, True)
-            ),
-            fundamental=r.document(
-                r.Fundamental,
-                sigma=_finite(self.frozen.sigma[:, 0]),
-                omega=_finite(self.frozen.omega[:, 0]),
-            ),
-            cma_exponents=r.document(
-                r.Spectrum, t=_finite(self.eigen_t), modes=traces(self.exponents)
-            ),
-            dimensionless=self.dimensionless,
-            diagnostics=json_safe(self.diagnostics),
-            warnings=list(self.warnings),
-            **optional,
-        )
-
-
-def _finite(a: Any) -> Any:
-    arr = np.asarray(a, dtype=float)
-    if not np.all(np.isfinite(arr)):
-        raise ValueError("internal error: non-finite value reached the output")
-    return arr.tolist()
 
 
 def validate(sim: Simulation) -> None:

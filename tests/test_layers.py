@@ -1,6 +1,6 @@
 """The layers of the code base, read from the source with :mod:`ast` (nothing is imported).
 
-Three rules:
+Four rules:
 
 1. no import circle among the modules of ``pipeflow``, ``service``, ``pipeflow_client`` and
    ``pipeflow_cli``
@@ -11,7 +11,11 @@ Three rules:
    and cluster stack (fastapi, starlette, uvicorn, distributed, sqlalchemy);
 3. the engine (``service.engine``) imports nothing of the HTTP layer (``service.http``, the
    routes and what builds answers, fastapi, starlette): it returns plain outcomes and
-   neutral error records, which only the HTTP layer turns into problem documents.
+   neutral error records, which only the HTTP layer turns into problem documents;
+4. the numerical library (``pipeflow`` outside ``pipeflow.schema`` and the presentation
+   layer ``pipeflow.io``) imports nothing of the schema (``pipeflow.schema``), deferred
+   imports included: it returns dataclasses, and the schema builds the documents from them
+   (``pipeflow.schema.documents``).
 """
 
 from __future__ import annotations
@@ -48,6 +52,13 @@ HTTP_LAYER = (
     "fastapi",
     "starlette",
 )
+
+
+#: the contract, which the numerical library must not import (rule 4)
+SCHEMA = "pipeflow.schema"
+#: the parts of ``pipeflow`` that may import the contract: itself and the presentation layer
+#: (a notebook view turns a local result into its document)
+SCHEMA_USERS = (SCHEMA, "pipeflow.io")
 
 
 @dataclass(frozen=True)
@@ -170,13 +181,17 @@ def violations(
     imports: Iterable[Import],
     layer: str,
     forbidden: Iterable[str],
+    exempt: Iterable[str] = (),
 ) -> list[str]:
-    """``module:line imports target`` for each import of ``layer`` that is ``forbidden``"""
-    forbidden = tuple(forbidden)
+    """``module:line imports target`` for each import of ``layer`` (but of its parts
+    ``exempt``) that is ``forbidden``"""
+    forbidden, exempt = tuple(forbidden), tuple(exempt)
     return [
         f"{imp.module}:{imp.line} imports {imp.target}"
         for imp in imports
-        if within(imp.module, [layer]) and within(imp.target, forbidden)
+        if within(imp.module, [layer])
+        and not within(imp.module, exempt)
+        and within(imp.target, forbidden)
     ]
 
 
@@ -198,6 +213,13 @@ def test_library_imports_no_service_client_or_web_stack(tree_imports: list[Impor
     assert not bad, "the library imports the service, the client or the web stack:\n" + "\n".join(
         bad
     )
+
+
+def test_library_imports_no_schema(tree_imports: list[Import]) -> None:
+    """The numerical library returns dataclasses; the schema builds the response documents
+    from them (``pipeflow.schema.documents``), never the other way round."""
+    bad = violations(tree_imports, "pipeflow", [SCHEMA], exempt=SCHEMA_USERS)
+    assert not bad, "the library imports the schema:\n" + "\n".join(bad)
 
 
 def test_client_and_command_line_stay_front_ends(tree_imports: list[Import]) -> None:
@@ -227,6 +249,10 @@ def test_the_tree_is_read(tree_imports: list[Import]) -> None:
     } <= modules
     assert "pipeflow_cli.cli" in modules
     assert any(imp.target == "pipeflow.errors" for imp in tree_imports)
+    assert any(
+        imp.module == "pipeflow.schema.documents" and imp.target == "pipeflow.simulation"
+        for imp in tree_imports
+    )
 
 
 # -- the rules catch violations (a synthetic tree) -----------------------------------------
@@ -252,6 +278,13 @@ def test_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
                 "if TYPE_CHECKING:\n    from service import engine  # typing only: allowed\n"
             ),
             "pipeflow/e.py": "def serve():\n    import fastapi  # deferred\n",
+            "pipeflow/f.py": "def to_dict():\n    from pipeflow.schema import results\n",
+            "pipeflow/g.py": "import pipeflow.schema.results\nfrom pipeflow import schema\n",
+            "pipeflow/schema/__init__.py": "",
+            "pipeflow/schema/results.py": "",
+            "pipeflow/schema/documents.py": "from pipeflow import a\nfrom . import results\n",
+            "pipeflow/io/__init__.py": "",
+            "pipeflow/io/notebook.py": "def view():\n    from pipeflow.schema import documents\n",
             "service/__init__.py": "",
             "service/http/__init__.py": "",
             "service/http/problems.py": "from service.engine import task\n",
@@ -269,6 +302,11 @@ def test_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
         "pipeflow.c:1 imports sqlalchemy",
         "pipeflow.c:2 imports service.store",
         "pipeflow.e:2 imports fastapi",
+    ]
+    assert violations(imports, "pipeflow", [SCHEMA], exempt=SCHEMA_USERS) == [
+        "pipeflow.f:2 imports pipeflow.schema.results",
+        "pipeflow.g:1 imports pipeflow.schema.results",
+        "pipeflow.g:2 imports pipeflow.schema",
     ]
     assert violations(imports, "service.engine", HTTP_LAYER) == [
         "service.engine.task:1 imports service.http.problems"

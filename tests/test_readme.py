@@ -136,6 +136,7 @@ def test_the_figures_the_readme_quotes_are_current() -> None:
     analytic references in tests/pipeflow/."""
     from pipeflow.basis import paper_scale, tip_values
     from pipeflow.paper import PAPER_PIPE
+    from pipeflow.schema import documents
     from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
     from pipeflow.simulation import simulate
     from pipeflow.stability import critical_velocities
@@ -147,7 +148,7 @@ def test_the_figures_the_readme_quotes_are_current() -> None:
     # error estimates of the paper's example with cma (v = 0.4 t, w0 = 100 rad/s; the
     # default method "auto" would pick magnus there)
     spec = SimulationSpec.model_validate(dict(PAPER_EXAMPLE, method="cma"))
-    d = simulate(spec.to_simulation()).to_dict()
+    d = documents.simulation(simulate(spec.to_simulation()))
     (m,) = _quoted(
         r"e\.g\. (?P<tip>[0-9.e-]+) against (?P<state>[0-9.e-]+) for `cma` at v = 0\.4 t"
     )
@@ -159,11 +160,11 @@ def test_the_figures_the_readme_quotes_are_current() -> None:
     assert res.critical_velocity is not None
     for m in _quoted(r"# (?P<v>[0-9.]+) m/s, u_cr = (?P<u>[0-9.]+)"):
         same(m["v"], res.critical_velocity)
-        same(m["u"], res.dimensionless()["u_cr"])
+        same(m["u"], res.u_cr)
     for m in _quoted(r'"critical_velocity": (?P<v>[0-9.]+) \[m/s\]'):
         same(m["v"], res.critical_velocity)
     for m in _quoted(r'"u_cr": (?P<u>[0-9.]+), "beta", "gamma"'):  # the paper's pipe's
-        same(m["u"], res.dimensionless()["u_cr"])
+        same(m["u"], res.u_cr)
 
     # the tip value of the paper's first mode shape phi_1 (eq. (3)), and the initial tip of
     # the example (u0 = 1 mm times it)

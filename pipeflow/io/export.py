@@ -1,6 +1,6 @@
 """CSV and Parquet export of a simulation result: time histories, eigenvalue traces, shapes.
 
-Works on the JSON form of a result (:meth:`pipeflow.simulation.Result.to_dict`, which is
+Works on the JSON form of a result (:func:`pipeflow.schema.documents.simulation`, which is
 also what the service stores), so the command line, the service and a notebook export the
 same bytes.  Every table has one header row naming each column and its SI unit in
 brackets, e.g. ``t [s],tip_displacement [m]``; numbers are written with Python's shortest

@@ -1,10 +1,10 @@
 """A simulation result in a notebook: xarray Dataset, pandas DataFrame, matplotlib Figure.
 
-Works on the JSON form of a result (:meth:`pipeflow.simulation.Result.to_dict`, which is
+Works on the JSON form of a result (:func:`pipeflow.schema.documents.simulation`, which is
 also what the service returns): every function takes that dictionary, a local
 :class:`~pipeflow.simulation.Result` or the client's :class:`pipeflow_client.SimulationResult`
-and gives the same objects (``to_xarray(result)``; the result classes offer them as methods
-too, the client's through :class:`NotebookViews`).  xarray and pandas are the optional
+and gives the same objects (``to_xarray(result)``; the client's result offers them as
+methods too, through :class:`NotebookViews`).  xarray and pandas are the optional
 ``notebook`` extra (``pip install 'pipeflow[notebook]'``), imported on first use.
 
 Dataset layout (:func:`to_xarray`), every variable with ``units`` (SI) and ``long_name``:
@@ -37,13 +37,16 @@ if TYPE_CHECKING:
 
 
 def document(result: Any) -> dict[str, Any]:
-    """The JSON form of ``result``: a dictionary as it is, else the object's ``to_dict()``
-    (a :class:`~pipeflow.simulation.Result`) or ``_document()`` (a :class:`NotebookViews`)."""
+    """The JSON form of ``result``: a dictionary as it is, a :class:`NotebookViews`'s
+    ``_document()``, else that of a local :class:`~pipeflow.simulation.Result`
+    (:func:`pipeflow.schema.documents.simulation`, imported on first use)."""
     if isinstance(result, Mapping):
         return dict(result)
     if isinstance(result, NotebookViews):
         return result._document()
-    return dict(result.to_dict())
+    from pipeflow.schema import documents
+
+    return documents.simulation(result)
 
 
 def to_xarray(result: Any) -> Any:

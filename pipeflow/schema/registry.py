@@ -2,7 +2,7 @@
 
 An entry (:class:`Computation`) names the request model, the response model, the function
 that runs it (a plain library call: validated request in, the JSON-ready dict of the
-response model out, written with :func:`pipeflow.schema.results.document`), its cost
+response model out, written by :mod:`pipeflow.schema.documents`), its cost
 bound, its plots and CSV tables, its examples, where library parameter names land in the
 request (:attr:`Computation.fields`) and, for the computations a design study can vary,
 its study summary (:attr:`Computation.summary_columns`, :attr:`Computation.summarize`).
@@ -33,6 +33,7 @@ from pipeflow.frequency import MAX_FREQUENCIES
 from pipeflow.io.export import FREQUENCY_TABLES, SIMULATION_TABLES
 from pipeflow.io.json import json_safe
 from pipeflow.io.plots import available_plots
+from pipeflow.schema import documents
 from pipeflow.schema import frequency as f
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
@@ -98,8 +99,9 @@ class Computation:
     def execute(self, request: BaseModel, progress: Progress | None = None) -> dict[str, Any]:
         """Run a validated request: the JSON-ready result (every float finite or null) with
         ``kind`` first where :attr:`response` has one and the names of its figures in
-        ``plots``.  The run's dict is already a document of :attr:`response` (the library
-        writes it with :func:`pipeflow.schema.results.document`); it is not validated
+        ``plots``.  The run's dict is already a document of :attr:`response`
+        (:mod:`pipeflow.schema.documents` writes it with
+        :func:`pipeflow.schema.results.document`); it is not validated
         again here (a design study runs this per case).
 
         A :class:`~pipeflow.errors.PipeflowError` leaves with ``field`` set to the request
@@ -202,8 +204,9 @@ def _last(values: Sequence[float | None]) -> float | None:
 
 
 def run_simulation(spec: SimulationSpec, progress: Progress | None) -> dict[str, Any]:
-    """:func:`pipeflow.simulation.simulate` (see :meth:`~pipeflow.simulation.Result.to_dict`)."""
-    return simulate_request(spec, progress).to_dict()
+    """:func:`pipeflow.simulation.simulate`, its document
+    (:func:`pipeflow.schema.documents.simulation`)."""
+    return documents.simulation(simulate_request(spec, progress))
 
 
 #: a simulation's row in a design study
@@ -292,8 +295,9 @@ SIMULATION = register(
 
 
 def run_compare(spec: CompareSpec, progress: Progress | None) -> dict[str, Any]:
-    """:func:`pipeflow.compare.compare` of the request's simulation and methods."""
-    return compare(spec.simulation.to_simulation(), spec.methods, progress)
+    """:func:`pipeflow.compare.compare` of the request's simulation and methods, its
+    document (:func:`pipeflow.schema.documents.compare`)."""
+    return documents.compare(compare(spec.simulation.to_simulation(), spec.methods, progress))
 
 
 COMPARE = register(

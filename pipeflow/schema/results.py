@@ -2,10 +2,10 @@
 
 One model per result shape (:data:`pipeflow.schema.registry.COMPUTATIONS` names each
 computation's), nested models for its parts.  They are the one definition of each
-document's keys: the library writes its ``to_dict`` forms with :func:`document`, which
-takes a model and the values by field name and refuses a name the model lacks or a required
-field left out, on every call; the tests check that every field of every model is written
-by some real result.  The service adds ``key``, ``cached`` and ``plots``
+document's keys: :mod:`pipeflow.schema.documents` writes the library's results with
+:func:`document`, which takes a model and the values by field name and refuses a name the
+model lacks or a required field left out, on every call; the tests check that every field
+of every model is written by some real result.  The service adds ``key``, ``cached`` and ``plots``
 (:data:`SERVICE_FIELDS`), and :meth:`pipeflow.schema.registry.Computation.execute` puts
 ``kind`` first.  The client (:mod:`pipeflow_client`) validates what it receives with the
 same models.  Every float is finite: where the library has no number (e.g. no critical
@@ -39,7 +39,8 @@ def _names(model: type[BaseModel]) -> tuple[frozenset[str], frozenset[str]]:
 
 def document(model: type[BaseModel], /, **values: Any) -> dict[str, Any]:
     """``values`` as a JSON object of ``model`` (a result document or a part of one): the
-    one way the library writes its ``to_dict`` forms, so a key exists only as a field.
+    one way :mod:`pipeflow.schema.documents` writes the library's results, so a key exists
+    only as a field.
 
     Every name must be a field of ``model``, and every required field must be given but
     :data:`SERVICE_FIELDS` and ``kind`` (the computation's name, which

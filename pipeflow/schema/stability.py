@@ -10,8 +10,8 @@
 Same conventions as :mod:`pipeflow.schema.simulation`: strict pydantic models with units in
 every description, bounds on everything a request can spend, :meth:`canonical` (defaults
 filled in) for the cache key.  Each model's ``run`` method is the plain library call; it
-returns the result's ``to_dict`` form and takes a ``progress`` callback (fraction in
-[0, 1]) that may raise :class:`pipeflow.errors.Cancelled`.
+returns the result's document (:mod:`pipeflow.schema.documents`) and takes a ``progress``
+callback (fraction in [0, 1]) that may raise :class:`pipeflow.errors.Cancelled`.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidField
 from pipeflow.model import GROUPS, Pipe
 from pipeflow.paper import PAPER_PIPE_JSON
+from pipeflow.schema import documents
 from pipeflow.schema.simulation import (
     ConstantProfile,
     HarmonicProfile,
@@ -154,15 +155,16 @@ class StabilitySpec(_Mounted):
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.critical.critical_velocities` (``to_dict`` form)."""
-        return critical_velocities(
+        """:func:`~pipeflow.stability.critical.critical_velocities`: its document."""
+        result = critical_velocities(
             self.mounted_pipe(),
             omega0=self.rotation.omega0.value,
             velocity_range=self.velocity_range,
             modes=self.modes,
             points=self.points,
             progress=progress,
-        ).to_dict()
+        )
+        return documents.critical_velocities(result)
 
 
 class _TrackedSweep(_Mounted):
@@ -201,7 +203,7 @@ class _TrackedSweep(_Mounted):
         progress: Progress | None,
         orders: tuple[float, ...] = (),
     ) -> dict[str, Any]:
-        return sweep(
+        result = sweep(
             self.mounted_pipe(),
             parameter,
             value_range,
@@ -213,7 +215,8 @@ class _TrackedSweep(_Mounted):
             max_points=self.max_points,
             progress=progress,
             orders=orders,
-        ).to_dict()
+        )
+        return documents.sweep(result)
 
 
 class ArgandSweep(_TrackedSweep):
@@ -229,7 +232,7 @@ class ArgandSweep(_TrackedSweep):
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.sweeps.sweep` over flow velocity (``to_dict`` form)."""
+        """:func:`~pipeflow.stability.sweeps.sweep` over flow velocity: its document."""
         return self._sweep("velocity", self.velocity_range, self.rotation.omega0.value, progress)
 
 
@@ -252,7 +255,7 @@ class CampbellSweep(_TrackedSweep):
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.sweeps.sweep` over spin (``to_dict`` form)."""
+        """:func:`~pipeflow.stability.sweeps.sweep` over spin: its document."""
         return self._sweep(
             "spin", self.spin_range, self.flow.velocity.value, progress, tuple(self.orders)
         )
@@ -279,8 +282,8 @@ class SpinMapSweep(_Mounted):
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.maps.spin_map` (``to_dict`` form)."""
-        return spin_map(
+        """:func:`~pipeflow.stability.maps.spin_map`: its document."""
+        result = spin_map(
             self.mounted_pipe(),
             self.velocity_range,
             self.spin_range,
@@ -288,7 +291,8 @@ class SpinMapSweep(_Mounted):
             velocity_points=self.velocity_points,
             spin_points=self.spin_points,
             progress=progress,
-        ).to_dict()
+        )
+        return documents.spin_map(result)
 
 
 class BetaMapSweep(StrictModel):
@@ -339,8 +343,8 @@ class BetaMapSweep(StrictModel):
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.maps.beta_map` (``to_dict`` form)."""
-        return beta_map(
+        """:func:`~pipeflow.stability.maps.beta_map`: its document."""
+        result = beta_map(
             self.beta_range,
             self.u_range,
             gamma=self.gamma,
@@ -350,7 +354,8 @@ class BetaMapSweep(StrictModel):
             progress=progress,
             groups={name: getattr(self, name) for name in GROUPS},
             plane=self.plane,
-        ).to_dict()
+        )
+        return documents.beta_map(result)
 
 
 class ResonanceChartSweep(_Mounted):
@@ -392,8 +397,8 @@ class ResonanceChartSweep(_Mounted):
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.floquet.resonance_chart` (``to_dict`` form)."""
-        return resonance_chart(
+        """:func:`~pipeflow.stability.floquet.resonance_chart`: its document."""
+        result = resonance_chart(
             self.mounted_pipe(),
             self.mean_velocity,
             self.amplitude_range,
@@ -404,7 +409,8 @@ class ResonanceChartSweep(_Mounted):
             frequency_points=self.frequency_points,
             tolerance=self.tolerance,
             progress=progress,
-        ).to_dict()
+        )
+        return documents.resonance_chart(result)
 
 
 class PeriodicFlow(StrictModel):
@@ -441,15 +447,16 @@ class FloquetSweep(_Mounted):
         return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.floquet.floquet` (``to_dict`` form)."""
-        return floquet(
+        """:func:`~pipeflow.stability.floquet.floquet`: its document."""
+        result = floquet(
             self.mounted_pipe(),
             self.flow.velocity.to_profile(),
             self.rotation.omega0.to_profile(),
             modes=self.modes,
             tolerance=self.tolerance,
             progress=progress,
-        ).to_dict()
+        )
+        return documents.floquet(result)
 
 
 #: the request models asked for by ``kind`` at ``/v1/sweeps`` (their registry entries

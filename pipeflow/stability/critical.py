@@ -16,7 +16,6 @@ and no threshold.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Literal
@@ -53,6 +52,8 @@ class Crossing:
         unstable on either side); a crossing while another mode is unstable is False.
     flow_number : u = v L sqrt(M2/EI) [-] (None if M2 = 0).
     dimensionless_frequency : omega sqrt((M1+M2) L^4 / EI) [-].
+
+    JSON form: :func:`pipeflow.schema.documents.crossing`.
     """
 
     velocity: float
@@ -64,27 +65,11 @@ class Crossing:
     flow_number: float | None
     dimensionless_frequency: float
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.Crossing`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        return r.document(
-            r.Crossing,
-            velocity=self.velocity,
-            frequency=self.frequency,
-            frequency_hz=self.frequency / (2 * math.pi),
-            mode=self.mode,
-            kind=self.kind,
-            direction=self.direction,
-            boundary=self.boundary,
-            flow_number=self.flow_number,
-            dimensionless_frequency=self.dimensionless_frequency,
-        )
-
 
 @dataclass
 class CriticalVelocity:
-    """Result of :func:`critical_velocities` (SI units; :meth:`to_dict` for JSON).
+    """Result of :func:`critical_velocities` (SI units; JSON form:
+    :func:`pipeflow.schema.documents.critical_velocities`).
 
     critical_velocity : first loss of stability in the range [m/s] (v >= 0 part), or None
         when there is none.  If the pipe is already unstable at the start of the range
@@ -114,46 +99,14 @@ class CriticalVelocity:
             c.boundary and c.direction == "loss" for c in self.crossings
         )
 
-    def dimensionless(self) -> dict[str, Any]:
-        """Paidoussis' groups: :class:`pipeflow.schema.results.StabilityDimensionless`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
+    @property
+    def u_cr(self) -> float | None:
+        """The critical flow number u_cr = v_cr L sqrt(M2/EI) [-] (None without a critical
+        velocity or when M2 = 0)."""
         p = self.pipe
-        u = (
-            None
-            if self.critical_velocity is None or p.M2 == 0
-            else float(p.flow_number(self.critical_velocity))
-        )
-        return r.document(
-            r.StabilityDimensionless,
-            beta=p.beta,
-            gamma=float(p.spin_number(self.omega0)),
-            u_cr=u,
-            u_range=(None if p.M2 == 0 else [float(p.flow_number(x)) for x in self.velocity_range]),
-            time_scale=p.time_scale,
-            **p.dimensionless_groups(),
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.StabilityResponse` (``kind`` aside)."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        reverse = self.reverse_flow
-        return r.document(
-            r.StabilityResponse,
-            critical_velocity=self.critical_velocity,
-            stable_throughout=self.stable_throughout,
-            stable_at_start=self.stable_at_start,
-            stable_intervals=self.stable_intervals,
-            crossings=[c.to_dict() for c in self.crossings],
-            dimensionless=self.dimensionless(),
-            omega0=self.omega0,
-            modes=self.modes,
-            velocity_range=list(self.velocity_range),
-            reverse_flow=None if reverse is None else r.document(r.ReverseFlow, **reverse),
-            warnings=list(self.warnings),
-            diagnostics=dict(self.diagnostics),
-        )
+        if self.critical_velocity is None or p.M2 == 0:
+            return None
+        return float(p.flow_number(self.critical_velocity))
 
 
 def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:

@@ -129,7 +129,8 @@ def _initial_steps(model: PipeModel, period: float) -> int:
 
 @dataclass
 class Floquet:
-    """Floquet analysis of one periodic case (SI units; :meth:`to_dict` for JSON).
+    """Floquet analysis of one periodic case (SI units; JSON form:
+    :func:`pipeflow.schema.documents.floquet`).
 
     period : T [s]; monodromy : Phi (balanced coordinates); multipliers : lambda, sorted by
     decreasing modulus; exponents : mu = log(lambda)/T [1/s]; steps : Magnus steps per
@@ -158,45 +159,6 @@ class Floquet:
     def growth_rate(self) -> float:
         """log(max |lambda|) / T [1/s]: the growth rate of the worst solution."""
         return math.log(self.max_multiplier) / self.period
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.FloquetResponse` (``kind`` aside)."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        upper = self.frozen_mean[self.frozen_mean.imag >= 0]
-        upper = upper[np.argsort(upper.imag)]
-        return r.document(
-            r.FloquetResponse,
-            period=self.period,
-            verdict=str(self.verdict),
-            max_multiplier=self.max_multiplier,
-            growth_rate=self.growth_rate,
-            multipliers=r.document(
-                r.Multipliers,
-                real=self.multipliers.real.tolist(),
-                imag=self.multipliers.imag.tolist(),
-                modulus=np.abs(self.multipliers).tolist(),
-            ),
-            exponents=r.document(
-                r.Exponents,
-                sigma=self.exponents.real.tolist(),
-                omega=self.exponents.imag.tolist(),
-            ),
-            frozen_mean={"sigma": upper.real.tolist(), "omega": upper.imag.tolist()},
-            dimensionless={
-                "beta": self.pipe.beta,
-                "time_scale": self.pipe.time_scale,
-                **self.pipe.dimensionless_groups(),
-                "period": self.period / self.pipe.time_scale,
-            },
-            warnings=list(self.warnings),
-            diagnostics={
-                "steps_per_period": self.steps,
-                "error_estimate": self.error_estimate,
-                "galerkin_modes": self.modes,
-                "propagator": "magnus4 (2 Gauss points), step doubling",
-            },
-        )
 
 
 def _verdict(max_mod: float, err: float) -> Verdict:
@@ -295,14 +257,37 @@ def floquet(
     )
 
 
+@dataclass(frozen=True)
+class UnstableRegion:
+    """A connected unstable region of a :class:`ResonanceChart` (SI units).
+
+    frequency_range : its lowest and highest pulsation frequency [rad/s]; min_amplitude :
+    its lowest amplitude [m/s]; tip_amplitude, tip_frequency : the point of the tongue's
+    tip [m/s, rad/s]; max_growth_rate : the largest growth rate in it [1/s]; points : the
+    chart points it covers; nearest_condition, nearest_frequency : the classical resonance
+    condition nearest to the tip (:meth:`ResonanceChart.resonances`; "" and NaN when there
+    is none) and its frequency [rad/s].
+    """
+
+    frequency_range: tuple[float, float]
+    min_amplitude: float
+    tip_amplitude: float
+    tip_frequency: float
+    max_growth_rate: float
+    points: int
+    nearest_condition: str
+    nearest_frequency: float
+
+
 @dataclass
 class ResonanceChart:
     """Parametric-resonance chart of pulsating flow v = mean + a sin(Omega t) (SI units).
 
     amplitudes : a [m/s]; frequencies : Omega [rad/s]; max_multiplier[i, j] : max |lambda| at
     (amplitudes[i], frequencies[j]); growth_rate = log(max |lambda|)/T [1/s]; unstable :
-    max |lambda| > 1 beyond the error band; regions : connected unstable regions with the
-    frozen-frequency resonance condition nearest to each tongue's tip.
+    max |lambda| > 1 beyond the error band; :meth:`unstable_regions` : the connected unstable
+    regions with the frozen-frequency resonance condition nearest to each tongue's tip.
+    JSON form: :func:`pipeflow.schema.documents.resonance_chart`.
     """
 
     pipe: Pipe
@@ -338,13 +323,12 @@ class ResonanceChart:
                 out.append((f"omega_{j + 1}-omega_{i + 1}", om[j] - om[i]))
         return out
 
-    def regions(self) -> list[dict[str, Any]]:
-        """The connected unstable regions: :class:`pipeflow.schema.results.ResonanceRegion`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
+    def unstable_regions(self) -> list[UnstableRegion]:
+        """The connected unstable regions of the chart, by lowest amplitude (then the
+        largest first), each with the resonance condition nearest to its tip."""
         labels, count = ndimage.label(self.unstable)
         cands = self.resonances()
-        out: list[dict[str, Any]] = []
+        out: list[UnstableRegion] = []
         for label in range(1, count + 1):
             ii, jj = np.nonzero(labels == label)
             tip = np.argmin(self.amplitudes[ii] * 1e6 + np.abs(jj - jj.mean()))
@@ -352,59 +336,22 @@ class ResonanceChart:
             worst = np.argmax(self.growth_rate[ii, jj])
             near = min(cands, key=lambda c: abs(c[1] - tip_freq)) if cands else ("", math.nan)
             out.append(
-                r.document(
-                    r.ResonanceRegion,
-                    frequency_range=[
+                UnstableRegion(
+                    frequency_range=(
                         float(self.frequencies[jj.min()]),
                         float(self.frequencies[jj.max()]),
-                    ],
+                    ),
                     min_amplitude=float(self.amplitudes[ii].min()),
-                    tip={"amplitude": float(self.amplitudes[ii[tip]]), "frequency": tip_freq},
+                    tip_amplitude=float(self.amplitudes[ii[tip]]),
+                    tip_frequency=tip_freq,
                     max_growth_rate=float(self.growth_rate[ii[worst], jj[worst]]),
                     points=int(ii.size),
-                    nearest_resonance={"condition": near[0], "frequency": float(near[1])},
+                    nearest_condition=near[0],
+                    nearest_frequency=float(near[1]),
                 )
             )
-        out.sort(key=lambda d: (d["min_amplitude"], -d["points"]))
+        out.sort(key=lambda region: (region.min_amplitude, -region.points))
         return out
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.ResonanceChartResponse`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        p = self.pipe
-        return r.document(
-            r.ResonanceChartResponse,
-            kind="resonance_chart",
-            mean_velocity=self.mean_velocity,
-            omega0=self.omega0,
-            amplitudes=self.amplitudes.tolist(),
-            frequencies=self.frequencies.tolist(),
-            max_multiplier=self.max_multiplier.tolist(),
-            growth_rate=self.growth_rate.tolist(),
-            unstable=np.asarray(self.unstable).tolist(),
-            regions=self.regions(),
-            natural_frequencies=self.natural_frequencies().tolist(),
-            dimensionless={
-                "beta": p.beta,
-                "time_scale": p.time_scale,
-                **p.dimensionless_groups(),
-                "u_mean": None if p.M2 == 0 else float(p.flow_number(self.mean_velocity)),
-                "gamma": float(p.spin_number(self.omega0)),
-                "frequencies": (self.frequencies * p.time_scale).tolist(),
-                "amplitude_ratio": (
-                    (self.amplitudes / self.mean_velocity).tolist()
-                    if self.mean_velocity != 0
-                    else None
-                ),
-            },
-            warnings=list(self.warnings),
-            diagnostics={
-                "steps_per_period": self.steps,
-                "error_estimate": self.error_estimate,
-                "galerkin_modes": self.modes,
-            },
-        )
 
 
 #: frequencies of a resonance chart computed by one piece, at most (progress between pieces)

@@ -29,7 +29,6 @@ from pipeflow.stability.core import (
     eigenvalues,
     nondimensional_pipe,
     sign_changes,
-    stable_intervals,
 )
 
 #: eigenvalue problems per batched call (bounds memory: 4096 x 80 x 80 complex ~ 0.4 GB max)
@@ -111,7 +110,8 @@ def _first_loss(crossings: list[BoundaryCrossing]) -> float | None:
 
 @dataclass
 class SpinMap:
-    """Critical flow velocities against spin (SI units; :meth:`to_dict` for JSON).
+    """Critical flow velocities against spin (SI units; JSON form:
+    :func:`pipeflow.schema.documents.spin_map`).
 
     spins : w0 [rad/s]; velocities : v grid [m/s]; growth[i, k] : max sigma [1/s] at
     (spins[i], velocities[k]); crossings[i] : the boundary crossings at spins[i] for v >= 0;
@@ -129,57 +129,6 @@ class SpinMap:
     stable_at_start: list[bool]
     critical_velocity: list[float | None]
     warnings: list[str] = field(default_factory=list)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.SpinMapResponse`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        p = self.pipe
-        return r.document(
-            r.SpinMapResponse,
-            kind="spin_map",
-            spins=self.spins.tolist(),
-            spins_rpm=(self.spins * 60 / (2 * math.pi)).tolist(),
-            velocities=self.velocities.tolist(),
-            growth_rate=self.growth.tolist(),
-            critical_velocity=self.critical_velocity,
-            stable_at_start=self.stable_at_start,
-            stable_intervals=[
-                stable_intervals(
-                    max(0.0, float(self.velocities[0])),
-                    float(self.velocities[-1]),
-                    ok,
-                    [(c.velocity, c.direction == "loss") for c in line],
-                )
-                for ok, line in zip(self.stable_at_start, self.crossings, strict=True)
-            ],
-            crossings=[
-                [
-                    r.document(
-                        r.MapCrossing,
-                        velocity=c.velocity,
-                        direction=c.direction,
-                        kind=c.kind,
-                        frequency=c.frequency,
-                        frequency_hz=c.frequency / (2 * math.pi),
-                    )
-                    for c in line
-                ]
-                for line in self.crossings
-            ],
-            dimensionless={
-                "beta": p.beta,
-                "gamma": p.spin_number(self.spins).tolist(),
-                "u_cr": [
-                    None if v is None or p.M2 == 0 else float(p.flow_number(v))
-                    for v in self.critical_velocity
-                ],
-                "time_scale": p.time_scale,
-                **p.dimensionless_groups(),
-            },
-            warnings=list(self.warnings),
-            diagnostics={"galerkin_modes": self.modes, "points": int(self.growth.size)},
-        )
 
 
 @dataclass(frozen=True)
@@ -259,7 +208,8 @@ def spin_map(
 
 @dataclass
 class BetaMap:
-    """u_cr(beta) at fixed non-dimensional spin gamma (:meth:`to_dict` for JSON).
+    """u_cr(beta) at fixed non-dimensional spin gamma (JSON form:
+    :func:`pipeflow.schema.documents.beta_map`).
 
     For each beta: every crossing of the stability boundary in flow number u [-] (several
     where the curve is S-shaped), the non-dimensional frequency there, and u_cr (first loss).
@@ -278,47 +228,6 @@ class BetaMap:
     @property
     def u_cr(self) -> list[float | None]:
         return [_first_loss(c) for c in self.crossings]
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.BetaMapResponse`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        return r.document(
-            r.BetaMapResponse,
-            kind="beta_map",
-            gamma=self.gamma,
-            groups=dict(self.groups),
-            plane=self.plane,
-            betas=self.betas.tolist(),
-            u_range=list(self.u_range),
-            u_cr=self.u_cr,
-            stable_at_start=self.stable_at_start,
-            crossings=[
-                [
-                    r.document(
-                        r.BetaCrossing,
-                        u=c.velocity,
-                        direction=c.direction,
-                        kind=c.kind,
-                        frequency=c.frequency,
-                    )
-                    for c in line
-                ]
-                for line in self.crossings
-            ],
-            curve=[
-                [float(b), c.velocity]
-                for b, line in zip(self.betas, self.crossings, strict=True)
-                for c in line
-            ],
-            multiple_crossings=[
-                float(b)
-                for b, line in zip(self.betas, self.crossings, strict=True)
-                if len(line) > 1
-            ],
-            warnings=list(self.warnings),
-            diagnostics={"galerkin_modes": self.modes},
-        )
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any, Literal, Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +34,6 @@ from pipeflow.spectra import follow, order_lowest, rounding_level
 from pipeflow.stability.core import (
     check_modes,
     check_range,
-    damping_ratio,
     sign_changes,
     state_matrices,
 )
@@ -74,23 +73,6 @@ class ExcitationCrossing:
     frequency: float
     sigma: float
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.ExcitationCrossing`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        mag = math.hypot(self.sigma, self.frequency)
-        return r.document(
-            r.ExcitationCrossing,
-            order=self.order,
-            mode=self.mode,
-            spin=self.spin,
-            spin_rpm=self.spin * RPM,
-            frequency=self.frequency,
-            frequency_hz=self.frequency / (2 * math.pi),
-            sigma=self.sigma,
-            damping_ratio=-self.sigma / mag if mag > 0 else 0.0,
-        )
-
 
 @dataclass(frozen=True)
 class ZeroCrossing:
@@ -104,18 +86,6 @@ class ZeroCrossing:
     value: float
     frequency: float
     direction: Literal["loss", "gain"]
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.ZeroCrossing`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        return r.document(
-            r.ZeroCrossing,
-            mode=self.mode,
-            value=self.value,
-            frequency=self.frequency,
-            direction=self.direction,
-        )
 
 
 def _abs_omega_minus(br: Branches, j: int, order: float, x: float, k: int) -> float:
@@ -172,7 +142,8 @@ def zero_crossings(br: Branches, chosen: Sequence[int]) -> list[ZeroCrossing]:
 
 @dataclass
 class Sweep:
-    """Tracked eigenvalues along a sweep (SI units; :meth:`to_dict` for JSON).
+    """Tracked eigenvalues along a sweep (SI units; JSON form:
+    :func:`pipeflow.schema.documents.sweep`).
 
     parameter : "velocity" (Argand: values in m/s at constant spin ``fixed`` rad/s) or
         "spin" (Campbell: values in rad/s at constant flow velocity ``fixed`` m/s).
@@ -206,73 +177,6 @@ class Sweep:
     def omega(self) -> FloatArray:
         """Frequency [rad/s]."""
         return np.asarray(self.xi.imag)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form: :class:`pipeflow.schema.results.SweepResponse`."""
-        from pipeflow.schema import results as r  # the contract, imported on first use
-
-        p = self.pipe
-        spin = self.parameter == "spin"
-        axis: dict[str, Any] = {}
-        if spin:
-            axis["values_hz"] = (self.values / (2 * math.pi)).tolist()
-            axis["values_rpm"] = (self.values * RPM).tolist()
-            axis["gamma"] = p.spin_number(self.values).tolist()
-        elif p.M2 > 0:
-            axis["flow_number"] = p.flow_number(self.values).tolist()
-        zeta = damping_ratio(self.xi)
-        branches = [
-            r.document(
-                r.SweepBranch,
-                mode=int(self.mode[j]),
-                sigma=self.sigma[:, j].tolist(),
-                omega=self.omega[:, j].tolist(),
-                frequency_hz=(self.omega[:, j] / (2 * math.pi)).tolist(),
-                damping_ratio=zeta[:, j].tolist(),
-                confidence=self.confidence[:, j].tolist(),
-                **({"frequency_rpm": (self.omega[:, j] * RPM).tolist()} if spin else {}),
-            )
-            for j in range(self.xi.shape[1])
-        ]
-        fixed_name = "velocity" if spin else "omega0"
-        return r.document(
-            r.SweepResponse,
-            kind="campbell" if spin else "argand",
-            parameter=r.document(
-                r.SweepAxis,
-                name=self.parameter,
-                unit="rad/s" if spin else "m/s",
-                values=self.values.tolist(),
-                **axis,
-            ),
-            fixed={fixed_name: self.fixed},
-            inserted=self.inserted.tolist(),
-            modes=branches,
-            dimensionless={
-                "beta": p.beta,
-                "time_scale": p.time_scale,
-                **p.dimensionless_groups(),
-                **({"flow_number": float(p.flow_number(self.fixed))} if spin and p.M2 > 0 else {}),
-                **({} if spin else {"gamma": float(p.spin_number(self.fixed))}),
-            },
-            excitation=(
-                r.document(
-                    r.Excitation,
-                    orders=list(self.orders),
-                    crossings=[c.to_dict() for c in self.excitation],
-                )
-                if spin
-                else None
-            ),
-            zero_crossings=[c.to_dict() for c in self.zero_crossings],
-            warnings=list(self.warnings),
-            diagnostics={
-                "points": int(self.values.size),
-                "inserted_points": int(self.inserted.sum()),
-                "min_confidence": float(np.min(self.confidence)),
-                "galerkin_modes": self.modes,
-            },
-        )
 
 
 def sweep(

@@ -17,6 +17,7 @@ import pytest
 from pipeflow.batch import eligible, lti_summaries
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
+from pipeflow.schema import documents
 from pipeflow.schema.registry import summarize_simulation
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
@@ -54,7 +55,7 @@ def test_batched_summaries_equal_the_single_runs() -> None:
     statuses = set()
     for sim, row in zip(sims, rows, strict=True):
         assert row is not None, sim
-        single = summarize_simulation(simulate(sim).to_dict())
+        single = summarize_simulation(documents.simulation(simulate(sim)))
         statuses.add(single["result_status"])
         assert row.method_used == single["method_used"] == "cma"
         assert row.result_status == single["result_status"], sim
@@ -88,7 +89,7 @@ def test_cases_the_batch_does_not_take_are_left_to_the_single_run() -> None:
 def test_tiny_models(modes: int) -> None:
     sim = Simulation(PAPER_PIPE, Constant(3.0), Constant(0.0), modes=modes, t_end=0.1, samples=3)
     [row] = lti_summaries([sim])
-    single = summarize_simulation(simulate(sim).to_dict())
+    single = summarize_simulation(documents.simulation(simulate(sim)))
     assert row is not None and row.result_status == single["result_status"]
     assert abs(row.peak_tip_displacement - single["peak_tip_displacement"]) <= RTOL * abs(
         single["peak_tip_displacement"]

@@ -1,4 +1,5 @@
-"""pipeflow.compare: one case, several methods, their cost and their distance to the best."""
+"""pipeflow.compare: one case, several methods, their cost and their distance to the best
+(checked on its document, pipeflow.schema.documents.compare)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import pytest
 
 from pipeflow.compare import compare
 from pipeflow.errors import InvalidInput
+from pipeflow.schema import documents
 from tests.pipeflow.cases import PAPER_FLOWS, paper_sim
 
 
@@ -17,7 +19,8 @@ def test_compare_time_variant_case() -> None:
     the two agree to magnus's 1e-8 target, CMA differs by its first-Magnus-term error and
     its reported estimate says so (within a factor 2)."""
     sim = paper_sim(PAPER_FLOWS["v=0.4t"], modes=3, t_end=0.1, samples=201)
-    out = compare(sim, ["cma", "magnus", "reference"])
+    comparison = compare(sim, ["cma", "magnus", "reference"])
+    out = documents.compare(comparison)
     json.dumps(out, allow_nan=False)  # JSON-ready, every number finite
     rows = {r["method"]: r for r in out["methods"]}
     assert list(rows) == ["cma", "magnus", "reference"]
@@ -35,11 +38,15 @@ def test_compare_time_variant_case() -> None:
         assert r["speedup_vs_slowest"] >= 1.0
         assert r["compared_samples"] == 201
     assert max(r["speedup_vs_slowest"] for r in out["methods"]) > 1.0
+    # the library's result: the runs in the order asked, the baseline among them
+    assert [run.result.simulation.method for run in comparison.runs] == list(rows)
+    assert comparison.baseline is comparison.runs[1].result
+    assert [run.compared_samples for run in comparison.runs] == [201, 201, 201]
 
 
 def test_compare_defaults_exclude_reference_and_pick_magnus() -> None:
     sim = paper_sim(PAPER_FLOWS["v=0.4t^2"], modes=2, t_end=0.05, samples=51)
-    out = compare(sim)
+    out = documents.compare(compare(sim))
     names = [r["method"] for r in out["methods"]]
     assert "reference" not in names and {"cma", "magnus", "rk4"} <= set(names)
     assert out["baseline"] == "magnus"

@@ -15,6 +15,7 @@ import pytest
 from pipeflow.diagnostics import WARN_THRESHOLD, check_indices
 from pipeflow.model import build_model
 from pipeflow.profiles import Constant, Harmonic
+from pipeflow.schema import documents
 from pipeflow.simulation import Result, simulate
 from tests.pipeflow.cases import PAPER_FLOWS, paper_sim, reference_run
 
@@ -41,7 +42,7 @@ def test_cma_estimate_matches_true_error(case: str) -> None:
     # CMA's first-Magnus-term error on these cases is 1e-3..1e-2: above the threshold
     assert est > WARN_THRESHOLD
     assert any("estimated relative error" in w and "magnus" in w for w in res.warnings)
-    assert res.to_dict()["diagnostics"]["estimated_relative_error"] == est
+    assert documents.simulation(res)["diagnostics"]["estimated_relative_error"] == est
 
 
 @pytest.mark.parametrize("case", ["v=0.4", "v=-0.4"])

@@ -20,6 +20,7 @@ from scipy.optimize import brentq
 from pipeflow.model import GROUPS, Pipe, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
+from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
 from tests.pipeflow import collocation
@@ -543,7 +544,7 @@ def test_floquet_of_the_extended_pipe_at_vanishing_pulsation() -> None:
     f = floquet(pipe, Harmonic(5.0, 1e-9, 1000.0), Constant(100.0), modes=6)
     xi = spectrum(pipe, 6, 5.0, 100.0)
     expected = np.sort(np.exp(xi.real * 2 * math.pi / 1000.0))
-    got = np.sort(np.asarray(f.to_dict()["multipliers"]["modulus"]))
+    got = np.sort(np.asarray(documents.floquet(f)["multipliers"]["modulus"]))
     assert np.allclose(got, expected, rtol=1e-8, atol=0)
     assert f.verdict == "stable"
 

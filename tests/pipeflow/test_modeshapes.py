@@ -13,6 +13,7 @@ from pipeflow.io.plots import available_plots, render
 from pipeflow.model import Loading, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
+from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 L = PAPER_PIPE.L
@@ -106,7 +107,7 @@ def test_json_csv_and_plot_of_mode_shapes() -> None:
         mode_shape_times=(0.05,),
         mode_shape_points=11,
     )
-    doc = simulate(sim).to_dict()
+    doc = documents.simulation(simulate(sim))
     block = doc["mode_shapes"]
     assert block["t"] == [0.05] and len(block["x"]) == 11
     mode = block["modes"][1]
@@ -124,7 +125,7 @@ def test_json_csv_and_plot_of_mode_shapes() -> None:
     svg = render(doc, "mode_shapes", "svg").decode()
     assert "position along the pipe x [m]" in svg and "mode 2, t = 0.05 s (Re)" in svg
     # without the request there is no block, no table and no plot
-    plain = simulate(Simulation(PAPER_PIPE, modes=4, t_end=0.1, samples=11)).to_dict()
+    plain = documents.simulation(simulate(Simulation(PAPER_PIPE, modes=4, t_end=0.1, samples=11)))
     assert "mode_shapes" not in plain and "mode_shapes" not in available_plots(plain)
 
 
@@ -174,8 +175,9 @@ def test_shapes_follow_the_traced_branches_including_the_least_stable() -> None:
     assert r.mode_shapes is not None
     np.testing.assert_allclose(r.mode_shapes.xi[0], r.frozen.xi[0], rtol=1e-14)
     np.testing.assert_allclose(r.mode_shapes.xi[1], r.frozen.xi[-1], rtol=1e-9)
-    modes = r.to_dict()["mode_shapes"]["modes"]
-    assert [m["mode"] for m in modes] == [m["mode"] for m in r.to_dict()["eigenvalues"]["modes"]]
+    doc = documents.simulation(r)
+    modes = doc["mode_shapes"]["modes"]
+    assert [m["mode"] for m in modes] == [m["mode"] for m in doc["eigenvalues"]["modes"]]
     assert modes[-1]["mode"] == 5
 
 
@@ -207,7 +209,7 @@ def test_mode_shape_output_size_is_bounded() -> None:
         )
     )  # fmt: skip
     assert ok.mode_shapes is not None
-    block = ok.to_dict()["mode_shapes"]
+    block = documents.simulation(ok)["mode_shapes"]
     values = sum(len(row) for m in block["modes"] for row in m["real"])
     assert values in (32 * 2001 * 2, 32 * 2001 * 3)  # the least-stable branch may be traced
     assert values <= MAX_SHAPE_VALUES

@@ -31,13 +31,17 @@ def test_library_imports_no_extra() -> None:
 
 
 def test_results_do_not_load_the_presentation_layer() -> None:
-    """A simulation's result is plain: running one loads no exporter, plot or notebook module
-    (pipeflow.io.json, the non-finite rule of its JSON form, is the one io module it uses)."""
+    """A simulation's result is plain: running one and writing its document loads no
+    exporter, plot or notebook module (pipeflow.io.json, the non-finite rule of its JSON
+    form, is the one io module the document uses), and the run alone loads no schema."""
     code = (
         "import sys, json\n"
         "from pipeflow.paper import PAPER_PIPE\n"
         "from pipeflow.simulation import Simulation, simulate\n"
-        "simulate(Simulation(PAPER_PIPE, modes=2, t_end=0.01, samples=11)).to_dict()\n"
+        "result = simulate(Simulation(PAPER_PIPE, modes=2, t_end=0.01, samples=11))\n"
+        "assert not [m for m in sys.modules if m.startswith('pipeflow.schema')]\n"
+        "from pipeflow.schema import documents\n"
+        "documents.simulation(result)\n"
         "print(json.dumps(sorted(m for m in sys.modules if m.startswith('pipeflow.io'))))\n"
     )
     out = subprocess.run(

@@ -12,6 +12,7 @@ from pipeflow.io.json import json_safe
 from pipeflow.model import Loading, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial, table
+from pipeflow.schema import documents
 from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
@@ -25,7 +26,7 @@ def test_overflow_is_reported_not_serialised() -> None:
     assert r.status == "overflow"
     assert r.divergence_time is not None and r.divergence_time < 1.0
     assert np.all(np.isfinite(r.tip_displacement)) and r.t.size < 601
-    text = json.dumps(r.to_dict(), allow_nan=False)
+    text = json.dumps(documents.simulation(r), allow_nan=False)
     assert "NaN" not in text and "Infinity" not in text
 
 
@@ -96,7 +97,7 @@ def test_growth_rate_comes_from_the_whole_spectrum(v: float, unstable: bool) -> 
     expected = float(growth_rate(build_model(PAPER_PIPE, 10), v, 100.0)[0])
     assert rate == pytest.approx(expected, rel=1e-9)
     assert (rate > 0) is unstable
-    modes = r.to_dict()["eigenvalues"]["modes"]
+    modes = documents.simulation(r)["eigenvalues"]["modes"]
     flagged = [m for m in modes if m["least_stable"]]
     assert len(flagged) == 1
     assert max(flagged[0]["sigma"]) == pytest.approx(rate, rel=1e-12)
@@ -147,14 +148,14 @@ def test_first_unstable_time_of_a_ramp_through_the_critical_velocity() -> None:
     assert 0.0 < r.first_unstable_time - t_cr <= 1e-4 + 1e-12
     assert r.first_unstable_time in set(r.t.tolist())
     j = r.frozen.least_stable
-    assert j is not None and r.to_dict()["eigenvalues"]["modes"][j]["least_stable"]
+    assert j is not None and documents.simulation(r)["eigenvalues"]["modes"][j]["least_stable"]
     k = int(np.searchsorted(r.eigen_t, r.first_unstable_time))
     assert r.frozen.sigma[k, j] > 0 > r.frozen.sigma[k - 1, j]
     assert r.diagnostics["max_growth_rate"] == pytest.approx(float(r.frozen.sigma[:, j].max()))
     # the CMA exponents follow the same branches: P(t)/t = S(0) at t = 0
     assert r.exponents.xi.shape == r.frozen.xi.shape
     np.testing.assert_allclose(r.exponents.xi[0], r.frozen.xi[0], rtol=1e-13)
-    d = r.to_dict()
+    d = documents.simulation(r)
     assert [m["mode"] for m in d["cma_exponents"]["modes"]] == [
         m["mode"] for m in d["eigenvalues"]["modes"]
     ]
@@ -171,7 +172,7 @@ def test_auto_runs_cma_where_exact_and_magnus_otherwise() -> None:
     np.testing.assert_array_equal(const.tip_displacement, direct.tip_displacement)
     ramp = simulate(paper_sim(polynomial(0, 0.4), method="auto", modes=3, t_end=0.05, samples=51))
     assert ramp.method_used == "magnus" and "time-variant" in ramp.method_reason
-    d = ramp.to_dict()
+    d = documents.simulation(ramp)
     assert (d["method"], d["method_used"]) == ("auto", "magnus")
     assert d["diagnostics"]["method_used"] == "magnus"
     assert Simulation(PAPER_PIPE).method == "auto"
@@ -265,9 +266,9 @@ def test_cma_exponents_are_computed_only_when_asked(monkeypatch: pytest.MonkeyPa
     sim = paper_sim(polynomial(0.0, 0.4), "auto", modes=4, t_end=0.2, samples=201)
     r = simulate(sim)
     assert r.method_used == "magnus" and calls == []
-    d = r.to_dict()
+    d = documents.simulation(r)
     assert len(calls) == 1
-    assert r.to_dict()["cma_exponents"] == d["cma_exponents"] and len(calls) == 1
+    assert documents.simulation(r)["cma_exponents"] == d["cma_exponents"] and len(calls) == 1
     model = build_model(sim.pipe, sim.modes)
     ref = real(model, Loading(sim.flow, sim.spin), r.eigen_t, r.frozen.xi[0])
     np.testing.assert_array_equal(r.exponents.xi, ref.xi)

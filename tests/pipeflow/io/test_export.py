@@ -19,6 +19,7 @@ from pipeflow.io.export import (
 )
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
+from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 
@@ -38,7 +39,7 @@ def result() -> dict[str, Any]:
         mode_shape_times=(0.1,),
         mode_shape_points=9,
     )
-    return simulate(sim).to_dict()
+    return documents.simulation(simulate(sim))
 
 
 def _rows(text: str) -> list[list[str]]:

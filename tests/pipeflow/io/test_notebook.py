@@ -1,5 +1,6 @@
-"""Result.to_xarray / to_dataframe / plot (pipeflow.io.notebook): the arrays of the result,
-bit for bit, with SI units in the attributes; a clear error without the extras."""
+"""pipeflow.io.notebook's to_xarray / to_dataframe / plot of a local Result (or its JSON
+form): the arrays of the result, bit for bit, with SI units in the attributes; a clear
+error without the extras."""
 
 from __future__ import annotations
 
@@ -9,9 +10,11 @@ import numpy as np
 import pytest
 
 from pipeflow.io.export import SIMULATION_TABLES, table
+from pipeflow.io.notebook import plot, to_dataframe, to_xarray
 from pipeflow.io.plots import PLOTS
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
+from pipeflow.schema import documents
 from pipeflow.simulation import Result, Simulation, simulate
 
 xr = pytest.importorskip("xarray")  # the notebook extra; in the dev extra, so CI runs these
@@ -38,7 +41,7 @@ def result() -> Result:
 
 
 def test_dataset_holds_the_result_arrays_with_units(result: Result) -> None:
-    ds = result.to_xarray()
+    ds = to_xarray(result)
     np.testing.assert_array_equal(ds["t"].values, result.t)
     np.testing.assert_array_equal(ds["tip_displacement"].values, result.tip_displacement)
     np.testing.assert_array_equal(ds["displacement"].values, result.displacements)
@@ -83,8 +86,8 @@ def test_dataset_holds_the_result_arrays_with_units(result: Result) -> None:
 
 @pytest.mark.parametrize("name", SIMULATION_TABLES)
 def test_dataframes_are_the_export_tables(result: Result, name: str) -> None:
-    frame = result.to_dataframe(name)
-    header, columns = table(result.to_dict(), name)
+    frame = to_dataframe(result, name)
+    header, columns = table(documents.simulation(result), name)
     assert frame.index.name == header[0].split(" [")[0]
     assert [f"{c} [{frame.attrs['units'][c]}]" for c in [frame.index.name, *frame.columns]] == (
         header
@@ -96,27 +99,28 @@ def test_dataframes_are_the_export_tables(result: Result, name: str) -> None:
 
 
 def test_the_io_functions_take_a_result_or_its_json(result: Result) -> None:
-    """pipeflow.io.notebook's functions are the views; the Result methods are shorthands."""
-    from pipeflow.io import notebook
-
-    doc = result.to_dict()
-    for arg in (result, doc):
-        assert notebook.to_xarray(arg).identical(result.to_xarray())
-        assert notebook.to_dataframe(arg, "eigenvalues").equals(result.to_dataframe("eigenvalues"))
+    """pipeflow.io.notebook's functions take a local Result (its document written by
+    pipeflow.schema.documents) or that document, and give the same views."""
+    doc = documents.simulation(result)
+    assert to_xarray(result).identical(to_xarray(doc))
+    assert to_dataframe(result, "eigenvalues").equals(to_dataframe(doc, "eigenvalues"))
+    assert plot(result, "damping").axes[0].lines[0].get_ydata().tolist() == (
+        plot(doc, "damping").axes[0].lines[0].get_ydata().tolist()
+    )
 
 
 def test_plot_returns_a_labelled_figure(result: Result) -> None:
-    fig = result.plot("damping")
+    fig = plot(result, "damping")
     ax = fig.axes[0]
     assert ax.get_xlabel() == PLOTS["damping"].xlabel
     assert ax.get_ylabel() == PLOTS["damping"].ylabel
     np.testing.assert_array_equal(ax.lines[0].get_ydata(), result.frozen.sigma[:, 0])
-    assert result.plot("tip_displacement", title="mine").axes[0].get_title() == "mine"
+    assert plot(result, "tip_displacement", title="mine").axes[0].get_title() == "mine"
 
 
 @pytest.mark.parametrize(
     ("module", "call"),
-    [("xarray", lambda r: r.to_xarray()), ("pandas", lambda r: r.to_dataframe())],
+    [("xarray", to_xarray), ("pandas", to_dataframe)],
 )
 def test_missing_extra_names_the_install_command(
     result: Result, monkeypatch: pytest.MonkeyPatch, module: str, call: object
@@ -132,7 +136,7 @@ def test_dataset_of_an_unstable_run_carries_the_least_stable_branch() -> None:
     r = simulate(
         Simulation(PAPER_PIPE, flow=Constant(40.0), spin=Constant(100.0), t_end=0.01, samples=11)
     )
-    ds = r.to_xarray()
+    ds = to_xarray(r)
     np.testing.assert_array_equal(ds["mode"].values, [1, 2, 3, 5])
     np.testing.assert_array_equal(ds["sigma"].values, r.frozen.sigma)
     np.testing.assert_array_equal(ds["cma_sigma"].values, r.exponents.sigma)

@@ -13,6 +13,7 @@ import pytest
 from pipeflow.io.plots import PlotError, available_plots, figure, render, to_bytes
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
+from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -30,7 +31,7 @@ def _run(a: float, positions: tuple[float, ...] = ()) -> dict[str, Any]:
         eigen_samples=11,
         positions=positions,
     )
-    return simulate(sim).to_dict()
+    return documents.simulation(simulate(sim))
 
 
 @pytest.fixture(scope="module")

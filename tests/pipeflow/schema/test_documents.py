@@ -1,10 +1,10 @@
 """The response models are the one definition of the result documents' keys.
 
-The library writes every document with :func:`pipeflow.schema.results.document`, which
-refuses a name its model lacks and a required field left out; and every field of every
-response model (nested ones included) is written by some real result below.  A key added
-on one side only fails here: in the library only, ``document`` raises; in a model only,
-no real result writes it.
+:mod:`pipeflow.schema.documents` writes every document of the library's results with
+:func:`pipeflow.schema.results.document`, which refuses a name its model lacks and a
+required field left out; and every field of every response model (nested ones included)
+is written by some real result below.  A key added on one side only fails here: in
+``documents`` only, ``document`` raises; in a model only, no real result writes it.
 """
 
 from __future__ import annotations
@@ -206,8 +206,8 @@ def test_document_refuses_a_name_the_model_lacks_and_a_missing_required_field() 
     ]  # in the order given: the bytes the service sends keep the library's order
 
 
-def test_the_library_writes_its_documents_through_document(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A key the library writes that its model lacks fails in the library's own to_dict."""
+def test_the_documents_are_written_through_document(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A key pipeflow.schema.documents writes that its model lacks fails as it is written."""
     monkeypatch.setattr(
         r.Crossing,
         "model_fields",

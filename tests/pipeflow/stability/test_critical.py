@@ -14,6 +14,7 @@ import pytest
 from pipeflow.errors import InvalidInput
 from pipeflow.model import Pipe, build_model
 from pipeflow.paper import PAPER_PIPE
+from pipeflow.schema import documents
 from pipeflow.stability import critical_velocities, eigenvalues
 from pipeflow.stability.core import nondimensional_pipe
 
@@ -37,7 +38,7 @@ def test_beta_02_flutters_in_second_mode_near_5_6():
     assert first.mode == 2
     assert first.flow_number == pytest.approx(5.6, abs=0.1)
     assert 5.5 < first.flow_number < 5.6
-    assert res.dimensionless()["u_cr"] == pytest.approx(first.flow_number, rel=1e-12)
+    assert res.u_cr == pytest.approx(first.flow_number, rel=1e-12)
 
 
 def test_beta_05_flutters_in_third_mode():
@@ -111,7 +112,7 @@ def test_reverse_flow_gets_the_caveat_not_a_threshold():
     assert res.critical_velocity is None and res.crossings == []
     assert res.reverse_flow is not None and res.reverse_flow["predicted_unstable"]
     assert "Paidoussis & Luu" in res.reverse_flow["caveat"]
-    d = res.to_dict()
+    d = documents.critical_velocities(res)
     assert d["critical_velocity"] is None and d["reverse_flow"]["caveat"]
 
 
@@ -119,7 +120,7 @@ def test_paper_pipe_dimensional_and_dimensionless_agree():
     """The paper's pipe (beta = 0.4667) at w0 = 100 rad/s: the dimensional critical velocity
     maps to u_cr through u = v L sqrt(M2/EI), and the mixed range reports both parts."""
     res = critical_velocities(PAPER_PIPE, 100.0, (-1.0, 60.0), 10, points=121)
-    d = res.to_dict()
+    d = documents.critical_velocities(res)
     v = d["critical_velocity"]
     assert v == pytest.approx(27.692, rel=1e-3)
     assert d["dimensionless"]["u_cr"] == pytest.approx(

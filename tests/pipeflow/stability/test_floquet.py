@@ -12,6 +12,7 @@ from scipy.optimize import linear_sum_assignment
 from pipeflow.errors import InvalidInput
 from pipeflow.model import Loading, build_model
 from pipeflow.profiles import Constant, Harmonic, polynomial
+from pipeflow.schema import documents
 from pipeflow.stability.core import eigenvalues, nondimensional_pipe
 from pipeflow.stability.floquet import floquet, resonance_chart
 
@@ -91,7 +92,7 @@ def test_resonance_chart_principal_region_of_second_mode():
         amplitude_points=5, frequency_points=9,
     )  # fmt: skip
     assert not ch.unstable[0].any()
-    regions = ch.regions()
+    regions = documents.resonance_regions(ch)
     main = regions[0]
     assert main["nearest_resonance"]["condition"] == "2*omega_2"
     lo, hi = main["frequency_range"]
@@ -102,7 +103,7 @@ def test_resonance_chart_principal_region_of_second_mode():
     i = int(np.argmin(np.abs(ch.amplitudes - tip["amplitude"])))
     j = int(np.argmin(np.abs(ch.frequencies - tip["frequency"])))
     assert ch.max_multiplier[i, j] == pytest.approx(one.max_multiplier, rel=1e-4)
-    d = ch.to_dict()
+    d = documents.resonance_chart(ch)
     assert d["regions"] and len(d["max_multiplier"]) == 5
 
 
@@ -132,7 +133,7 @@ def test_resonance_chart_cut_into_pieces_equals_the_serial_chart():
     serial = chart()
     with parallel.hosting(_Reversed()):
         fanned = chart()
-    assert serial.to_dict() == fanned.to_dict()
+    assert documents.resonance_chart(serial) == documents.resonance_chart(fanned)
     alone = chart((float(serial.frequencies[3]), 2000.0), 2)
     assert np.array_equal(alone.max_multiplier[:, 0], serial.max_multiplier[:, 3])
     assert alone.steps[0] == serial.steps[3]

@@ -11,6 +11,7 @@ from scipy.optimize import brentq
 from pipeflow.errors import InvalidInput
 from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
+from pipeflow.schema import documents
 from pipeflow.spectra import track
 from pipeflow.stability.core import eigenvalues, growth_rate, nondimensional_pipe, state_matrices
 from pipeflow.stability.sweeps import sweep
@@ -43,7 +44,7 @@ def test_refinement_inserts_points_where_confidence_drops():
     assert coarse.inserted.any() and coarse.values.size > 41
     assert np.all(np.diff(coarse.values) > 0)
     assert coarse.values.size <= 4 * 41
-    d = coarse.to_dict()
+    d = documents.sweep(coarse)
     m = d["modes"][1]
     np.testing.assert_allclose(m["frequency_hz"], np.array(m["omega"]) / (2 * math.pi))
     xi = np.array(m["sigma"]) + 1j * np.array(m["omega"])
@@ -59,7 +60,7 @@ def test_campbell_diagram_rpm_and_rotating_beam_limit():
     s = sweep(PAPER_PIPE, "spin", (0.0, 400.0), 0.0, 8, 3, 31)
     om1 = 1.8751040687**2 * math.sqrt(PAPER_PIPE.EI / (PAPER_PIPE.mass * PAPER_PIPE.L**4))
     assert s.omega[0, 0] == pytest.approx(om1, rel=1e-6)
-    d = s.to_dict()
+    d = documents.sweep(s)
     assert d["kind"] == "campbell"
     np.testing.assert_allclose(d["parameter"]["values_rpm"], s.values * 60 / (2 * math.pi))
     np.testing.assert_allclose(d["modes"][0]["frequency_rpm"], s.omega[:, 0] * 60 / (2 * math.pi))
@@ -118,7 +119,7 @@ def test_campbell_excitation_crossings_match_an_independent_root_search():
         xi = eigenvalues(model, v, mine.spin)[0]
         j = np.argmin(np.abs(xi.imag - mine.frequency))
         assert mine.sigma == pytest.approx(xi.real[j], rel=1e-6)
-    d = s.to_dict()["excitation"]
+    d = documents.sweep(s)["excitation"]
     assert d["orders"] == list(orders)
     first = d["crossings"][0]
     assert first["spin_rpm"] == pytest.approx(first["spin"] * 60 / (2 * math.pi))
