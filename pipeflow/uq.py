@@ -184,7 +184,9 @@ def sobol_indices(
             calc_second_order=True,
             num_resamples=RESAMPLES,
             conf_level=CONF_LEVEL,
-            seed=seed,
+            # SALib seeds its bootstrap only for a truthy seed (seed=0 draws from numpy's
+            # global state: the same study and key, other intervals): shift past zero
+            seed=seed + 1 if seed >= 0 else seed,
         )
     return {
         name: {
