@@ -73,6 +73,7 @@ from numpy.typing import NDArray
 from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.linalg import (
+    COMMUTATOR_FACTOR,
     GAUSS3_NODES,
     GAUSS_NODES,
     expm_stack,
@@ -137,44 +138,73 @@ class MagnusGenerator:
         self.loads = loads
         self.spin_forced = not loading.spin.is_constant
         self.forced = self.spin_forced or loads is not None
+        #: with external loads the forcing is integrated by the exponential-integrator step
+        #: (a polynomial on each step, a Jordan block in the exponential), not as a border
+        #: column of the Magnus generator
+        self.jordan = loads is not None
         #: A(t) constant: constant coefficients and no load varying in time
         self.invariant = loading.is_time_invariant and (loads is None or loads.is_constant)
         self.scale = scale  # the constant c the state is augmented with [m]
         N = model.size
         self.size = N + (1 if self.forced else 0)
         pieces = model.state_pieces
-        extra = (1 if self.spin_forced else 0) + (loads.count if loads is not None else 0)
+        if self.jordan:
+            self.basis = pieces.reshape(pieces.shape[0], -1)
+            return
+        extra = 1 if self.spin_forced else 0
         basis = np.zeros((len(pieces) + extra, self.size, self.size))
         basis[: len(pieces), :N, :N] = pieces
         if self.spin_forced:
             basis[len(pieces), :N, N] = model.f_wdot / scale
-        if loads is not None:
-            basis[len(pieces) + extra - loads.count :, :N, N] = loads.columns / scale
         self.basis = basis.reshape(basis.shape[0], -1)
 
     def coefficients(self, times: FloatArray) -> FloatArray:
         c = self.loading.coefficients(times)
         w = c.weights()
-        if self.loads is not None:
-            parts = [w, c.wdot[:, None]] if self.spin_forced else [w]
-            return np.concatenate([*parts, self.loads.values(times)], axis=1)
+        if self.jordan:
+            return w
         return np.concatenate([w, c.wdot[:, None]], axis=1) if self.forced else w
 
     def matrices(self, times: FloatArray) -> FloatArray:
-        """A(t) at ``times``: S(t), bordered by f(t)/c when the spin varies [1/s]."""
-        return (self.coefficients(times) @ self.basis).reshape(times.size, self.size, self.size)
+        """A(t) at ``times``: S(t), bordered by f(t)/c when the spin varies and there are
+        no loads [1/s]; S(t) alone with loads (their forcing: :meth:`forcing`)."""
+        n = self.model.size if self.jordan else self.size
+        return (self.coefficients(times) @ self.basis).reshape(times.size, n, n)
+
+    def forcing(self, times: FloatArray) -> FloatArray:
+        """The total forcing f(t) / c at ``times`` (spin-up and loads), shape (k, N) [1/s]."""
+        assert self.loads is not None
+        wdot = self.loading.coefficients(times).wdot
+        f = self.loads.vector(times)
+        if self.spin_forced:
+            f = f + wdot[:, None] * self.model.f_wdot[None]
+        return np.asarray(f / self.scale)
 
     def omega(self, starts: FloatArray, h: FloatArray, order: int = 4) -> FloatArray:
-        """Omega of ``order`` (4 or 6) for steps [starts, starts + h] (equal lengths) [-]."""
+        """Omega of ``order`` (4 or 6) for steps [starts, starts + h] (equal lengths) [-].
+
+        With loads, the generator of the step's exponential-integrator form
+        (:func:`forced_omega`), of size N + order."""
         k = starts.size
         nodes = GAUSS_NODES if order == 4 else GAUSS3_NODES
         A = self.matrices(np.concatenate([starts + g * h for g in nodes]))
+        if self.jordan:
+            return forced_omega(self, A, starts, h, order)
         if order == 4:
             return magnus4_omega(A[:k], A[k:], h)
         return np.asarray(magnus6_omega(A[:k], A[k : 2 * k], A[2 * k :], h))
 
     def propagators(self, starts: FloatArray, h: FloatArray, order: int = 4) -> FloatArray:
-        return expm_stack(self.omega(starts, h, order))
+        """exp(Omega) of each step; with loads the affine step [[P, r], [0, 1]] (size N + 1)
+        cut from the exponential of the Jordan-bordered generator."""
+        E = expm_stack(self.omega(starts, h, order))
+        if not self.jordan:
+            return E
+        N = self.model.size
+        out = np.zeros((E.shape[0], N + 1, N + 1))
+        out[:, :N, : N + 1] = E[:, :N, : N + 1]
+        out[:, N, N] = 1.0
+        return out
 
     def local_errors(self, starts: FloatArray, h: FloatArray, order: int) -> FloatArray:
         """Local error of one step of ``order`` from each start, relative (1-norm) [-].
@@ -194,6 +224,60 @@ class MagnusGenerator:
             size = np.abs(full).sum(axis=-2).max(axis=-1)
             err = diff / size / (1.0 - 2.0**-order)
         return np.where(np.isfinite(err), err, np.inf)
+
+
+def _forcing_basis(order: int) -> tuple[FloatArray, FloatArray]:
+    """Gauss-Legendre nodes (``order`` of them, fractions of the step) and the matrix that
+    takes the forcing at them to the coefficients c_j of its interpolation polynomial
+    sum_j c_j tau^j / j! (tau = s / h in [0, 1])."""
+    x, _ = np.polynomial.legendre.leggauss(order)
+    tau = 0.5 * (x + 1.0)
+    V = tau[:, None] ** np.arange(order)[None, :] / np.array(
+        [math.factorial(j) for j in range(order)]
+    )
+    return tau, np.linalg.inv(V)
+
+
+#: per order: the forcing nodes and the inverse of their scaled Vandermonde matrix
+FORCING_BASIS = {q: _forcing_basis(q) for q in (4, 6)}
+
+
+def forced_omega(
+    gen: MagnusGenerator, A: FloatArray, starts: FloatArray, h: FloatArray, order: int
+) -> FloatArray:
+    """The generator of one exponential-integrator step of z' = A(t) z + f(t), size N + q.
+
+    On the step, in tau = s / h, the forcing is replaced by its interpolation polynomial
+    p(tau) = sum_j c_j tau^j / j! at q = ``order`` Gauss-Legendre nodes (degree q - 1: its
+    local error O(h^(q+1)) matches the Magnus error), and w_j = tau^j / j! (w' = J w, J the
+    shift, w(0) = e_0) makes the system linear with a *constant* border:
+    (z, w)' = [[h A(tau), h C], [0, J]] (z, w).  Its Magnus generator (the same Gauss
+    nodes for A) is [[Omega, Y], [0, J]] with Omega the homogeneous one and, at order 4,
+    Y = h C + sqrt(3)/12 h^2 (A_2 - A_1) C: the commutators see the forcing only through
+    A's variation (A_2 - A_1), never through A times f's variation, which in the border
+    column form made the steps follow h |xi_max| (Al-Mohy & Higham 2011, Saad 1992 for the
+    phi-function trick: the exponential of the bordered matrix carries the integral of
+    exp((1 - tau) Omega) p(tau)).  ``A`` are the state matrices at the Magnus nodes
+    (stacked node-major), ``h`` the step lengths; the state's constant c is in C.
+    """
+    k, N = starts.size, gen.model.size
+    q = order
+    tau, Vinv = FORCING_BASIS[q]
+    F = gen.forcing(np.concatenate([starts + g * h for g in tau])).reshape(q, k, N)
+    C = np.einsum("ji,ikn->knj", Vinv, F)  # (k, N, q): columns c_j
+    hh = np.asarray(h, dtype=float)[:, None, None]
+    out = np.zeros((k, N + q, N + q))
+    out[:, N + 1 :, N : N + q - 1] = np.eye(q - 1)  # J: w_j' = w_{j-1}
+    if order == 4:
+        A1, A2 = A[:k], A[k:]
+        out[:, :N, :N] = magnus4_omega(A1, A2, h)
+        out[:, :N, N:] = hh * C + (COMMUTATOR_FACTOR * hh * hh) * ((A2 - A1) @ C)
+        return out
+    # order 6: the generic three-node generator of the bordered matrices (tau units)
+    Ab = np.repeat(out[None], 3, axis=0)
+    Ab[:, :, :N, :N] = hh[None] * A.reshape(3, k, N, N)
+    Ab[:, :, :N, N:] = hh[None] * C[None]
+    return np.asarray(magnus6_omega(Ab[0], Ab[1], Ab[2], 1.0))
 
 
 def observed_rate(d1: float, Zc: FloatArray, Zcc: FloatArray, size: int, order: int) -> float:
