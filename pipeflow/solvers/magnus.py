@@ -24,7 +24,7 @@ the unforced steps): each step is an exponential-integrator step (:func:`forced_
 the total forcing interpolated by a polynomial at Gauss nodes and the polynomial's
 monomials added to the state as a nilpotent Jordan block, whose bordered Magnus generator
 [[Omega, Y], [0, J]] sees the forcing only through A's variation; one exponential of size
-N + 5 (order 4) per step, cut to the affine step [[P, r], [0, 1]].  For constant
+N + 4 (order 4) per step, cut to the affine step [[P, r], [0, 1]].  For constant
 coefficients Omega = h S exactly, so the method is exact to rounding (one exponential for a
 uniform output grid).
 
@@ -172,6 +172,11 @@ class MagnusGenerator:
             basis[len(pieces), :N, N] = model.f_wdot / scale
         self.basis = basis.reshape(basis.shape[0], -1)
 
+    @property
+    def exponent_size(self) -> int:
+        """Size of the matrices exponentiated (the largest order's, with loads)."""
+        return self.model.size + FORCING_NODES[6] if self.jordan else self.size
+
     def coefficients(self, times: FloatArray) -> FloatArray:
         c = self.loading.coefficients(times)
         w = c.weights()
@@ -188,9 +193,9 @@ class MagnusGenerator:
     def forcing(self, times: FloatArray) -> FloatArray:
         """The total forcing f(t) / c at ``times`` (spin-up and loads), shape (k, N) [1/s]."""
         assert self.loads is not None
-        wdot = self.loading.coefficients(times).wdot
         f = self.loads.vector(times)
         if self.spin_forced:
+            wdot = self.loading.coefficients(times).wdot
             f = f + wdot[:, None] * self.model.f_wdot[None]
         return np.asarray(f / self.scale)
 
@@ -251,11 +256,12 @@ def _forcing_basis(count: int) -> tuple[FloatArray, FloatArray]:
     return tau, np.linalg.inv(V)
 
 
-#: forcing nodes per Magnus order: one more than the order (degree = order), so that a
-#: load's own time scale limits the step later than A's variation does (the paper example
-#: with a 700 rad/s tip force from rest, 2000 steps: error 2.7e-8 with 4 nodes, 1.3e-8 with
-#: 5 and 6, the Magnus part's)
-FORCING_NODES = {4: 5, 6: 7}
+#: forcing nodes per Magnus order: as many as the order (degree order - 1, local error
+#: O(h^(order+1)) like the Magnus step's).  Measured on the paper example with a 700 rad/s
+#: tip force from rest: 2,000 steps give 2.7e-8 with 4 nodes, 1.3e-8 with 5 or 6 (the
+#: Magnus part's); both refine to 4,000 steps (7.2e-9), where 4 nodes' estimate is the
+#: more faithful (6.9e-9 against 2.4e-9) and its exponentials (size N + 4) the cheaper
+FORCING_NODES = {4: 4, 6: 6}
 #: per node count: the nodes and the inverse of their scaled Vandermonde matrix
 FORCING_BASIS = {q: _forcing_basis(q) for q in FORCING_NODES.values()}
 
@@ -267,8 +273,8 @@ def forced_omega(
 
     On the step, in tau = s / h, the forcing is replaced by its interpolation polynomial
     p(tau) = sum_j c_j tau^j / j! at q = :data:`FORCING_NODES` Gauss-Legendre nodes
-    (degree q - 1 = order: its local error O(h^(order+2)) is below the Magnus error's
-    O(h^(order+1))), and w_j = tau^j / j! (w' = J w, J the
+    (degree q - 1 = order - 1: its local error O(h^(order+1)) matches the Magnus step's),
+    and w_j = tau^j / j! (w' = J w, J the
     shift, w(0) = e_0) makes the system linear with a *constant* border:
     (z, w)' = [[h A(tau), h C], [0, J]] (z, w).  Its Magnus generator (the same Gauss
     nodes for A) is [[Omega, Y], [0, J]] with Omega the homogeneous one and, at order 4,
@@ -283,7 +289,7 @@ def forced_omega(
     q = FORCING_NODES[order]
     tau, Vinv = FORCING_BASIS[q]
     F = gen.forcing(np.concatenate([starts + g * h for g in tau])).reshape(q, k, N)
-    C = np.einsum("ji,ikn->knj", Vinv, F)  # (k, N, q): columns c_j
+    C = (Vinv @ F.reshape(q, k * N)).reshape(q, k, N).transpose(1, 2, 0)  # (k, N, q)
     hh = np.asarray(h, dtype=float)[:, None, None]
     out = np.zeros((k, N + q, N + q))
     out[:, N + 1 :, N : N + q - 1] = np.eye(q - 1)  # J: w_j' = w_{j-1}
@@ -526,7 +532,9 @@ def propagate(
             Zaug[k + 1] = z
         return Zaug, int(lengths.size)
     substeps, orders = plan.substeps, plan.order
-    per = gen.size * gen.size
+    # entries of one exponent (with loads: the Jordan-bordered generator), so a batch is one
+    # expm_stack block
+    per = gen.exponent_size**2
     exps = 0
     k = 0
     while k < dt.size:
