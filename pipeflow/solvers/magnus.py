@@ -126,7 +126,7 @@ MAX_ATTEMPTS = 4
 #: allocator; larger ones cost page faults (3-5x slower here)
 _BLOCK_ENTRIES = 12_000
 #: output intervals whose propagators are formed before they are applied (bounds memory)
-_WINDOW = 1024
+_WINDOW = 256
 
 
 class MagnusGenerator:
