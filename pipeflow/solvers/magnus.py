@@ -14,11 +14,19 @@ section 5.2; Blanes, Casas & Ros, BIT 40 (2000) 434-450):
       C1 = [a1, a2],  C2 = -1/60 [a1, 2 a3 + C1]
       Omega6 = a1 + a3 / 12 + 1/240 [-20 a1 - a3 + C1, a2 + C2]           (three commutators)
 
-which are O(h^5) and O(h^7) locally.  ``A`` is the state matrix augmented with the forcing:
-the state is extended by a constant c (= |z0|), so the affine system becomes the linear one
-(z, c)' = [[S, f/c], [0, 0]] (z, c) and the same exponential carries the Duhamel term of a
-varying spin.  For constant coefficients Omega = h S exactly, so the method is exact to
-rounding (one exponential for a uniform output grid).
+which are O(h^5) and O(h^7) locally.  Without external loads ``A`` is the state matrix
+augmented with the forcing of a varying spin: the state is extended by a constant c
+(= |z0|), so the affine system becomes the linear one (z, c)' = [[S, f/c], [0, 0]] (z, c)
+and the same exponential carries the Duhamel term.  With external loads the forcing is not
+put in that border column (its commutators carry A (f(t_2) - f(t_1)), of size
+h |xi_max| h |f'|, which made the steps follow h |xi_max| instead of the physics: 20-80x
+the unforced steps): each step is an exponential-integrator step (:func:`forced_omega`),
+the total forcing interpolated by a polynomial at Gauss nodes and the polynomial's
+monomials added to the state as a nilpotent Jordan block, whose bordered Magnus generator
+[[Omega, Y], [0, J]] sees the forcing only through A's variation; one exponential of size
+N + 4 (order 4) per step, cut to the affine step [[P, r], [0, 1]].  For constant
+coefficients Omega = h S exactly, so the method is exact to rounding (one exponential for a
+uniform output grid).
 
 Order per interval.  At :data:`LOCAL_SAMPLES` times the local errors of one step of each
 order are compared by step doubling (|E_h - E_h/2 E_h/2|_1 / (1 - 2^-p) for order p), but
@@ -37,7 +45,11 @@ observed ratio is 5-15 and the estimate is within a factor ~2.  Above the tolera
 interval's sub-step count is multiplied by (estimate / (SAFETY tolerance))^(1/rate), with
 the rate log2(d2/d1) observed against a third run with four times the step (clipped to
 [log2 5, order]): not halving over the whole run, and not the h^4 law where the error falls
-slower (h |xi_max| > pi) or faster (the transition to the asymptotic regime).  Local
+slower (h |xi_max| > pi) or faster (the transition to the asymptotic regime).  A refined
+attempt is checked against the previous attempt (no fresh run with twice the step): the
+difference over ratio^(log2 5) - 1, the step ratio at the slowest rate the first check
+assumes (a ratio of 2 gives the same divisor 4).  Pulsating flow v = 2 + sin 50 t on the
+paper example: 33,500 exponentials before, 23,500 now, for the same 20,000 steps.  Local
 error control proper (per-step estimates) was tried and measured: on these oscillatory
 systems the local errors of successive steps cancel, so their sum over-predicts the global
 error ~50x (v = 0.4 t, 2001 steps: local 2e-10 per step, global 7e-9) and over-resolves
@@ -73,6 +85,7 @@ from numpy.typing import NDArray
 from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.linalg import (
+    COMMUTATOR_FACTOR,
     GAUSS3_NODES,
     GAUSS_NODES,
     expm_stack,
@@ -112,6 +125,8 @@ MAX_ATTEMPTS = 4
 #: matrix entries per block of steps: temporaries under ~100 kB are reused by the
 #: allocator; larger ones cost page faults (3-5x slower here)
 _BLOCK_ENTRIES = 12_000
+#: output intervals whose propagators are formed before they are applied (bounds memory)
+_WINDOW = 256
 
 
 class MagnusGenerator:
@@ -137,44 +152,77 @@ class MagnusGenerator:
         self.loads = loads
         self.spin_forced = not loading.spin.is_constant
         self.forced = self.spin_forced or loads is not None
+        #: with external loads the forcing is integrated by the exponential-integrator step
+        #: (a polynomial on each step, a Jordan block in the exponential), not as a border
+        #: column of the Magnus generator
+        self.jordan = loads is not None
         #: A(t) constant: constant coefficients and no load varying in time
         self.invariant = loading.is_time_invariant and (loads is None or loads.is_constant)
         self.scale = scale  # the constant c the state is augmented with [m]
         N = model.size
         self.size = N + (1 if self.forced else 0)
         pieces = model.state_pieces
-        extra = (1 if self.spin_forced else 0) + (loads.count if loads is not None else 0)
+        if self.jordan:
+            self.basis = pieces.reshape(pieces.shape[0], -1)
+            return
+        extra = 1 if self.spin_forced else 0
         basis = np.zeros((len(pieces) + extra, self.size, self.size))
         basis[: len(pieces), :N, :N] = pieces
         if self.spin_forced:
             basis[len(pieces), :N, N] = model.f_wdot / scale
-        if loads is not None:
-            basis[len(pieces) + extra - loads.count :, :N, N] = loads.columns / scale
         self.basis = basis.reshape(basis.shape[0], -1)
+
+    @property
+    def exponent_size(self) -> int:
+        """Size of the matrices exponentiated (the largest order's, with loads)."""
+        return self.model.size + FORCING_NODES[6] if self.jordan else self.size
 
     def coefficients(self, times: FloatArray) -> FloatArray:
         c = self.loading.coefficients(times)
         w = c.weights()
-        if self.loads is not None:
-            parts = [w, c.wdot[:, None]] if self.spin_forced else [w]
-            return np.concatenate([*parts, self.loads.values(times)], axis=1)
+        if self.jordan:
+            return w
         return np.concatenate([w, c.wdot[:, None]], axis=1) if self.forced else w
 
     def matrices(self, times: FloatArray) -> FloatArray:
-        """A(t) at ``times``: S(t), bordered by f(t)/c when the spin varies [1/s]."""
-        return (self.coefficients(times) @ self.basis).reshape(times.size, self.size, self.size)
+        """A(t) at ``times``: S(t), bordered by f(t)/c when the spin varies and there are
+        no loads [1/s]; S(t) alone with loads (their forcing: :meth:`forcing`)."""
+        n = self.model.size if self.jordan else self.size
+        return (self.coefficients(times) @ self.basis).reshape(times.size, n, n)
+
+    def forcing(self, times: FloatArray) -> FloatArray:
+        """The total forcing f(t) / c at ``times`` (spin-up and loads), shape (k, N) [1/s]."""
+        assert self.loads is not None
+        f = self.loads.vector(times)
+        if self.spin_forced:
+            wdot = self.loading.coefficients(times).wdot
+            f = f + wdot[:, None] * self.model.f_wdot[None]
+        return np.asarray(f / self.scale)
 
     def omega(self, starts: FloatArray, h: FloatArray, order: int = 4) -> FloatArray:
-        """Omega of ``order`` (4 or 6) for steps [starts, starts + h] (equal lengths) [-]."""
+        """Omega of ``order`` (4 or 6) for steps [starts, starts + h] (equal lengths) [-].
+
+        With loads, the generator of the step's exponential-integrator form
+        (:func:`forced_omega`), of size N + FORCING_NODES[order]."""
         k = starts.size
         nodes = GAUSS_NODES if order == 4 else GAUSS3_NODES
         A = self.matrices(np.concatenate([starts + g * h for g in nodes]))
+        if self.jordan:
+            return forced_omega(self, A, starts, h, order)
         if order == 4:
             return magnus4_omega(A[:k], A[k:], h)
         return np.asarray(magnus6_omega(A[:k], A[k : 2 * k], A[2 * k :], h))
 
     def propagators(self, starts: FloatArray, h: FloatArray, order: int = 4) -> FloatArray:
-        return expm_stack(self.omega(starts, h, order))
+        """exp(Omega) of each step; with loads the affine step [[P, r], [0, 1]] (size N + 1)
+        cut from the exponential of the Jordan-bordered generator."""
+        if not self.jordan:
+            return expm_stack(self.omega(starts, h, order))
+        # exp([[Omega, Y], [0, J]]) restricted to (z, w_0): [[P, r], [0, 1]] (exp(J) is
+        # lower triangular with unit diagonal, and w(0) = e_0)
+        N = self.model.size
+        E = expm_stack(self.omega(starts, h, order))
+        return np.ascontiguousarray(E[:, : N + 1, : N + 1])
 
     def local_errors(self, starts: FloatArray, h: FloatArray, order: int) -> FloatArray:
         """Local error of one step of ``order`` from each start, relative (1-norm) [-].
@@ -194,6 +242,67 @@ class MagnusGenerator:
             size = np.abs(full).sum(axis=-2).max(axis=-1)
             err = diff / size / (1.0 - 2.0**-order)
         return np.where(np.isfinite(err), err, np.inf)
+
+
+def _forcing_basis(count: int) -> tuple[FloatArray, FloatArray]:
+    """Gauss-Legendre nodes (``count`` of them, fractions of the step) and the matrix that
+    takes the forcing at them to the coefficients c_j of its interpolation polynomial
+    sum_j c_j tau^j / j! (tau = s / h in [0, 1])."""
+    x, _ = np.polynomial.legendre.leggauss(count)
+    tau = 0.5 * (x + 1.0)
+    V = tau[:, None] ** np.arange(count)[None, :] / np.array(
+        [math.factorial(j) for j in range(count)]
+    )
+    return tau, np.linalg.inv(V)
+
+
+#: forcing nodes per Magnus order: as many as the order (degree order - 1, local error
+#: O(h^(order+1)) like the Magnus step's).  Measured on the paper example with a 700 rad/s
+#: tip force from rest: 2,000 steps give 2.7e-8 with 4 nodes, 1.3e-8 with 5 or 6 (the
+#: Magnus part's); both refine to 4,000 steps (7.2e-9), where 4 nodes' estimate is the
+#: more faithful (6.9e-9 against 2.4e-9) and its exponentials (size N + 4) the cheaper
+FORCING_NODES = {4: 4, 6: 6}
+#: per node count: the nodes and the inverse of their scaled Vandermonde matrix
+FORCING_BASIS = {q: _forcing_basis(q) for q in FORCING_NODES.values()}
+
+
+def forced_omega(
+    gen: MagnusGenerator, A: FloatArray, starts: FloatArray, h: FloatArray, order: int
+) -> FloatArray:
+    """The generator of one exponential-integrator step of z' = A(t) z + f(t), size N + q.
+
+    On the step, in tau = s / h, the forcing is replaced by its interpolation polynomial
+    p(tau) = sum_j c_j tau^j / j! at q = :data:`FORCING_NODES` Gauss-Legendre nodes
+    (degree q - 1 = order - 1: its local error O(h^(order+1)) matches the Magnus step's),
+    and w_j = tau^j / j! (w' = J w, J the
+    shift, w(0) = e_0) makes the system linear with a *constant* border:
+    (z, w)' = [[h A(tau), h C], [0, J]] (z, w).  Its Magnus generator (the same Gauss
+    nodes for A) is [[Omega, Y], [0, J]] with Omega the homogeneous one and, at order 4,
+    Y = h C + sqrt(3)/12 h^2 (A_2 - A_1) C: the commutators see the forcing only through
+    A's variation (A_2 - A_1), never through A times f's variation, which in the border
+    column form made the steps follow h |xi_max| (Al-Mohy & Higham 2011, Saad 1992 for the
+    phi-function trick: the exponential of the bordered matrix carries the integral of
+    exp((1 - tau) Omega) p(tau)).  ``A`` are the state matrices at the Magnus nodes
+    (stacked node-major), ``h`` the step lengths; the state's constant c is in C.
+    """
+    k, N = starts.size, gen.model.size
+    q = FORCING_NODES[order]
+    tau, Vinv = FORCING_BASIS[q]
+    F = gen.forcing(np.concatenate([starts + g * h for g in tau])).reshape(q, k, N)
+    C = (Vinv @ F.reshape(q, k * N)).reshape(q, k, N).transpose(1, 2, 0)  # (k, N, q)
+    hh = np.asarray(h, dtype=float)[:, None, None]
+    out = np.zeros((k, N + q, N + q))
+    out[:, N + 1 :, N : N + q - 1] = np.eye(q - 1)  # J: w_j' = w_{j-1}
+    if order == 4:
+        A1, A2 = A[:k], A[k:]
+        out[:, :N, :N] = magnus4_omega(A1, A2, h)
+        out[:, :N, N:] = hh * C + (COMMUTATOR_FACTOR * hh * hh) * ((A2 - A1) @ C)
+        return out
+    # order 6: the generic three-node generator of the bordered matrices (tau units)
+    Ab = np.repeat(out[None], 3, axis=0)
+    Ab[:, :, :N, :N] = hh[None] * A.reshape(3, k, N, N)
+    Ab[:, :, :N, N:] = hh[None] * C[None]
+    return np.asarray(magnus6_omega(Ab[0], Ab[1], Ab[2], 1.0))
 
 
 def observed_rate(d1: float, Zc: FloatArray, Zcc: FloatArray, size: int, order: int) -> float:
@@ -304,6 +413,9 @@ class Magnus(Solver):
         exps = 0
         attempts = 0
         estimate = 0.0
+        rate = 4.0
+        method = ""
+        previous: tuple[FloatArray, int] | None = None
         while True:
             attempts += 1
             self._check_budget(int(substeps.sum()), budget, dt, substeps, opts.tolerance)
@@ -317,17 +429,37 @@ class Magnus(Solver):
             exps += used
             if invariant:
                 break
-            # Richardson-type check: the same orders with twice and four times the step
-            idx, coarse = plan.coarse(t)
-            idx2, coarser = coarse.coarse(t[idx])
-            # the run with four times the step is counted too when it may be made (the
-            # estimate asks for a refinement, never with a user step)
-            check = coarse.steps + (coarser.steps if refines else 0)
-            self._check_budget(plan.steps + check, budget, dt, substeps, opts.tolerance)
-            Zc, used = propagate(problem, gen, t[idx], coarse)
-            exps += used
-            d1 = relative_difference(Zc, Zaug[idx], N)
-            estimate = d1 / RICHARDSON_DIVISOR
+            if previous is not None:
+                # a refinement: the previous attempt is the coarser run of the check (no
+                # fresh run with twice the step); Richardson with the step ratio at the
+                # slowest rate the check assumes, log2(RICHARDSON_DIVISOR + 1) (a ratio of
+                # 2 divides by RICHARDSON_DIVISOR, as the first attempt's check): not the
+                # observed rate, which before the asymptotic regime under-estimated the
+                # error 5x (paper example forced from rest: 1.3e-9 for a true 7.2e-9)
+                Zprev, steps_prev = previous
+                ratio = plan.steps / steps_prev
+                d1 = relative_difference(Zprev, Zaug[:, :N], N)
+                floor_rate = math.log2(RICHARDSON_DIVISOR + 1.0)
+                estimate = d1 / max(ratio**floor_rate - 1.0, 1e-300)
+                method = (
+                    f"difference from the previous attempt ({steps_prev} steps, step ratio "
+                    f"{ratio:.3g}) over ratio^{floor_rate:.2f} - 1"
+                )
+            else:
+                # Richardson-type check: the same orders with twice and four times the step
+                idx, coarse = plan.coarse(t)
+                idx2, coarser = coarse.coarse(t[idx])
+                # the run with four times the step is counted too when it may be made (the
+                # estimate asks for a refinement, never with a user step)
+                check = coarse.steps + (coarser.steps if refines else 0)
+                self._check_budget(plan.steps + check, budget, dt, substeps, opts.tolerance)
+                Zc, used = propagate(problem, gen, t[idx], coarse)
+                exps += used
+                d1 = relative_difference(Zc, Zaug[idx], N)
+                estimate = d1 / RICHARDSON_DIVISOR
+                method = (
+                    f"difference from a run with twice the step, divided by {RICHARDSON_DIVISOR:g}"
+                )
             if step is not None or estimate <= opts.tolerance:
                 break
             if attempts >= MAX_ATTEMPTS or not math.isfinite(estimate):
@@ -336,13 +468,16 @@ class Magnus(Solver):
                     f"relative error {estimate:.3g} after {attempts} attempts"
                 )
                 break
-            # refine every interval by the factor that brings the estimate to SAFETY *
-            # tolerance at the rate observed against a run with four times the step (not
-            # by halving; h^4 would over- or under-shoot while h |xi_max| > pi)
-            Zcc, used = propagate(problem, gen, t[idx][idx2], coarser)
-            exps += used
-            rate = observed_rate(d1, Zc[idx2], Zcc, N, int(plan.order.max()))
+            if previous is None:
+                # the rate observed against a run with four times the step (not h^4: it
+                # over- or under-shoots while h |xi_max| > pi)
+                Zcc, used = propagate(problem, gen, t[idx][idx2], coarser)
+                exps += used
+                rate = observed_rate(d1, Zc[idx2], Zcc, N, int(plan.order.max()))
+            # refine by the factor that brings the estimate to SAFETY * tolerance at that
+            # rate, spread over the intervals (no rounding up to whole multiples)
             factor = (estimate / (SAFETY * opts.tolerance)) ** (1.0 / rate)
+            previous = (Zaug[:, :N].copy(), plan.steps)
             substeps = _substeps(dt, h0, budget, factor, substeps)
         Z = Zaug[:, :N].copy()
         h_used = dt / plan.substeps
@@ -356,9 +491,7 @@ class Magnus(Solver):
             "tolerance": opts.tolerance,
             "estimated_relative_error": estimate,
             "error_estimate_method": (
-                "exact for constant coefficients (rounding only)"
-                if invariant
-                else f"difference from a run with twice the step, divided by {RICHARDSON_DIVISOR:g}"
+                "exact for constant coefficients (rounding only)" if invariant else method
             ),
         }
         return SolverOutput(z=Z, diagnostics=diagnostics, warnings=warnings)
@@ -399,25 +532,32 @@ def propagate(
             Zaug[k + 1] = z
         return Zaug, int(lengths.size)
     substeps, orders = plan.substeps, plan.order
-    per = gen.size * gen.size
+    # entries of one exponent (with loads: the Jordan-bordered generator), so a batch is one
+    # expm_stack block
+    per = gen.exponent_size**2
     exps = 0
     k = 0
     while k < dt.size:
-        # a block of output intervals with equal sub-step counts and order, sized to
-        # stay in cache
-        m, q = int(substeps[k]), int(orders[k])
-        limit = max(1, _BLOCK_ENTRIES // (per * m))
-        stop = k + 1
-        while stop < dt.size and stop - k < limit and substeps[stop] == m and orders[stop] == q:
-            stop += 1
-        idx = np.arange(k, stop)
-        h = dt[idx] / m
-        starts = (t[idx][:, None] + h[:, None] * np.arange(m)[None, :]).ravel()
-        E = gen.propagators(starts, np.repeat(h, m), q)
-        exps += E.shape[0]
-        E = product_of_steps(E.reshape(idx.size, m, gen.size, gen.size))
-        for j in range(idx.size):
-            z = E[j] @ z
+        # a window of output intervals: the propagators of its intervals are formed in
+        # batches of equal sub-step count and order (sized to stay in cache), whether or
+        # not those intervals are adjacent, then applied in order
+        stop = min(dt.size, k + _WINDOW)
+        window = np.arange(k, stop)
+        E_win = np.empty((window.size, gen.size, gen.size))
+        keys = substeps[window] * 16 + orders[window]
+        for key in np.unique(keys):
+            m, q = int(key) // 16, int(key) % 16
+            members = window[keys == key]
+            limit = max(1, _BLOCK_ENTRIES // (per * m))
+            for b in range(0, members.size, limit):
+                idx = members[b : b + limit]
+                h = dt[idx] / m
+                starts = (t[idx][:, None] + h[:, None] * np.arange(m)[None, :]).ravel()
+                E = gen.propagators(starts, np.repeat(h, m), q)
+                exps += E.shape[0]
+                E_win[idx - k] = product_of_steps(E.reshape(idx.size, m, gen.size, gen.size))
+        for j in range(window.size):
+            z = E_win[j] @ z
             Zaug[k + j + 1] = z
         k = stop
         problem.report(k / dt.size)
@@ -451,6 +591,10 @@ def _substeps(
         if current is None:
             count = np.ceil(np.asarray(dt, dtype=float) / h * (1 - 1e-12))
         else:
+            # whole multiples per interval: spreading a fractional factor over the
+            # intervals (1 and 2 steps alternating) was tried and loses the cancellation
+            # of successive local errors that equal steps have (paper example forced from
+            # rest: 3,496 such steps gave 1.9e-8, 2,000 equal steps 1.3e-8)
             count = np.ceil(current * factor)
     count = np.nan_to_num(count, nan=budget + 1.0, posinf=budget + 1.0)
     return np.clip(count, 1, budget + 1).astype(np.int64)
