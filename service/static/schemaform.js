@@ -385,14 +385,13 @@ window.SchemaForm = (function () {
       label.append(input);
       const keyLeaf = el("div", { class: "leaf" });
       keyLeaf.append(label);
-      box.append(keyLeaf, node(doc, vs, p, key || "value", v, true));
       const remove = el("button", { type: "button", class: "remove", "data-remove": p, title: "remove " + (key || "entry") }, "remove");
       remove.addEventListener("click", () => {
         const current = values();
         current.splice(i, 1);
         draw(current);
       });
-      box.append(remove);
+      box.append(keyLeaf, remove, node(doc, vs, p, key || "value", v, true));
       return box;
     }
 

@@ -154,6 +154,9 @@ def test_saltelli_study_sensitivity_bars(server: str, page: Page, screenshot: An
     page.select_option("select[name='samples.parameters.pipe.M2.distribution']", "uniform")
     page.fill("input[name='samples.parameters.pipe.M2.low']:visible", "1.5e-5")
     page.fill("input[name='samples.parameters.pipe.M2.high']:visible", "1.8e-5")
+    assert page.get_attribute("[data-map='samples.parameters']", "data-count") == "2"
+    page.locator("[data-map='samples.parameters']").scroll_into_view_if_needed()
+    screenshot(page, "studies-form-sampled-parameters")
     result = _run(page)
     assert result["counts"]["total"] == 8 * (2 * 2 + 2)
     assert result["overrides"] == ["pipe.E", "pipe.M2"]
