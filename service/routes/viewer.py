@@ -1,5 +1,5 @@
-"""The browser viewer at ``/``, ``/stability`` and ``/frequency-response``, and their static
-assets under ``/static/``.
+"""The browser viewer at ``/``, ``/stability``, ``/frequency-response`` and ``/studies``, and
+their static assets under ``/static/``.
 
 ``/`` (``service/static/index.html``): a simulation form generated at run time from this
 service's ``/openapi.json`` (``schemaform.js``: every method, profile kind and default the
@@ -8,7 +8,11 @@ banner for unstable runs.  ``/stability`` (``stability.html``): the same kind of
 ``POST /v1/stability`` and every ``POST /v1/sweeps`` kind, job progress, crossing tables and
 the server's figures.  ``/frequency-response`` (``frequency.html``): the form of
 ``POST /v1/frequency-responses``, uPlot charts of |H| (log-log, peaks marked) and the phase,
-a table of the peaks and the server's figures.  The chart
+a table of the peaks and the server's figures.  ``/studies`` (``studies.html``): the form of
+``POST /v1/studies`` (cases, grid or sampled parameters), the job's progress, the first rows
+of the table with its CSV/Parquet links, a histogram per numeric summary column with the mean
+and the 5/50/95 % quantiles marked, the probability of instability, and for saltelli studies
+the Sobol' indices S1 and ST per parameter with their confidence intervals.  The chart
 library is vendored (``service/static/uPlot.iife.min.js``, MIT, from the npm package
 ``uplot``), so the viewer works without internet access.  The assets are a fixed
 allow-list read from the package directory: no path from the request reaches the file
@@ -31,6 +35,7 @@ ASSETS: dict[str, str] = {
     "schemaform.js": "text/javascript; charset=utf-8",
     "stability.js": "text/javascript; charset=utf-8",
     "frequency.js": "text/javascript; charset=utf-8",
+    "studies.js": "text/javascript; charset=utf-8",
     "viewer.css": "text/css; charset=utf-8",
     "uPlot.iife.min.js": "text/javascript; charset=utf-8",
     "uPlot.min.css": "text/css; charset=utf-8",
@@ -69,6 +74,16 @@ async def frequency_page() -> Response:
     """The frequency-response page (Bode charts with the peaks, peaks table, figures)."""
     return Response(
         _FILES.read("frequency.html"),
+        media_type="text/html; charset=utf-8",
+        headers={"Cache-Control": "no-cache"},
+    )
+
+
+@router.get("/studies")
+async def studies_page() -> Response:
+    """The design-study page (table, histograms, instability, Sobol' indices)."""
+    return Response(
+        _FILES.read("studies.html"),
         media_type="text/html; charset=utf-8",
         headers={"Cache-Control": "no-cache"},
     )

@@ -1,6 +1,7 @@
 // Forms generated from the service's own OpenAPI document (GET openapi.json), so every
 // field, method, profile kind and default the API has appears here and stays in step with
-// it.  Used by the simulation viewer (index.html) and the stability page (stability.html).
+// it.  Used by the simulation viewer (index.html), the stability, frequency-response and
+// study pages.
 //
 // A request schema is walked after resolving $refs:
 // - an object becomes a fieldset (optional groups whose fields all have defaults are
@@ -11,6 +12,10 @@
 //   operating_points) a list editor: one block per item (a discriminated item with its kind
 //   <select>), "add" and "remove" buttons within the schema's minItems / maxItems; an empty
 //   list is not sent (its default, or null, applies);
+// - a map (an object of patternProperties / additionalProperties, e.g. a study's grid or
+//   its sampled parameters: field path -> values or distribution) a map editor: one entry
+//   per key, a key input and the value's own fields, "add" and "remove" buttons; an empty
+//   map is not sent;
 // - an enum becomes a <select>, a boolean a checkbox, a number, string or array of numbers
 //   a text input (arrays as "a, b, c"); "X or null" is X, left empty for null, and an
 //   optional block ("object or null") is sent only when its "include" box is ticked;
@@ -83,11 +88,19 @@ window.SchemaForm = (function () {
     return !!s.properties;
   }
 
+  function mapValue(doc, s) {
+    // the value schema of a map (an object keyed by free names, e.g. field paths), else null
+    if (isObject(s) || s.type !== "object") return null;
+    const pattern = s.patternProperties && Object.values(s.patternProperties)[0];
+    const extra = s.additionalProperties && typeof s.additionalProperties === "object" ? s.additionalProperties : null;
+    return pattern || extra ? deref(doc, pattern || extra) : null;
+  }
+
   function itemSchema(doc, s) {
-    // the item schema of an array of objects (a union or an object), else null
+    // the item schema of an array of objects (a union, an object or a map), else null
     if (s.type !== "array" || !s.items || typeof s.items !== "object") return null;
     const item = deref(doc, s.items);
-    return isUnion(item) || isObject(item) ? item : null;
+    return isUnion(item) || isObject(item) || mapValue(doc, item) ? item : null;
   }
 
   function bounds(s) {
@@ -215,6 +228,7 @@ window.SchemaForm = (function () {
     const s = deref(doc, schema);
     if (isUnion(s)) return union(doc, s, path, name, value);
     if (itemSchema(doc, s)) return list(doc, s, path, name, value);
+    if (mapValue(doc, s)) return map(doc, s, path, name, value);
     if (isObject(s)) {
       const fs = el("fieldset", { class: "group", "data-group": path });
       let body = fs;
@@ -284,6 +298,8 @@ window.SchemaForm = (function () {
       let box;
       if (kinds) {
         box = union(doc, item, p, label, v);
+      } else if (mapValue(doc, item)) {
+        box = map(doc, item, p, label, v);
       } else {
         box = el("fieldset", { class: "group", "data-group": p });
         box.append(el("legend", {}, label));
@@ -337,6 +353,94 @@ window.SchemaForm = (function () {
     return fs;
   }
 
+  // ---- maps: key -> value (a study's grid, cases, sampled parameters) ---------------------
+
+  function map(doc, s, path, name, value) {
+    // one entry per key: the key (e.g. a field path) and the value's own fields, named
+    // path.key... as the API names them in its errors ("grid.pipe.L.2",
+    // "samples.parameters.pipe.E.sigma"); redrawn from the collected values when a key
+    // changes, is added or removed
+    const vs = mapValue(doc, s);
+    const keyHelp = (s.propertyNames && s.propertyNames.description) || "";
+    const max = s.maxProperties !== undefined ? s.maxProperties : Infinity;
+    const fs = el("fieldset", { class: "map", "data-map": path, "data-group": path });
+    const legend = el("legend", {});
+    const count = el("span", { class: "count" });
+    legend.append(el("span", {}, name), " ", count);
+    fs.append(legend);
+    if (s.description) fs.append(el("small", { class: "help block" }, s.description));
+    const head = el("div", { class: "leaf list-error" });
+    head.append(el("span", { class: "error", "data-error-for": path }));
+    const entries = el("div", { class: "entries" });
+    const add = el("button", { type: "button", class: "add", "data-add": path }, "+ add " + name + " entry");
+    fs.append(head, entries, add);
+
+    function one(i, key, v) {
+      const p = path + "." + (key || "#" + i);
+      const box = el("div", { class: "entry", "data-entry": p });
+      const label = el("label", { class: "field map-key", title: keyHelp });
+      label.append(el("span", { class: "name" }, "field path"));
+      const input = el("input", { "data-map-key": path, value: key || "", placeholder: "e.g. pipe.E", class: "wide" });
+      input.addEventListener("change", () => draw(values()));
+      label.append(input);
+      const keyLeaf = el("div", { class: "leaf" });
+      keyLeaf.append(label);
+      const remove = el("button", { type: "button", class: "remove", "data-remove": p, title: "remove " + (key || "entry") }, "remove");
+      remove.addEventListener("click", () => {
+        const current = values();
+        current.splice(i, 1);
+        draw(current);
+      });
+      box.append(keyLeaf, remove, node(doc, vs, p, key || "value", v, true));
+      return box;
+    }
+
+    function values() {
+      // [key, value] pairs as typed (an entry without a key too, until it gets one)
+      const out = [];
+      for (const box of entries.querySelectorAll(":scope > .entry")) {
+        const key = box.querySelector("[data-map-key]").value.trim();
+        out.push([key, collectNode(doc, vs, box.dataset.entry, box)]);
+      }
+      return out;
+    }
+
+    function draw(pairs) {
+      entries.textContent = "";
+      pairs.forEach(([k, v], i) => entries.append(one(i, k, v)));
+      count.textContent = "(" + pairs.length + (max !== Infinity ? " of at most " + max : "") + ")";
+      add.disabled = pairs.length >= max;
+      fs.dataset.count = String(pairs.length);
+    }
+
+    add.addEventListener("click", () => {
+      const current = values();
+      const last = current.length ? JSON.parse(JSON.stringify(current[current.length - 1][1] ?? null)) : undefined;
+      current.push(["", last === null ? undefined : last]);
+      draw(current);
+      const added = entries.lastElementChild;
+      if (added) added.querySelector("[data-map-key]").focus();
+    });
+    const initial = value && typeof value === "object" ? value : s.default && typeof s.default === "object" ? s.default : {};
+    draw(Object.entries(initial));
+    return fs;
+  }
+
+  function collectMap(doc, s, path, scope) {
+    // the entries with a key, in order; undefined when there are none (not sent)
+    const host = scope.matches && scope.matches('[data-map="' + CSS.escape(path) + '"]') ? scope
+      : scope.querySelector('[data-map="' + CSS.escape(path) + '"]');
+    if (!host) return undefined;
+    const vs = mapValue(doc, s);
+    const out = {};
+    for (const box of host.querySelectorAll(":scope > .entries > .entry")) {
+      const key = box.querySelector("[data-map-key]").value.trim();
+      const v = collectNode(doc, vs, box.dataset.entry, box);
+      if (key !== "" && v !== undefined) out[key] = v;
+    }
+    return Object.keys(out).length ? out : undefined;
+  }
+
   function collectList(doc, s, path, scope) {
     const host = scope.matches && scope.matches('[data-list="' + CSS.escape(path) + '"]') ? scope
       : scope.querySelector('[data-list="' + CSS.escape(path) + '"]');
@@ -345,7 +449,8 @@ window.SchemaForm = (function () {
     const out = [];
     for (const box of host.querySelectorAll(":scope > .items > .item")) {
       const p = box.dataset.item;
-      out.push(isUnion(item) ? collectNode(doc, item, p, box) : collectObject(doc, item, p, box));
+      out.push(isUnion(item) ? collectNode(doc, item, p, box)
+        : mapValue(doc, item) ? collectMap(doc, item, p, box) || {} : collectObject(doc, item, p, box));
     }
     return out;
   }
@@ -415,6 +520,7 @@ window.SchemaForm = (function () {
       const items = collectList(doc, s, path, scope);
       return items && items.length ? items : undefined;
     }
+    if (mapValue(doc, s)) return collectMap(doc, s, path, scope);
     if (isObject(s)) {
       const on = s.nullable ? find(scope, path + ".enabled") : null;
       if (on && !on.checked) return undefined;  // switched off: the default (null) applies

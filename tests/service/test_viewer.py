@@ -43,6 +43,7 @@ def tc(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
             "/frequency-response",
             ["static/uPlot.iife.min.js", "static/schemaform.js", "static/frequency.js"],
         ),
+        ("/studies", ["static/uPlot.iife.min.js", "static/schemaform.js", "static/studies.js"]),
     ],
 )
 def test_pages_build_their_forms_from_the_schema(tc: Any, path: str, scripts: list[str]) -> None:
