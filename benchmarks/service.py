@@ -56,12 +56,17 @@ import httpx
 import numpy as np
 from scipy import signal
 
-from pipeflow.model import Loading, build_model
-from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
-from pipeflow.simulation import simulate
-from service.launch import serve
-
 ROOT = Path(__file__).resolve().parents[1]
+# run as a script, this file's directory is first on the path, where this file would shadow
+# the package `service`: the repository root takes its place
+if sys.path and Path(sys.path[0] or ".").resolve() == ROOT / "benchmarks":
+    sys.path[0] = str(ROOT)
+
+from pipeflow.model import Loading, build_model  # noqa: E402
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec  # noqa: E402
+from pipeflow.simulation import simulate  # noqa: E402
+from service.launch import serve  # noqa: E402
+
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 
 #: the issue's LTI case: constant v = 0.4 m/s, default method (no "method" key)

@@ -156,6 +156,8 @@ class Runner:
         )
         if pruned:
             log.info("pruned %d old job records", pruned)
+        # the disk bound's running total, recounted once (drift of writers of an older version)
+        await asyncio.to_thread(self.store.recount_results)
         for job in await asyncio.to_thread(self.store.active_jobs):
             await self._recover(job)
         self._spawn(self._warm_up())

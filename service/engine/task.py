@@ -168,13 +168,12 @@ def _run_job(computation: Computation, request: Any, key: str, cfg: TaskConfig) 
         claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
     except StorageError as exc:
         return Outcome("storage", classify(exc))
+    if claim.outcome == "stored":
+        return Outcome("succeeded")  # computed by an earlier attempt; the claim finished it
     if claim.outcome != "claimed":
         return Outcome(claim.outcome, note=claim.job.status if claim.job else None)
     assert claim.job is not None
     try:
-        if not claim.job.refresh and store.has_result(key):
-            store.finish_job(key, "succeeded", owner=owner)  # computed by an earlier attempt
-            return Outcome("succeeded")
         beat = _Heartbeat(store, key, owner, cfg)
         beat.start()
         started = time.perf_counter()
@@ -192,8 +191,7 @@ def _run_job(computation: Computation, request: Any, key: str, cfg: TaskConfig) 
             return Outcome("lost", note=str(payload))
         if status == "ok":
             assert isinstance(payload, bytes)
-            store.put_result(key, computation.name, payload)
-            store.finish_job(key, "succeeded", owner=owner)
+            store.finish_with_result(key, owner, computation.name, payload)  # one transaction
             return Outcome("succeeded", seconds=seconds)
         if status == "cancelled":
             store.release(key, owner)  # the record already says cancelled (by the request)
