@@ -43,15 +43,18 @@ class Store(ResultStore, JobStore):
     results (:mod:`service.store.results`) and job records (:mod:`service.store.jobs`) over
     one connection (:mod:`service.store.connection`)."""
 
-    def finish_with_result(self, key: str, owner: str, kind: str, body: bytes) -> bool:
+    def finish_with_result(
+        self, key: str, owner: str, kind: str, body: bytes, *, remember: bool = True
+    ) -> bool:
         """Store the result of job ``key`` and finish its record as succeeded, in one
         transaction (what a task does when its computation ends well).  The result is
         stored even if ``owner`` no longer holds the lease (it is the result of the key
         all the same); the record is finished only if it does.  True if this call finished
-        the record."""
+        the record.  ``remember=False`` leaves the body out of the memory front (see
+        :meth:`get_result`)."""
         items = {key: (kind, body)}
         with self._write() as conn:
             evicted = self._put_results(conn, items)
             done = self._finish(conn, key, "succeeded", None, owner)
-        self._remember_put(items, evicted)
+        self._remember_put(items, evicted, keep=remember)
         return done

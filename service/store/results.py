@@ -224,14 +224,19 @@ class ResultStore(StoreConnection):
             self._lock_stats(conn)
             return self._recount(conn)
 
-    def _remember_put(self, items: Mapping[str, tuple[str, bytes]], evicted: list[str]) -> None:
+    def _remember_put(
+        self, items: Mapping[str, tuple[str, bytes]], evicted: list[str], *, keep: bool = True
+    ) -> None:
         """After the commit of a put: the memory front forgets the evicted keys and keeps
-        the written bodies."""
+        the written bodies (``keep=False``: forgets them too)."""
         with self._lock:
             for old in evicted:
                 self._memory.pop(old)
             for key, (_, body) in items.items():
-                self._memory.put(key, body)
+                if keep:
+                    self._memory.put(key, body)
+                else:
+                    self._memory.pop(key)
 
     def result_bytes(self) -> int:
         """Stored result bytes (the running total, O(1))."""
