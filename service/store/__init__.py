@@ -20,7 +20,7 @@ from service.store.connection import PROBE_BYTES, StoreConnection, sqlite_url
 from service.store.errors import StorageError, StoreRefused
 from service.store.jobs import ACTIVE, STATUSES, Claim, Job, JobStore
 from service.store.memory import MemoryLRU
-from service.store.results import ZLIB_LEVEL, ResultStore
+from service.store.results import ZLIB_LEVEL, ResultStore, compress
 
 __all__ = [
     "ACTIVE",
@@ -53,8 +53,9 @@ class Store(ResultStore, JobStore):
         the record.  ``remember=False`` leaves the body out of the memory front (see
         :meth:`get_result`)."""
         items = {key: (kind, body)}
+        packed = compress(items)  # before the transaction: not while holding the write lock
         with self._write() as conn:
-            evicted = self._put_results(conn, items)
+            evicted = self._put_results(conn, packed)
             done = self._finish(conn, key, "succeeded", None, owner)
         self._remember_put(items, evicted, keep=remember)
         return done

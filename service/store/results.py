@@ -114,12 +114,14 @@ class ResultStore(StoreConnection):
         least-recently-used results beyond the bound (never those just written)."""
         if not items:
             return
+        packed = compress(items)  # before the transaction: not while holding the write lock
         with self._write() as conn:
-            evicted = self._put_results(conn, items)
+            evicted = self._put_results(conn, packed)
         self._remember_put(items, evicted)
 
-    def _put_results(self, conn: Connection, items: Mapping[str, tuple[str, bytes]]) -> list[str]:
-        """:meth:`put_results` inside the transaction ``conn``: the evicted keys.
+    def _put_results(self, conn: Connection, packed: Mapping[str, tuple[str, bytes]]) -> list[str]:
+        """:meth:`put_results` of ``packed`` (``key: (kind, body compressed by
+        :func:`compress`)``) inside the transaction ``conn``: the evicted keys.
 
         The bound is checked against the running total of ``store_stats``, not a scan of
         the table.  Every write that changes the results' sizes locks that one row first
@@ -130,12 +132,11 @@ class ResultStore(StoreConnection):
         now = time.time()
         total, count = self._lock_stats(conn)
         self._write_touched(conn)
-        keys = list(items)
+        keys = list(packed)
         old = dict(
             conn.execute(select(results.c.key, results.c.size).where(results.c.key.in_(keys))).all()
         )
-        for key, (kind, body) in items.items():
-            stored = zlib.compress(body, ZLIB_LEVEL)
+        for key, (kind, stored) in packed.items():
             values = {
                 "key": key,
                 "kind": kind,
@@ -245,6 +246,11 @@ class ResultStore(StoreConnection):
                 select(store_stats.c.result_bytes).where(store_stats.c.id == STATS_ROW)
             ).scalar()
         return int(total or 0)
+
+
+def compress(items: Mapping[str, tuple[str, bytes]]) -> dict[str, tuple[str, bytes]]:
+    """``key: (kind, body)`` with each body compressed as stored (zlib, :data:`ZLIB_LEVEL`)."""
+    return {key: (kind, zlib.compress(body, ZLIB_LEVEL)) for key, (kind, body) in items.items()}
 
 
 def _decode(body: bytes, codec: str) -> bytes:
