@@ -573,9 +573,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--label", default="latest", help="section name in RESULTS.md")
     ap.add_argument("--out", type=Path, default=RESULTS, help="Markdown file to write into")
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument(
+        "--setting",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a server setting other than its default, e.g. fast_lane_threads=0 (repeatable)",
+    )
     args = ap.parse_args(argv)
     plan = SMOKE if args.smoke else FULL
     env = {"PIPEFLOW_LOG_LEVEL": "INFO"}
+    settings = dict(item.split("=", 1) for item in args.setting)
+    env.update({f"PIPEFLOW_{name.upper()}": value for name, value in settings.items()})
+    changed = ", ".join(f"{name}={value}" for name, value in settings.items())
     started = time.monotonic()
     desc = machine()
     rows, raw = run(plan, args.label, env)
@@ -584,7 +594,8 @@ def main(argv: list[str] | None = None) -> int:
             f"`python benchmarks/bench_service.py{' --smoke' if args.smoke else ''}` "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"{time.monotonic() - started:.0f} s): {desc}. Server: `uvicorn service.main:app` "
-            "with the default settings (2 workers, JSON request logs at INFO; HTTP "
+            f"with the default settings{f' but {changed}' if changed else ''} (2 workers, JSON "
+            "request logs at INFO; HTTP "
             f"{'httptools' if importlib.util.find_spec('httptools') else 'h11'}, loop "
             f"{'uvloop' if importlib.util.find_spec('uvloop') else 'asyncio'}).",
             "",

@@ -47,7 +47,8 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-# this tree first, and not this directory: benchmarks/service.py would shadow the package
+# this tree's packages first (a checkout or worktree measures its own code), not this
+# directory
 sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != ROOT / "benchmarks"]
 
 from pipeflow.model import build_model  # noqa: E402
@@ -58,9 +59,9 @@ from pipeflow.schema.study import StudySpec  # noqa: E402
 
 
 def _service_bench() -> Any:
-    """benchmarks/service.py (server start-up, RSS of a process tree, machine line,
+    """benchmarks/bench_service.py (server start-up, RSS of a process tree, machine line,
     section writer), loaded by path (its name would shadow the ``service`` package)."""
-    path = ROOT / "benchmarks" / "service.py"
+    path = ROOT / "benchmarks" / "bench_service.py"
     spec = importlib.util.spec_from_file_location("pipeflow_bench_service", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

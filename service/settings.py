@@ -52,6 +52,22 @@ class Settings(BaseSettings):
         le=10_000,
         description="Computations that may wait for a worker; beyond workers + queue_size: 503.",
     )
+    fast_lane_threads: int = Field(
+        1,
+        ge=0,
+        le=8,
+        description="Threads of the API process that run small computations in place of a "
+        "Dask worker (the fast lane: no scheduler and worker round trip); 0 turns the lane "
+        "off, every computation then goes to Dask.",
+    )
+    fast_lane_max_s: float = Field(
+        0.05,
+        ge=0,
+        le=1.0,
+        description="Largest estimated run time of a computation the fast lane takes [s] "
+        "(the computation's own estimate, for one core; kinds without an estimate never "
+        "take it); larger ones go to a Dask worker.",
+    )
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest accepted request body [bytes]; larger: 413."
     )

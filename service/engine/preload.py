@@ -17,16 +17,10 @@ import sys
 import time
 from typing import Any
 
+from service import THREAD_VARIABLES
+
 log = logging.getLogger("service.worker")
 
-THREAD_VARIABLES = (
-    "OMP_NUM_THREADS",
-    "OPENBLAS_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "BLIS_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-    "NUMEXPR_NUM_THREADS",
-)
 
 #: the environment of a worker process: one BLAS thread
 WORKER_ENV = dict.fromkeys(THREAD_VARIABLES, "1")

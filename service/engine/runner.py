@@ -32,6 +32,7 @@ import logging
 import time
 import uuid
 from collections.abc import Awaitable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -119,6 +120,14 @@ class Runner:
         # jobs to fail with their storage error once the store takes writes again
         self._pending_failures: dict[str, dict[str, Any]] = {}
         self.poll_s = min(settings.progress_interval_s, 0.5)
+        # the fast lane: small computations in threads of this process (see _lane_takes)
+        self._lane: ThreadPoolExecutor | None = None
+        if settings.fast_lane_threads > 0 and settings.fast_lane_max_s > 0:
+            self._lane = ThreadPoolExecutor(
+                settings.fast_lane_threads, thread_name_prefix="fast-lane"
+            )
+        self._lane_busy = 0
+        self.lane_runs = 0  # computations the fast lane ran (tests, diagnostics)
 
     # -- lifecycle -----------------------------------------------------------------------
 
@@ -156,6 +165,8 @@ class Runner:
         )
         if pruned:
             log.info("pruned %d old job records", pruned)
+        # the disk bound's running total, recounted once (drift of writers of an older version)
+        await asyncio.to_thread(self.store.recount_results)
         for job in await asyncio.to_thread(self.store.active_jobs):
             await self._recover(job)
         self._spawn(self._warm_up())
@@ -168,6 +179,10 @@ class Runner:
             if flight.task is not None:
                 flight.task.cancel()  # records stay active: a live replica recovers them
         self.ready = False
+        if self._lane is not None:
+            # a running lane computation is left to its thread (a daemon's fate at exit):
+            # its record stays active with its lease, which goes stale, and is recovered
+            self._lane.shutdown(wait=False, cancel_futures=True)
         if self.client is not None:
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(self.client.close(), 10)
@@ -190,6 +205,11 @@ class Runner:
             await asyncio.wait_for(self._warm_workers(), WARM_UP_TIMEOUT_S)
         except Exception as exc:
             log.warning("worker warm-up task failed: %s: %s", type(exc).__name__, exc)
+        if self._lane is not None:
+            # the lane's first computation must not pay the numerical stack's first use
+            from service.engine.preload import warm_up
+
+            await asyncio.get_running_loop().run_in_executor(self._lane, warm_up)
         self.ready = True
 
     async def _warm_workers(self) -> None:
@@ -351,8 +371,68 @@ class Runner:
         self.computations += 1
         return self._execute(flight, job)
 
+    def _lane_takes(self, flight: Flight, job: Job) -> bool:
+        """Whether the fast lane runs this attempt: the lane is on and has a free thread,
+        the computation estimates its run time (:attr:`Computation.estimate`) at most
+        ``fast_lane_max_s``, and it is the job's first attempt here (a recovered or
+        retried job goes to a worker).  Below ~50 ms the cross-process round trip of a
+        Dask task (client -> scheduler -> worker -> scheduler -> client, 10-25 ms on the
+        2-core machine) costs as much as the computation; beyond, the worker's isolation
+        (its own core and GIL, killed if it overruns) is worth it."""
+        estimate = flight.job.computation.estimate
+        if (
+            self._lane is None
+            or estimate is None
+            or self._lane_busy >= self.settings.fast_lane_threads
+            or job.attempts > 0
+            or flight.resubmits > 0
+        ):
+            return False
+        try:
+            seconds = estimate(flight.job.request)
+        except Exception:  # an estimate is advice: never fail a request over it
+            log.exception("estimate of %s", flight.job.computation.name)
+            return False
+        return seconds is not None and seconds <= self.settings.fast_lane_max_s
+
+    def _in_lane(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
+        """:func:`run_job` in a thread of the fast lane, with this replica's store: the
+        record, its lease and the result as a worker writes them (a restart finds the
+        lease stale and recovers the job); the event loop only awaits.  The lane's thread
+        counts as busy until its computation returns, even one abandoned past its limit."""
+        assert self._lane is not None
+        loop = asyncio.get_running_loop()
+        self._lane_busy += 1
+        self.lane_runs += 1
+        try:
+            fut = self._lane.submit(
+                run_job,
+                flight.job.computation,
+                flight.job.request,
+                job.key,
+                self._config(),
+                observability.request_id(),
+                self.store,
+            )
+        except RuntimeError:  # shut down (the replica is stopping)
+            self._lane_busy -= 1
+            raise
+
+        def release(_: Any) -> None:
+            with contextlib.suppress(RuntimeError):  # the loop is closed: nothing to count
+                loop.call_soon_threadsafe(self._release_lane)
+
+        fut.add_done_callback(release)
+        return asyncio.wrap_future(fut)
+
+    def _release_lane(self) -> None:
+        self._lane_busy -= 1
+
     def _execute(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
         from distributed import fire_and_forget
+
+        if self._lane_takes(flight, job):
+            return self._in_lane(flight, job)
 
         dask_key = f"{job.kind}-{job.key}-g{job.generation}-a{job.attempts}"
         if flight.resubmits:
@@ -415,9 +495,10 @@ class Runner:
 
     async def _drive_once(self, flight: Flight, force: bool, recover: bool) -> bytes:
         key, job_in = flight.key, flight.job
+        known: Job | None = None  # the record as enqueue_job left it: not read again
         try:
             if not recover:
-                await asyncio.to_thread(
+                known = await asyncio.to_thread(
                     self.store.enqueue_job,
                     key,
                     job_in.computation.name,
@@ -432,8 +513,17 @@ class Runner:
         while True:
             if flight.cancelled:
                 await self._stopped(flight, waiter)
+            if waiter is not None and waiter.done() and waiter.result().finished:
+                # our task stored the result and finished the record with it: no re-read
+                # of the record; the fast lane's answer even carries the body
+                outcome = waiter.result()
+                flight.seconds = outcome.seconds
+                return outcome.body if outcome.body is not None else await self._body(key)
             try:
-                job = await asyncio.to_thread(self.store.get_job, key)
+                job = (
+                    known if known is not None else await asyncio.to_thread(self.store.get_job, key)
+                )
+                known = None
             except StorageError:
                 await asyncio.sleep(self.settings.retry_after_s)
                 continue
@@ -484,6 +574,9 @@ class Runner:
                 continue
             tag = (job.generation, job.attempts)
             waiter = asyncio.ensure_future(self._result_of(self._submit_task(flight, job)))
+            # the record is read again once the task ends or the monitor flags a change,
+            # not right away (that read only competed with the task starting)
+            await self._wait(flight, waiter)
 
     @staticmethod
     async def _result_of(fut: Awaitable[Outcome]) -> Outcome:
@@ -511,16 +604,20 @@ class Runner:
             self._pending_failures[key] = doc  # written by the monitor once writes work
         raise StorageError(message, full=full)
 
+    async def _body(self, key: str) -> bytes:
+        """The stored result of a succeeded job, sent once to the requests waiting for it,
+        not kept in the store's memory front: a 60 s mixed load filled that to its 64 MB
+        bound with fresh results."""
+        body = await asyncio.to_thread(
+            functools.partial(self.store.get_result, key, remember=False)
+        )
+        if body is None:
+            raise ComputationFailed(_internal(f"the result of job {key} was evicted"))
+        return body
+
     async def _outcome(self, job: Job) -> bytes:
         if job.status == "succeeded":
-            # sent once to the requests waiting for it, not kept in the store's memory
-            # front: a 60 s mixed load filled that to its 64 MB bound with fresh results
-            body = await asyncio.to_thread(
-                functools.partial(self.store.get_result, job.key, remember=False)
-            )
-            if body is None:
-                raise ComputationFailed(_internal(f"the result of job {job.key} was evicted"))
-            return body
+            return await self._body(job.key)
         if job.status == "cancelled":
             raise ComputationCancelled(str((job.error or {}).get("detail", "cancelled")))
         raise ComputationFailed(job.error or _internal("failed"))

@@ -67,6 +67,11 @@ class Outcome:
     error: ErrorRecord | None = None
     seconds: float | None = None
     note: str | None = None
+    #: this run stored the result and finished the record as succeeded (in one transaction)
+    finished: bool = False
+    #: the result's JSON, only from a run in the API process (the fast lane) that finished
+    #: the record itself: the request is answered with it, no read of the store
+    body: bytes | None = None
 
 
 @dataclass(frozen=True)
@@ -107,21 +112,30 @@ class _Heartbeat(threading.Thread):
     """Renews the lease and records progress; sets ``stop`` on cancel or a lost lease;
     kills the process when the computation overruns the limit without stopping."""
 
-    def __init__(self, store: Store, key: str, owner: str, cfg: TaskConfig) -> None:
+    def __init__(
+        self, store: Store, key: str, owner: str, cfg: TaskConfig, *, inline: bool = False
+    ) -> None:
         super().__init__(name=f"heartbeat-{key[:8]}", daemon=True)
         self.store, self.key, self.owner, self.cfg = store, key, owner, cfg
+        self.inline = inline
         self.progress: float | None = None
         self.stop: str | None = None
         self.deadline = time.monotonic() + cfg.timeout_s
         self._done = threading.Event()
 
     def finish(self) -> None:
+        """Stop renewing.  Not joined: the thread leaves at its next wake-up, which this
+        wakes, without writing (a renewal it is writing meanwhile is guarded by the owner
+        and the running status, so it cannot touch the finished record); waiting for it
+        to be scheduled cost the fast lane ~1 ms per computation on the loaded machine."""
         self._done.set()
-        self.join(timeout=5.0)
 
     def run(self) -> None:
         while not self._done.wait(self.cfg.progress_interval_s):
             if time.monotonic() > self.deadline + self.cfg.grace_s:
+                if self.inline:
+                    self._abandon_overdue()
+                    return
                 self._kill_overdue()
             try:
                 state = self.store.heartbeat(self.key, self.owner, self.progress)
@@ -129,6 +143,20 @@ class _Heartbeat(threading.Thread):
                 continue  # the store recovers by itself; the lease may go stale meanwhile
             if state != "ok":
                 self.stop = "cancelled by request" if state == "cancelled" else state
+
+    def _abandon_overdue(self) -> None:
+        """The fast lane's watchdog: the API process is not killed for a computation that
+        overran its limit without stopping; its job fails with the reason (so the lease
+        is gone and the request is answered) and its thread is left to finish (it holds
+        one of the lane's fixed threads until then: new work goes to Dask meanwhile)."""
+        log.error("job %s overran the runtime limit in the fast lane: thread abandoned", self.key)
+        self.stop = "runtime limit"
+        self.store.finish_job(
+            self.key,
+            "failed",
+            ErrorRecord.runtime_limit(self.cfg.timeout_s).to_dict(),
+            owner=self.owner,
+        )
 
     def _kill_overdue(self) -> None:
         log.error("job %s overran the runtime limit without stopping: killing worker", self.key)
@@ -149,33 +177,39 @@ def run_job(
     key: str,
     cfg: TaskConfig,
     request_id: str | None = None,
+    store: Store | None = None,
 ) -> Outcome:
     """Compute the job ``key`` (``computation.execute(request, progress)``) once.
 
     ``request_id`` (of the request that started the computation) is set for the log
-    lines written meanwhile (:data:`service.observability.REQUEST_ID`)."""
+    lines written meanwhile (:data:`service.observability.REQUEST_ID`).  ``store``: run
+    in the API process (the fast lane, :mod:`service.engine.runner`) with its store: the
+    same lease, record and result, but a computation that overruns its limit without
+    stopping fails its job and is abandoned, not killed with the process, and the
+    answer carries the result's body."""
     token = observability.REQUEST_ID.set(request_id)
     try:
-        return _run_job(computation, request, key, cfg)
+        return _run_job(computation, request, key, cfg, store)
     finally:
         observability.REQUEST_ID.reset(token)
 
 
-def _run_job(computation: Computation, request: Any, key: str, cfg: TaskConfig) -> Outcome:
-    store = _store(cfg)
+def _run_job(
+    computation: Computation, request: Any, key: str, cfg: TaskConfig, inline: Store | None
+) -> Outcome:
+    store = inline if inline is not None else _store(cfg)
     owner = uuid.uuid4().hex
     try:
         claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
     except StorageError as exc:
         return Outcome("storage", classify(exc))
+    if claim.outcome == "stored":
+        return Outcome("succeeded")  # computed by an earlier attempt; the claim finished it
     if claim.outcome != "claimed":
         return Outcome(claim.outcome, note=claim.job.status if claim.job else None)
     assert claim.job is not None
     try:
-        if not claim.job.refresh and store.has_result(key):
-            store.finish_job(key, "succeeded", owner=owner)  # computed by an earlier attempt
-            return Outcome("succeeded")
-        beat = _Heartbeat(store, key, owner, cfg)
+        beat = _Heartbeat(store, key, owner, cfg, inline=inline is not None)
         beat.start()
         started = time.perf_counter()
         work_log.info("computation started", extra={"key": key, "computation": computation.name})
@@ -186,15 +220,24 @@ def _run_job(computation: Computation, request: Any, key: str, cfg: TaskConfig) 
         seconds = time.perf_counter() - started
         work_log.info(
             "computation finished",
-            extra={"key": key, "outcome": status, "duration_ms": round(seconds * 1e3, 3)},
+            extra={
+                "key": key,
+                "outcome": status,
+                "duration_ms": round(seconds * 1e3, 3),
+                "lane": "api" if inline is not None else "worker",
+            },
         )
         if status == "lost":
             return Outcome("lost", note=str(payload))
         if status == "ok":
             assert isinstance(payload, bytes)
-            store.put_result(key, computation.name, payload)
-            store.finish_job(key, "succeeded", owner=owner)
-            return Outcome("succeeded", seconds=seconds)
+            # one transaction; the API process's own store keeps the body out of its memory
+            # front (its hits are answered from the hit cache)
+            done = store.finish_with_result(
+                key, owner, computation.name, payload, remember=inline is None
+            )
+            body = payload if done and inline is not None else None
+            return Outcome("succeeded", seconds=seconds, finished=done, body=body)
         if status == "cancelled":
             store.release(key, owner)  # the record already says cancelled (by the request)
             return Outcome("cancelled", seconds=seconds, note=str(payload))

@@ -20,7 +20,7 @@ from service.store.connection import PROBE_BYTES, StoreConnection, sqlite_url
 from service.store.errors import StorageError, StoreRefused
 from service.store.jobs import ACTIVE, STATUSES, Claim, Job, JobState, JobStore
 from service.store.memory import MemoryLRU
-from service.store.results import ZLIB_LEVEL, ResultStore
+from service.store.results import ZLIB_LEVEL, ResultStore, compress
 
 __all__ = [
     "ACTIVE",
@@ -43,3 +43,20 @@ class Store(ResultStore, JobStore):
     """Thread-safe access to the database (call from threads, not the event loop): its
     results (:mod:`service.store.results`) and job records (:mod:`service.store.jobs`) over
     one connection (:mod:`service.store.connection`)."""
+
+    def finish_with_result(
+        self, key: str, owner: str, kind: str, body: bytes, *, remember: bool = True
+    ) -> bool:
+        """Store the result of job ``key`` and finish its record as succeeded, in one
+        transaction (what a task does when its computation ends well).  The result is
+        stored even if ``owner`` no longer holds the lease (it is the result of the key
+        all the same); the record is finished only if it does.  True if this call finished
+        the record.  ``remember=False`` leaves the body out of the memory front (see
+        :meth:`get_result`)."""
+        items = {key: (kind, body)}
+        packed = compress(items)  # before the transaction: not while holding the write lock
+        with self._write() as conn:
+            evicted = self._put_results(conn, packed)
+            done = self._finish(conn, key, "succeeded", None, owner)
+        self._remember_put(items, evicted, keep=remember)
+        return done

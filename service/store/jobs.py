@@ -15,7 +15,7 @@ from typing import Any, Literal, get_args
 from sqlalchemy import Connection, Row, case, delete, func, select, update
 
 from service.store.connection import StoreConnection
-from service.store.tables import jobs
+from service.store.tables import jobs, results
 
 #: a job's status: the one definition (the job record's column, the HTTP job document)
 JobState = Literal["queued", "running", "succeeded", "failed", "cancelled"]
@@ -78,7 +78,8 @@ class Job:
 @dataclass(frozen=True)
 class Claim:
     """What :meth:`Store.claim` found: ``"claimed"`` (compute now), ``"elsewhere"`` (a live
-    attempt holds the lease), ``"done"`` (the job is finished or gone: nothing to do)."""
+    attempt holds the lease), ``"done"`` (the job is finished or gone: nothing to do),
+    ``"stored"`` (its result was stored already: the claim finished the job as succeeded)."""
 
     outcome: str
     job: Job | None
@@ -167,24 +168,35 @@ class JobStore(StoreConnection):
     ) -> bool:
         """Move an active job to a terminal state (only if ``owner`` holds its lease, when
         given); a job already terminal is left alone.  True if this call finished it."""
+        with self._write() as conn:
+            return self._finish(conn, key, status, error, owner)
+
+    def _finish(
+        self,
+        conn: Connection,
+        key: str,
+        status: str,
+        error: dict[str, Any] | None,
+        owner: str | None,
+    ) -> bool:
+        """:meth:`finish_job` inside the transaction ``conn``."""
         now = time.time()
         cond = [jobs.c.key == key, jobs.c.status.in_(ACTIVE)]
         if owner is not None:
             cond.append(jobs.c.owner == owner)
-        with self._write() as conn:
-            done = conn.execute(
-                update(jobs)
-                .where(*cond)
-                .values(
-                    status=status,
-                    error=json.dumps(error) if error else None,
-                    finished=now,
-                    updated=now,
-                    heartbeat=now,
-                    owner=None,
-                    progress=1.0 if status == "succeeded" else jobs.c.progress,
-                )
-            ).rowcount
+        done = conn.execute(
+            update(jobs)
+            .where(*cond)
+            .values(
+                status=status,
+                error=json.dumps(error) if error else None,
+                finished=now,
+                updated=now,
+                heartbeat=now,
+                owner=None,
+                progress=1.0 if status == "succeeded" else jobs.c.progress,
+            )
+        ).rowcount
         return bool(done)
 
     def mark_succeeded(self, key: str, kind: str, spec: dict[str, Any]) -> None:
@@ -229,6 +241,12 @@ class JobStore(StoreConnection):
                 )
             )
             return self._job(conn, key)
+
+    @staticmethod
+    def _stored(conn: Connection, key: str) -> bool:
+        """Whether the results table holds ``key`` (read in ``conn``'s transaction)."""
+        found = conn.execute(select(results.c.key).where(results.c.key == key)).first()
+        return found is not None
 
     def get_job(self, key: str) -> Job | None:
         with self._read() as conn:
@@ -312,7 +330,11 @@ class JobStore(StoreConnection):
         """Take the job's lease for the attempt ``owner`` running on ``worker``.
 
         A lease held by another attempt whose heartbeat is younger than ``stale_after_s``
-        is respected; an older one is taken over (the retry's reason says why).
+        is respected; an older one is taken over (the retry's reason says why).  One
+        transaction, the job's row locked (``SELECT ... FOR UPDATE``; SQLite: ``BEGIN
+        IMMEDIATE``) from the check to the update, so two attempts never both claim.  A
+        job whose result is already stored (and not asked to be recomputed) is finished
+        in the same transaction instead (``"stored"``).
         """
         now = time.time()
         with self._write() as conn:
@@ -324,6 +346,11 @@ class JobStore(StoreConnection):
             age = now - (job.heartbeat or 0.0)
             if job.owner is not None and age < stale_after_s:
                 return Claim("elsewhere", job)
+            if not job.refresh and self._stored(conn, key):
+                # computed by an earlier attempt (which died before finishing the record):
+                # finished here, in the claim's transaction
+                self._finish(conn, key, "succeeded", None, None)
+                return Claim("stored", self._job(conn, key))
             reason = job.last_retry_reason
             if job.owner is not None:
                 reason = (

@@ -17,12 +17,16 @@ from sqlalchemy import Connection, delete, func, select, update
 from service.store.connection import StoreConnection
 from service.store.errors import StorageError
 from service.store.memory import MemoryLRU
-from service.store.tables import results
+from service.store.tables import results, store_stats
 
 #: zlib level of stored results: on a 2001-sample result (125 kB of JSON) level 1 takes
 #: 0.6 ms for 29.7 kB, level 6 7.2 ms for 27.4 kB (8% smaller): the compression is paid on
 #: every cold request, the space only bounds the cache
 ZLIB_LEVEL = 1
+#: the one row of ``store_stats``
+STATS_ROW = 1
+#: least-recently-used rows read per eviction query (rows are deleted one by one)
+EVICT_BATCH = 64
 
 
 class ResultStore(StoreConnection):
@@ -110,53 +114,143 @@ class ResultStore(StoreConnection):
         least-recently-used results beyond the bound (never those just written)."""
         if not items:
             return
-        now = time.time()
+        packed = compress(items)  # before the transaction: not while holding the write lock
         with self._write() as conn:
-            self._write_touched(conn)
-            for key, (kind, body) in items.items():
-                stored = zlib.compress(body, ZLIB_LEVEL)
-                values = {
-                    "key": key,
-                    "kind": kind,
-                    "body": stored,
-                    "size": len(stored),
-                    "created": now,
-                    "accessed": now,
-                    "codec": "zlib",
-                }
-                ins = self._insert(results).values(**values)
-                conn.execute(
-                    ins.on_conflict_do_update(
-                        index_elements=["key"],
-                        set_={k: v for k, v in values.items() if k != "key"},
-                    )
+            evicted = self._put_results(conn, packed)
+        self._remember_put(items, evicted)
+
+    def _put_results(self, conn: Connection, packed: Mapping[str, tuple[str, bytes]]) -> list[str]:
+        """:meth:`put_results` of ``packed`` (``key: (kind, body compressed by
+        :func:`compress`)``) inside the transaction ``conn``: the evicted keys.
+
+        The bound is checked against the running total of ``store_stats``, not a scan of
+        the table.  Every write that changes the results' sizes locks that one row first
+        (PostgreSQL: ``SELECT ... FOR UPDATE``; SQLite: ``BEGIN IMMEDIATE`` already
+        serialises writers), so the sizes read below cannot change under this transaction
+        and the total it writes back is exact, with concurrent writers in any number of
+        processes and replicas; no deadlock either, as the row is always taken first."""
+        now = time.time()
+        total, count = self._lock_stats(conn)
+        self._write_touched(conn)
+        keys = list(packed)
+        old = dict(
+            conn.execute(select(results.c.key, results.c.size).where(results.c.key.in_(keys))).all()
+        )
+        for key, (kind, stored) in packed.items():
+            values = {
+                "key": key,
+                "kind": kind,
+                "body": stored,
+                "size": len(stored),
+                "created": now,
+                "accessed": now,
+                "codec": "zlib",
+            }
+            ins = self._insert(results).values(**values)
+            conn.execute(
+                ins.on_conflict_do_update(
+                    index_elements=["key"],
+                    set_={k: v for k, v in values.items() if k != "key"},
                 )
-            total = conn.execute(select(func.coalesce(func.sum(results.c.size), 0))).scalar_one()
-            excess = int(total) - self.cache_max_bytes
-            evicted = []
-            if excess > 0:
-                # the newest results are kept even if they alone exceed the bound
-                rows = conn.execute(
-                    select(results.c.key, results.c.size)
-                    .where(results.c.key.notin_(list(items)))
-                    .order_by(results.c.accessed)
-                ).all()
-                for row in rows:
-                    if excess <= 0:
-                        break
-                    conn.execute(delete(results).where(results.c.key == row.key))
-                    evicted.append(row.key)
-                    excess -= int(row.size)
+            )
+            total += len(stored) - int(old.get(key, 0))
+            count += 0 if key in old else 1
+        evicted = []
+        excess = total - self.cache_max_bytes
+        while excess > 0:
+            # the newest results are kept even if they alone exceed the bound; the oldest
+            # rows in small batches by the index on accessed (no full scan either)
+            rows = conn.execute(
+                select(results.c.key, results.c.size)
+                .where(results.c.key.notin_(keys))
+                .order_by(results.c.accessed)
+                .limit(EVICT_BATCH)
+            ).all()
+            if not rows:
+                break
+            for row in rows:
+                if excess <= 0:
+                    break
+                conn.execute(delete(results).where(results.c.key == row.key))
+                evicted.append(row.key)
+                excess -= int(row.size)
+                total -= int(row.size)
+                count -= 1
+        conn.execute(
+            update(store_stats)
+            .where(store_stats.c.id == STATS_ROW)
+            .values(result_bytes=total, result_rows=count)
+        )
+        return evicted
+
+    def _lock_stats(self, conn: Connection) -> tuple[int, int]:
+        """The running totals (bytes, rows), their row locked until the end of ``conn``'s
+        transaction; a missing row (a database written past the migrations' back) is
+        recounted once."""
+        query = (
+            select(store_stats.c.result_bytes, store_stats.c.result_rows)
+            .where(store_stats.c.id == STATS_ROW)
+            .with_for_update()
+        )
+        row = conn.execute(query).first()
+        if row is None:
+            conn.execute(
+                self._insert(store_stats)
+                .values(id=STATS_ROW, result_bytes=0, result_rows=0)
+                .on_conflict_do_nothing(index_elements=["id"])
+            )
+            row = conn.execute(query).first()
+            assert row is not None
+            if row.result_rows == 0:
+                return self._recount(conn)
+        return int(row.result_bytes), int(row.result_rows)
+
+    def _recount(self, conn: Connection) -> tuple[int, int]:
+        """Set the running totals from the table itself (a full scan: at start only)."""
+        size, rows = conn.execute(
+            select(func.coalesce(func.sum(results.c.size), 0), func.count()).select_from(results)
+        ).one()
+        conn.execute(
+            update(store_stats)
+            .where(store_stats.c.id == STATS_ROW)
+            .values(result_bytes=int(size), result_rows=int(rows))
+        )
+        return int(size), int(rows)
+
+    def recount_results(self) -> tuple[int, int]:
+        """Recount the running totals from the results table (bytes, rows), under the
+        totals' lock: a replica does it once at start, which also corrects any drift left
+        by writers of a version before the running totals (a rolling upgrade)."""
+        with self._write() as conn:
+            self._lock_stats(conn)
+            return self._recount(conn)
+
+    def _remember_put(
+        self, items: Mapping[str, tuple[str, bytes]], evicted: list[str], *, keep: bool = True
+    ) -> None:
+        """After the commit of a put: the memory front forgets the evicted keys and keeps
+        the written bodies (``keep=False``: forgets them too)."""
         with self._lock:
             for old in evicted:
                 self._memory.pop(old)
             for key, (_, body) in items.items():
-                self._memory.put(key, body)
+                if keep:
+                    self._memory.put(key, body)
+                else:
+                    self._memory.pop(key)
 
     def result_bytes(self) -> int:
+        """Stored result bytes (the running total, O(1))."""
         with self._read() as conn:
-            total = conn.execute(select(func.coalesce(func.sum(results.c.size), 0))).scalar_one()
-            return int(total)
+            total = conn.execute(
+                select(store_stats.c.result_bytes).where(store_stats.c.id == STATS_ROW)
+            ).scalar()
+        return int(total or 0)
+
+
+def compress(items: Mapping[str, tuple[str, bytes]]) -> dict[str, tuple[str, bytes]]:
+    """``key: (kind, body)`` with each body compressed as stored (zlib, :data:`ZLIB_LEVEL`)."""
+    return {key: (kind, zlib.compress(body, ZLIB_LEVEL)) for key, (kind, body) in items.items()}
 
 
 def _decode(body: bytes, codec: str) -> bytes:

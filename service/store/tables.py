@@ -7,6 +7,7 @@ module is what the code reads and writes.  Times are Unix seconds (UTC).
 from __future__ import annotations
 
 from sqlalchemy import (
+    BigInteger,
     Boolean,
     Column,
     Float,
@@ -34,6 +35,16 @@ results = Table(
     Column("codec", String(16), nullable=False, server_default="identity"),
 )
 Index("results_accessed", results.c.accessed)
+
+#: migration 0003: running totals over ``results``, one row (``id`` = 1), updated in the
+#: transaction of every write that changes them (the disk bound reads it, no table scan)
+store_stats = Table(
+    "store_stats",
+    metadata,
+    Column("id", Integer, primary_key=True),
+    Column("result_bytes", BigInteger, nullable=False),  # SUM(results.size)
+    Column("result_rows", BigInteger, nullable=False),  # COUNT(*) of results
+)
 
 jobs = Table(
     "jobs",

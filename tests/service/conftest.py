@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import glob
+import shutil
+import subprocess
+import tempfile
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Annotated, Any
 
 import pytest
@@ -15,6 +20,7 @@ from pipeflow.schema.simulation import PAPER_EXAMPLE
 from service.deps import RunnerDep, StoreDep
 from service.http.responses import job_document
 from service.keys import keyed
+from service.launch import free_port
 from service.main import create_app
 from service.orchestration import run_sync, submit_job
 from service.settings import Settings
@@ -112,3 +118,42 @@ def tight(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
         wait_ready(c)
         c.app.state.runner.watchdog_grace_s = 0.5  # type: ignore[attr-defined]
         yield c
+
+
+# -- PostgreSQL --------------------------------------------------------------------------------
+
+#: Debian's PostgreSQL binaries (the ``postgres`` fixture skips where there are none)
+PG_BIN = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
+
+
+def _as_postgres(*args: str) -> None:
+    subprocess.run(["runuser", "-u", "postgres", "--", *args], check=True, capture_output=True)
+
+
+@pytest.fixture(scope="module")
+def postgres() -> Iterator[str]:
+    """A PostgreSQL cluster in a temp dir on a free port; yields its SQLAlchemy URL."""
+    if not PG_BIN or shutil.which("runuser") is None:
+        pytest.skip("PostgreSQL is not installed (apt-get install postgresql; .ci/run does)")
+    bin_dir = Path(PG_BIN[-1])
+    data = Path(tempfile.mkdtemp(prefix="pipeflow-pg-"))
+    shutil.chown(data, "postgres", "postgres")
+    port = free_port()
+    _as_postgres(str(bin_dir / "initdb"), "-D", str(data), "-A", "trust", "-U", "postgres")
+    _as_postgres(
+        str(bin_dir / "pg_ctl"),
+        "-D",
+        str(data),
+        "-o",
+        f"-p {port} -k {data} -c listen_addresses=127.0.0.1 -c max_connections=200",
+        "-l",
+        str(data / "log"),
+        "-w",
+        "start",
+    )
+    try:
+        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/postgres"
+    finally:
+        stop = [str(bin_dir / "pg_ctl"), "-D", str(data), "-m", "immediate", "stop"]
+        subprocess.run(["runuser", "-u", "postgres", "--", *stop], check=False, capture_output=True)
+        shutil.rmtree(data, ignore_errors=True)

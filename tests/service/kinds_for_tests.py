@@ -28,6 +28,9 @@ class SleepSpec(BaseModel):
     seconds: float = Field(ge=0, le=120, description="How long to run [s].")
     report: bool = Field(True, description="Call the progress callback while sleeping.")
     tag: str = Field("", description="Makes otherwise equal specs distinct.")
+    estimate_s: float | None = Field(
+        None, ge=0, description="What the kind's estimate says of the run time [s] (may lie)."
+    )
 
 
 def sleep(spec: SleepSpec, progress: Progress | None) -> dict[str, Any]:
@@ -40,4 +43,18 @@ def sleep(spec: SleepSpec, progress: Progress | None) -> dict[str, Any]:
     return {"slept": spec.seconds, "tag": spec.tag}
 
 
-SLEEP = register(Computation("test-sleep", SleepSpec, SleepResult, sleep, budget="seconds <= 120"))
+def sleep_estimate(spec: SleepSpec) -> float | None:
+    """The estimate the request states (None: none; the fast lane never takes it)."""
+    return spec.estimate_s
+
+
+SLEEP = register(
+    Computation(
+        "test-sleep",
+        SleepSpec,
+        SleepResult,
+        sleep,
+        budget="seconds <= 120",
+        estimate=sleep_estimate,
+    )
+)

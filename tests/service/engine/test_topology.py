@@ -14,11 +14,8 @@ scheduler``, 2 ``dask worker`` processes and 2 uvicorn replicas sharing both.  C
 
 from __future__ import annotations
 
-import glob
-import shutil
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Iterator
@@ -37,43 +34,9 @@ from tests.service.processes import kill_group, server, spawn, wait_http, wait_j
 #: slow (PostgreSQL, a scheduler, workers and two replicas; about 75 s): .ci/run's -m slow step
 pytestmark = pytest.mark.slow
 
-PG_BIN = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
 #: about 2 s of RK4 on this machine (unloaded): running when the fault strikes
 SLOW_JOB = {**SMALL, "modes": 10, "method": "rk4", "time": {"t_end": 6.0, "samples": 101}}
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
-
-def _as_postgres(*args: str) -> None:
-    subprocess.run(["runuser", "-u", "postgres", "--", *args], check=True, capture_output=True)
-
-
-@pytest.fixture(scope="module")
-def postgres() -> Iterator[str]:
-    """A PostgreSQL cluster in a temp dir on a free port; yields its SQLAlchemy URL."""
-    if not PG_BIN or shutil.which("runuser") is None:
-        pytest.skip("PostgreSQL is not installed (apt-get install postgresql; .ci/run does)")
-    bin_dir = Path(PG_BIN[-1])
-    data = Path(tempfile.mkdtemp(prefix="pipeflow-pg-"))
-    shutil.chown(data, "postgres", "postgres")
-    port = free_port()
-    _as_postgres(str(bin_dir / "initdb"), "-D", str(data), "-A", "trust", "-U", "postgres")
-    _as_postgres(
-        str(bin_dir / "pg_ctl"),
-        "-D",
-        str(data),
-        "-o",
-        f"-p {port} -k {data} -c listen_addresses=127.0.0.1 -c max_connections=200",
-        "-l",
-        str(data / "log"),
-        "-w",
-        "start",
-    )
-    try:
-        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/postgres"
-    finally:
-        stop = [str(bin_dir / "pg_ctl"), "-D", str(data), "-m", "immediate", "stop"]
-        subprocess.run(["runuser", "-u", "postgres", "--", *stop], check=False, capture_output=True)
-        shutil.rmtree(data, ignore_errors=True)
 
 
 @dataclass

@@ -3,13 +3,15 @@ LRU eviction, the memory front, job records, leases, migrations and the integrit
 
 from __future__ import annotations
 
+import multiprocessing
 import random
 import sqlite3
+import threading
 import time
 from pathlib import Path
 
 import pytest
-from sqlalchemy import event
+from sqlalchemy import event, text
 
 from service.store import MemoryLRU as _MemoryLRU
 from service.store import StorageError, Store, StoreRefused
@@ -112,7 +114,8 @@ def _old_schema(path: Path) -> None:
 
 
 def test_migrates_a_pre_alembic_database(tmp_path: Path) -> None:
-    """The old file keeps its data: stamped 0001, migrated to head (codec, attempts, ...)."""
+    """The old file keeps its data: stamped 0001, migrated to head (codec, attempts, ...,
+    the running totals of 0003)."""
     path = tmp_path / "db.sqlite3"
     _old_schema(path)
     store = Store(path, cache_max_bytes=10_000, memory_cache_bytes=0)
@@ -121,8 +124,11 @@ def test_migrates_a_pre_alembic_database(tmp_path: Path) -> None:
     assert job is not None and job.status == "queued" and job.attempts == 0
     assert job.refresh is False and job.last_retry_reason is None
     conn = sqlite3.connect(path)
-    assert conn.execute("SELECT version_num FROM alembic_version").fetchone() == ("0002",)
+    assert conn.execute("SELECT version_num FROM alembic_version").fetchone() == ("0003",)
+    # migration 0003 filled the running totals from the rows already there
+    assert conn.execute("SELECT result_bytes, result_rows FROM store_stats").fetchall() == [(7, 1)]
     conn.close()
+    assert store.result_bytes() == 7
 
 
 def test_zero_length_file_is_refused(tmp_path: Path) -> None:
@@ -253,3 +259,126 @@ def test_the_memo_reports_storage_failures_without_failing_the_computation(
     memo.put_many(big)  # logged, not raised
     assert not store.healthy and store.last_full  # the store says why (readiness, 507)
     assert memo.get_many(["study_case:a"]) == {}
+
+
+# -- the running totals (store_stats) ---------------------------------------------------------
+
+
+def _table_totals(store: Store) -> tuple[int, int]:
+    """(SUM(size), COUNT(*)) of the results table, counted."""
+    with store.engine.connect() as conn:
+        size, rows = conn.execute(
+            text("SELECT COALESCE(SUM(size), 0), COUNT(*) FROM results")
+        ).one()
+    return int(size), int(rows)
+
+
+def _stats(store: Store) -> tuple[int, int]:
+    with store.engine.connect() as conn:
+        row = conn.execute(text("SELECT result_bytes, result_rows FROM store_stats")).one()
+    return int(row[0]), int(row[1])
+
+
+def _write_many(url: str, bound: int, writer: int, n: int) -> None:
+    """``n`` puts by one writer with a store of its own (a process or a replica): new keys,
+    overwrites of keys other writers also write (sizes differ), batches, evictions."""
+    store = Store(url, cache_max_bytes=bound, memory_cache_bytes=0, migrate=False)
+    rng = random.Random(writer)
+    try:
+        for i in range(n):
+            size = rng.randrange(50, 400)
+            if i % 5 == 4:  # a batch (the study memo's writes)
+                store.put_results(
+                    {f"w{writer}-b{i}-{j}": ("simulation", rng.randbytes(size)) for j in range(3)}
+                )
+            else:  # half on keys shared by all writers: overwrites with another size
+                key = f"shared-{rng.randrange(8)}" if i % 2 else f"w{writer}-{i}"
+                store.put_result(key, "simulation", rng.randbytes(size))
+    finally:
+        store.close()
+
+
+def test_running_total_follows_writes_overwrites_and_evictions(tmp_path: Path) -> None:
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=1000, memory_cache_bytes=0)
+    assert _stats(store) == (0, 0) and store.result_bytes() == 0
+    store.put_result("a", "simulation", _incompressible(0))
+    store.put_result("a", "simulation", random.Random(9).randbytes(300))  # overwrite, larger
+    assert _stats(store) == _table_totals(store) and _stats(store)[1] == 1
+    for i in range(20):  # well past the bound: evictions on every write
+        store.put_result(f"k{i}", "simulation", _incompressible(i))
+    assert _stats(store) == _table_totals(store)
+    assert store.result_bytes() == _table_totals(store)[0] <= 1000
+    # the newest results are kept even when they alone exceed the bound
+    store.put_results(
+        {f"big{i}": ("simulation", random.Random(i).randbytes(800)) for i in range(2)}
+    )
+    assert _stats(store) == _table_totals(store) and _stats(store)[1] == 2
+    assert store.recount_results() == _table_totals(store)
+
+
+def test_running_total_is_exact_under_concurrent_threads(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'db.sqlite3'}"
+    store = Store(url, cache_max_bytes=20_000, memory_cache_bytes=0)
+    threads = [threading.Thread(target=_write_many, args=(url, 20_000, w, 40)) for w in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    size, rows = _table_totals(store)
+    assert _stats(store) == (size, rows) and rows > 0
+    assert size <= 20_000 + 3 * 450  # the bound, past it only by the newest write
+
+
+def test_running_total_is_exact_under_concurrent_processes(tmp_path: Path) -> None:
+    """Worker processes of one replica write to one SQLite file at once."""
+    url = f"sqlite:///{tmp_path / 'db.sqlite3'}"
+    store = Store(url, cache_max_bytes=20_000, memory_cache_bytes=0)
+    ctx = multiprocessing.get_context("spawn")
+    procs = [ctx.Process(target=_write_many, args=(url, 20_000, w, 40)) for w in range(3)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(timeout=120)
+        assert p.exitcode == 0
+    size, rows = _table_totals(store)
+    assert _stats(store) == (size, rows) and rows > 0
+    assert size <= 20_000 + 3 * 450
+
+
+def test_the_migration_fills_the_running_total_and_a_restart_recounts(tmp_path: Path) -> None:
+    """A database written before migration 0003 gets its totals from its rows; drift (a
+    writer of an older version during a rolling upgrade) is corrected by the recount a
+    replica does at start."""
+    path = tmp_path / "db.sqlite3"
+    store = Store(path, cache_max_bytes=10**6, memory_cache_bytes=0)
+    for i in range(5):
+        store.put_result(f"k{i}", "simulation", _incompressible(i))
+    with store.engine.begin() as conn:  # an old writer: a row the totals do not know
+        conn.execute(
+            text("INSERT INTO results VALUES ('old', 'simulation', x'00', 1, 1.0, 1.0, 'identity')")
+        )
+    assert _stats(store) != _table_totals(store)
+    assert store.recount_results() == _table_totals(store) == _stats(store)
+
+
+@pytest.mark.slow  # a PostgreSQL cluster of its own (a few seconds)
+def test_running_total_is_exact_on_postgresql(postgres: str) -> None:
+    """Several replicas' stores (engines of their own) writing at once on PostgreSQL: the
+    totals' row lock serialises the writers that change sizes, so the total stays exact
+    (no lost update, no deadlock with evictions of rows another writer overwrites)."""
+    store = Store(postgres, cache_max_bytes=20_000, memory_cache_bytes=0)
+    with store.engine.begin() as conn:
+        conn.execute(text("DELETE FROM results"))
+    store.recount_results()
+    threads = [
+        threading.Thread(target=_write_many, args=(postgres, 20_000, w, 40)) for w in range(4)
+    ]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    size, rows = _table_totals(store)
+    assert _stats(store) == (size, rows) and rows > 0
+    assert size <= 20_000 + 3 * 450
+    assert store.healthy
+    store.close()

@@ -1,0 +1,114 @@
+"""The fast lane: small computations in a thread of the API process, with the same job
+record, lease, result and runtime limit as on a worker; switched off by a setting."""
+
+from __future__ import annotations
+
+import os
+import socket
+import time
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from pipeflow.schema.registry import COMPUTATIONS, estimate_simulation
+from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
+
+#: a closed-form (constant flow and spin) simulation: estimated at a few milliseconds
+LTI: dict[str, Any] = {**SMALL, "flow": {"velocity": {"kind": "constant", "value": 0.4}}}
+
+
+def _runner(c: TestClient) -> Any:
+    return c.app.state.runner  # type: ignore[attr-defined]
+
+
+@pytest.fixture(scope="module")
+def lane(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """One worker, the lane on (one thread) for estimates up to 0.5 s, a 1 s limit."""
+    with make_client(
+        tmp_path_factory.mktemp("lane"),
+        workers=1,
+        fast_lane_threads=1,
+        fast_lane_max_s=0.5,
+        job_timeout_s=1.0,
+        progress_interval_s=0.02,
+    ) as c:
+        wait_ready(c)
+        _runner(c).watchdog_grace_s = 0.3
+        yield c
+
+
+def test_the_simulation_estimate() -> None:
+    request = COMPUTATIONS["simulation"].request
+    lti = estimate_simulation(request.model_validate(LTI))
+    assert lti is not None and lti < 0.01
+    assert estimate_simulation(request.model_validate(SMALL)) is None  # time-variant
+    assert estimate_simulation(request.model_validate({**LTI, "method": "rk4"})) is None
+    big = estimate_simulation(
+        request.model_validate({**LTI, "modes": 40, "time": {"samples": 20001}})
+    )
+    assert big is not None and big > 0.05  # beyond the default fast_lane_max_s
+
+
+def test_a_small_computation_runs_in_the_lane_with_its_record(lane: TestClient) -> None:
+    runner = _runner(lane)
+    before = runner.lane_runs
+    resp = lane.post("/v1/simulations", json=LTI)
+    assert resp.status_code == 200 and resp.headers["x-cache"] == "MISS"
+    assert runner.lane_runs == before + 1
+    key = resp.json()["key"]
+    job = runner.store.get_job(key)
+    # the record as a worker leaves it: one attempt, its lease released, on this process
+    assert job.status == "succeeded" and job.attempts == 1 and job.owner is None
+    assert job.worker == f"{socket.gethostname()}:{os.getpid()}"
+    assert lane.post("/v1/simulations", json=LTI).headers["x-cache"] == "HIT"
+    # a time-variant run has no estimate: a worker runs it
+    assert lane.post("/v1/simulations", json=SMALL).status_code == 200
+    assert runner.lane_runs == before + 1
+    # a job (202) takes the lane too, and its result is stored
+    other = {**LTI, "initial": {"u0": 0.004}}
+    key = lane.post("/v1/jobs", json=other).json()["key"]
+    assert wait_job(lane, key)["status"] == "succeeded"
+    assert runner.lane_runs == before + 2
+    assert lane.get(f"/v1/results/{key}").status_code == 200
+
+
+def test_an_overrun_in_the_lane_fails_its_job_and_spares_the_process(lane: TestClient) -> None:
+    """A computation that never reports progress past the limit (1 s) plus grace: its job
+    fails with the reason (no SIGKILL of the API process); the lane's thread stays busy
+    until the computation returns, and new small work goes to a worker meanwhile."""
+    runner = _runner(lane)
+    before = runner.lane_runs
+    spec = {"seconds": 3.0, "report": False, "estimate_s": 0.01, "tag": "overrun"}
+    started = time.monotonic()
+    resp = lane.post("/test/sleep", json=spec)
+    assert resp.status_code == 422 and "runtime limit" in resp.text, resp.text
+    assert resp.headers["content-type"] == "application/problem+json"
+    assert time.monotonic() - started < 2.9  # answered when the job failed, not at the end
+    assert runner.lane_runs == before + 1
+    quick = lane.post("/test/sleep", json={"seconds": 0.01, "estimate_s": 0.01, "tag": "q"})
+    assert quick.status_code == 200
+    assert runner.lane_runs == before + 1  # the lane's one thread was busy: a worker ran it
+    deadline = time.monotonic() + 10
+    while runner._lane_busy and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert runner._lane_busy == 0
+    again = lane.post("/test/sleep", json={"seconds": 0.01, "estimate_s": 0.01, "tag": "r"})
+    assert again.status_code == 200 and runner.lane_runs == before + 2
+
+
+def test_the_lane_respects_the_cooperative_limit(lane: TestClient) -> None:
+    spec = {"seconds": 5.0, "estimate_s": 0.01, "tag": "coop"}
+    resp = lane.post("/test/sleep", json=spec)
+    assert resp.status_code == 422 and "runtime limit" in resp.text, resp.text
+
+
+def test_the_setting_turns_the_lane_off(tmp_path: Any) -> None:
+    with make_client(tmp_path, workers=1, fast_lane_threads=0) as c:
+        wait_ready(c)
+        resp = c.post("/v1/simulations", json={**LTI, "initial": {"u0": 0.003}})
+        assert resp.status_code == 200
+        runner = _runner(c)
+        assert runner.lane_runs == 0
+        job = runner.store.get_job(resp.json()["key"])
+        assert job.worker.startswith("tcp://")  # a Dask worker's address
