@@ -16,7 +16,6 @@ alike; the ratios are of medians over the same rounds.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import subprocess
 import sys
@@ -24,29 +23,17 @@ import tempfile
 import time
 from contextlib import ExitStack
 from pathlib import Path
-from typing import Any
 
 import httpx
 
 ROOT = Path(__file__).resolve().parents[1]
-# this tree's packages first (a checkout or worktree measures its own code)
-sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != ROOT / "benchmarks"]
+# this tree's packages first (a checkout or worktree measures its own code), then this
+# directory (bench_service)
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
+
+import bench_service as BENCH  # noqa: E402  (the server start-up, timers, section writer)
 
 from service.launch import answers, free_port, stop_group  # noqa: E402
-
-
-def _service_bench() -> Any:
-    """benchmarks/bench_service.py (the cases, the timers), loaded by path."""
-    path = ROOT / "benchmarks" / "bench_service.py"
-    spec = importlib.util.spec_from_file_location("pipeflow_bench_service", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-BENCH = _service_bench()
 
 
 def start(tree: Path, settings: dict[str, str], work: Path, stack: ExitStack) -> str:

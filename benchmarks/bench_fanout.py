@@ -30,7 +30,6 @@ eigenvectors at every point) computed here against 8 pieces on a 2-worker LocalC
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import multiprocessing
 import os
 import statistics
@@ -52,22 +51,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+import bench_service as BENCH  # noqa: E402  (the server start-up, timers, section writer)
+
 from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
 
-
-def _service_bench() -> Any:
-    """benchmarks/bench_service.py (its server start-up, machine line and section writer),
-    loaded by path: as a script's neighbour its name would shadow the ``service`` package."""
-    path = ROOT / "benchmarks" / "bench_service.py"
-    spec = importlib.util.spec_from_file_location("pipeflow_bench_service", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-BENCH = _service_bench()
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 TARGET = 1.6
 POLL_S = 0.02

@@ -32,7 +32,6 @@ RSS within 1.5x of idle) and writes a section to benchmarks/RESULTS.md.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import sys
 import tempfile
@@ -47,9 +46,11 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-# this tree's packages first (a checkout or worktree measures its own code), not this
-# directory
-sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != ROOT / "benchmarks"]
+# this tree's packages first (a checkout or worktree measures its own code), then this
+# directory (bench_service)
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
+
+import bench_service as BENCH  # noqa: E402  (the server start-up, timers, section writer)
 
 from pipeflow.model import build_model  # noqa: E402
 from pipeflow.paper import PAPER_PIPE  # noqa: E402
@@ -57,20 +58,6 @@ from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
 from pipeflow.schema.simulation import PAPER_EXAMPLE  # noqa: E402
 from pipeflow.schema.study import StudySpec  # noqa: E402
 
-
-def _service_bench() -> Any:
-    """benchmarks/bench_service.py (server start-up, RSS of a process tree, machine line,
-    section writer), loaded by path (its name would shadow the ``service`` package)."""
-    path = ROOT / "benchmarks" / "bench_service.py"
-    spec = importlib.util.spec_from_file_location("pipeflow_bench_service", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-BENCH = _service_bench()
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 HTTP_TARGET = 2.5
 RSS_TARGET = 1.5
