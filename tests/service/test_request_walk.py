@@ -71,7 +71,8 @@ def test_body_to_pipe_model_validates_once(tmp_path: Path, monkeypatch: pytest.M
     monkeypatch.setattr(schema.SimulationSpec, "canonical", counting_canonical)
     monkeypatch.setattr(simulation_module, "build_model", recording_build_model)
     body = {**SMALL, "modes": 2, "time": {"t_end": 0.05, "samples": 21}}
-    app: Any = create_app(Settings(data_dir=tmp_path, workers=1))
+    # no fast lane: its warm-up validates and runs requests of its own in this process
+    app: Any = create_app(Settings(data_dir=tmp_path, workers=1, fast_lane_threads=0))
 
     async def walk() -> httpx.Response:
         # one thread for the app (so the profiler sees it); the worker thread starts later
