@@ -12,7 +12,9 @@ a table of the peaks and the server's figures.  ``/studies`` (``studies.html``):
 ``POST /v1/studies`` (cases, grid or sampled parameters), the job's progress, the first rows
 of the table with its CSV/Parquet links, a histogram per numeric summary column with the mean
 and the 5/50/95 % quantiles marked, the probability of instability, and for saltelli studies
-the Sobol' indices S1 and ST per parameter with their confidence intervals.  The chart
+the Sobol' indices S1 and ST per parameter with their confidence intervals.  What the pages
+share (job polling with progress, share links, the examples chooser, tables, figures, error
+display) is ``pages.js``, loaded after ``schemaform.js`` and before each page's script.  The chart
 library is vendored (``service/static/uPlot.iife.min.js``, MIT, from the npm package
 ``uplot``), so the viewer works without internet access.  The assets are a fixed
 allow-list read from the package directory: no path from the request reaches the file
@@ -33,6 +35,7 @@ STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 ASSETS: dict[str, str] = {
     "viewer.js": "text/javascript; charset=utf-8",
     "schemaform.js": "text/javascript; charset=utf-8",
+    "pages.js": "text/javascript; charset=utf-8",
     "stability.js": "text/javascript; charset=utf-8",
     "frequency.js": "text/javascript; charset=utf-8",
     "studies.js": "text/javascript; charset=utf-8",

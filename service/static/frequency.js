@@ -11,6 +11,8 @@
 
 (function () {
   const SF = window.SchemaForm;
+  const P = window.PipeflowPages;
+  const { fmt, tick, finite, positive } = P;
   const form = document.getElementById("frf-form");
   const host = document.getElementById("fields");
   const runButton = document.getElementById("run");
@@ -21,20 +23,7 @@
   const state = { doc: null, schema: null, example: null, result: null, charts: {}, run: 0 };
   window.pipeflowFrequency = { state };
 
-  const fmt = (v, digits) => (v === null || v === undefined ? "—"
-    : typeof v === "number" ? (Number.isInteger(v) ? String(v) : +v.toPrecision(digits || 6) + "")
-      : String(v));
-
-  function tick(v) {
-    if (v === null || !Number.isFinite(v)) return "";
-    if (v === 0) return "0";
-    const a = Math.abs(v);
-    if (a >= 1e4 || a < 1e-2) return v.toExponential(1).replace("e+", "e");
-    return String(+v.toPrecision(6));
-  }
-
-  const positive = (values) => values.map((v) => (typeof v === "number" && Number.isFinite(v) && v > 0 ? v : null));
-  const finite = (values) => values.map((v) => (typeof v === "number" && Number.isFinite(v) ? v : null));
+  const page = P.page({ form, formError, status: statusEl, button: runButton, state, progress: null });
 
   // ---- the curves of a result -------------------------------------------------------------
 
@@ -77,7 +66,7 @@
     chartHost.dataset.scale = logY ? "log" : "linear";
     if (state.charts[id]) { state.charts[id].destroy(); delete state.charts[id]; }
     const r = state.result;
-    const width = Math.max(320, Math.min(chartHost.clientWidth || 900, 1000));
+    const width = P.chartWidth(chartHost, 900);
     const plot = new uPlot({
       width, height: 280,
       scales: { x: { time: false, distr: 3 }, y: logY ? { distr: 3 } : { auto: true } },
@@ -115,27 +104,6 @@
 
   // ---- tables, summary, figures ----------------------------------------------------------
 
-  function table(title, columns, rows) {
-    const wrap = document.createElement("div");
-    const h = document.createElement("h2");
-    h.textContent = title + " (" + rows.length + ")";
-    const t = document.createElement("table");
-    t.className = "data";
-    const head = t.createTHead().insertRow();
-    for (const [label] of columns) {
-      const th = document.createElement("th");
-      th.textContent = label;
-      head.appendChild(th);
-    }
-    const body = t.createTBody();
-    for (const row of rows) {
-      const tr = body.insertRow();
-      for (const [, get] of columns) tr.insertCell().textContent = fmt(get(row));
-    }
-    wrap.append(h, t);
-    return wrap;
-  }
-
   function render(r) {
     state.result = r;
     document.getElementById("results").hidden = false;
@@ -158,31 +126,15 @@
     r.positions.forEach((x, j) => columns.push(["|H(x = " + fmt(x) + " m)| [" + r.unit + "]", (k) => peakMagnitude(k, j)]));
     const tables = document.getElementById("tables");
     tables.textContent = "";
-    tables.appendChild(table("Peaks", columns, rows));
+    tables.appendChild(P.columnTable("Peaks", columns, rows));
     draw(r);
-    const plots = document.getElementById("plots");
-    plots.textContent = "";
-    for (const name of r.plots || []) {
-      const fig = document.createElement("figure");
-      const img = document.createElement("img");
-      const base = "v1/results/" + encodeURIComponent(r.key) + "/plots/" + name;
-      img.src = base + ".svg";
-      img.alt = name;
-      img.dataset.plot = name;
-      const cap = document.createElement("figcaption");
-      const a = document.createElement("a");
-      a.href = base + ".png";
-      a.textContent = name + " (PNG)";
-      cap.appendChild(a);
-      fig.append(img, cap);
-      plots.appendChild(fig);
-    }
+    P.figures(document.getElementById("plots"), r.key, r.plots);
     SF.showWarnings(document.getElementById("warnings"), r.warnings);
   }
 
   function share(key, spec) {
     SF.shareLink(document.getElementById("share-link"), { key, spec });
-    const base = "v1/results/" + encodeURIComponent(key);
+    const base = P.resultUrl(key);
     document.getElementById("json-link").href = base;
     document.getElementById("csv-frf").href = base + "?format=csv&table=frequency_response";
     document.getElementById("csv-peaks").href = base + "?format=csv&table=peaks";
@@ -250,32 +202,14 @@
 
   // ---- API calls -------------------------------------------------------------------------
 
-  async function fetchResult(key) {
-    const response = await fetch("v1/results/" + encodeURIComponent(key), { headers: { Accept: "application/json" } });
-    if (!response.ok) throw await SF.problemOf(response);
-    return await response.json();
+  function show(result, spec) {
+    render(result);
+    share(result.key, spec);
   }
 
-  async function run(event) {
+  function run(event) {
     if (event) event.preventDefault();
-    SF.clearErrors(form);
-    const spec = specFromForm();
-    const token = ++state.run;
-    runButton.disabled = true;
-    statusEl.textContent = "computing…";
-    try {
-      const answer = await SF.post(ENDPOINT, spec, form, formError);
-      if (!answer.ok) { statusEl.textContent = answer.title; return; }
-      if (token !== state.run) return;
-      render(answer.body);
-      share(answer.body.key, spec);
-      statusEl.textContent = "done (" + (answer.body.cached ? "cached" : "computed") + ")";
-    } catch (problem) {
-      statusEl.textContent = problem && problem.title !== undefined
-        ? SF.showProblem(form, problem, formError) : "error: " + String(problem && problem.message || problem);
-    } finally {
-      if (token === state.run) runButton.disabled = false;
-    }
+    return page.run({ endpoint: ENDPOINT, spec: specFromForm, job: false, busy: "computing…", show });
   }
 
   async function start() {
@@ -283,35 +217,13 @@
     const req = SF.requestSchema(state.doc, "/" + ENDPOINT);
     state.schema = req.schema;
     state.example = (req.examples.hammer || {}).value || (req.schema.examples || [])[0] || {};
-    const params = new URLSearchParams(window.location.search);
-    let spec = null;
-    if (params.get("spec")) {
-      try { spec = JSON.parse(params.get("spec")); } catch (e) { statusEl.textContent = "bad spec in link"; }
-    }
+    const link = page.link();
     SF.onNewItem("operating_points", newPoint);
-    const examples = document.getElementById("example");
-    examples.add(new Option("(as in the link)", ""));
-    for (const [name, ex] of Object.entries(req.examples)) {
-      examples.add(new Option(name + (ex.summary ? ": " + ex.summary : ""), name));
-    }
-    examples.value = spec ? "" : req.examples.hammer ? "hammer" : examples.value;
-    examples.addEventListener("change", () => {
-      const ex = req.examples[examples.value];
-      if (ex) fillForm(JSON.parse(JSON.stringify(ex.value)));
-    });
-    fillForm(spec || state.example);
+    P.examplesChooser(document.getElementById("example"), req.examples,
+      link.spec ? "" : req.examples.hammer ? "hammer" : "", fillForm);
+    fillForm(link.spec || state.example);
     runButton.disabled = false;
-    const key = params.get("key");
-    if (!key) return;
-    statusEl.textContent = "loading " + key.slice(0, 12) + "…";
-    try {
-      const result = await fetchResult(key);
-      render(result);
-      share(key, spec);
-      statusEl.textContent = "loaded result " + key.slice(0, 12) + "…";
-    } catch (problem) {
-      statusEl.textContent = SF.showProblem(form, problem, formError);
-    }
+    if (link.key) await page.open(link.key, (result) => show(result, link.spec));
   }
 
   form.addEventListener("submit", run);

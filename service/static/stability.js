@@ -7,6 +7,8 @@
 
 (function () {
   const SF = window.SchemaForm;
+  const P = window.PipeflowPages;
+  const { fmt } = P;
   const form = document.getElementById("stability-form");
   const host = document.getElementById("fields");
   const select = document.getElementById("analysis");
@@ -14,13 +16,10 @@
   const progressEl = document.getElementById("progress");
   const statusEl = document.getElementById("job-status");
   const formError = document.getElementById("form-error");
-  const POLL_MS = 250;
   const state = { doc: null, analyses: {}, analysis: null, key: null, result: null, history: [], run: 0 };
   window.pipeflowStability = { state };
 
-  const fmt = (v, digits) => (v === null || v === undefined ? "—"
-    : typeof v === "number" ? (Number.isInteger(v) ? String(v) : +v.toPrecision(digits || 6) + "")
-      : String(v));
+  const page = P.page({ form, formError, status: statusEl, button: runButton, state, progress: progressEl });
 
   // ---- analyses and their forms ---------------------------------------------------------
 
@@ -60,27 +59,7 @@
 
   // ---- results ---------------------------------------------------------------------------
 
-  function table(title, columns, rows) {
-    const wrap = document.createElement("div");
-    const h = document.createElement("h2");
-    h.textContent = title + " (" + rows.length + ")";
-    const t = document.createElement("table");
-    t.className = "data";
-    const head = t.createTHead().insertRow();
-    for (const [label] of columns) {
-      const th = document.createElement("th");
-      th.textContent = label;
-      head.appendChild(th);
-    }
-    const body = t.createTBody();
-    for (const r of rows) {
-      const tr = body.insertRow();
-      for (const [, get] of columns) tr.insertCell().textContent = fmt(get(r));
-    }
-    wrap.append(h, t);
-    wrap.dataset.rows = String(rows.length);
-    return wrap;
-  }
+  const table = P.columnTable;
 
   const VIEWS = {
     stability(r) {
@@ -177,113 +156,37 @@
     const tables = document.getElementById("tables");
     tables.textContent = "";
     for (const t of view.tables) tables.appendChild(t);
-    const plots = document.getElementById("plots");
-    plots.textContent = "";
-    for (const name of result.plots || []) {
-      const fig = document.createElement("figure");
-      const img = document.createElement("img");
-      const base = "v1/results/" + encodeURIComponent(result.key) + "/plots/" + name;
-      img.src = base + ".svg";
-      img.alt = name;
-      img.dataset.plot = name;
-      const cap = document.createElement("figcaption");
-      cap.innerHTML = "";
-      const a = document.createElement("a");
-      a.href = base + ".png";
-      a.textContent = name + " (PNG)";
-      cap.appendChild(a);
-      fig.append(img, cap);
-      plots.appendChild(fig);
-    }
+    P.figures(document.getElementById("plots"), result.key, result.plots);
     SF.showWarnings(document.getElementById("warnings"), result.warnings);
   }
 
   function share(key, spec) {
     SF.shareLink(document.getElementById("share-link"), { analysis: state.analysis, key, spec });
-    document.getElementById("json-link").href = "v1/results/" + encodeURIComponent(key);
+    document.getElementById("json-link").href = P.resultUrl(key);
   }
 
   // ---- API calls -------------------------------------------------------------------------
 
-  function showJob(job) {
-    state.history.push({ status: job.status, progress: job.progress });
-    progressEl.hidden = false;
-    progressEl.value = job.progress;
-    statusEl.textContent = job.status + " " + Math.round(100 * job.progress) + " %";
+  function show(result, spec) {
+    state.key = result.key;
+    render(result);
+    share(result.key, spec);
   }
 
-  async function fetchResult(key) {
-    const response = await fetch("v1/results/" + encodeURIComponent(key), { headers: { Accept: "application/json" } });
-    if (!response.ok) throw await SF.problemOf(response);
-    return await response.json();
-  }
-
-  async function follow(job, run) {
-    // poll the job until it is finished; a newer run stops this one
-    for (;;) {
-      if (run !== state.run) return null;
-      showJob(job);
-      if (job.status === "succeeded") return await fetchResult(job.key);
-      if (job.status === "failed" || job.status === "cancelled") throw job.error || { title: "job " + job.status };
-      await new Promise((r) => setTimeout(r, POLL_MS));
-      const response = await fetch("v1/jobs/" + encodeURIComponent(job.key));
-      if (!response.ok) throw await SF.problemOf(response);
-      job = await response.json();
-    }
-  }
-
-  async function run(event) {
+  function run(event) {
     if (event) event.preventDefault();
-    SF.clearErrors(form);
     const a = state.analyses[state.analysis];
-    const spec = specFromForm();
-    const token = ++state.run;
-    state.history = [];
-    runButton.disabled = true;
-    statusEl.textContent = "submitting…";
-    progressEl.hidden = !a.job;
-    progressEl.value = 0;
-    try {
-      const answer = await SF.post(a.endpoint, spec, form, formError);
-      if (!answer.ok) { statusEl.textContent = answer.title; return; }
-      const result = a.job ? await follow(answer.body, token) : answer.body;
-      if (!result) return;
-      state.key = result.key;
-      render(result);
-      share(result.key, spec);
-      statusEl.textContent = a.job ? "done (job " + result.key.slice(0, 12) + "…)"
-        : "done (" + (result.cached ? "cached" : "computed") + ")";
-    } catch (problem) {
-      statusEl.textContent = problem && problem.title !== undefined
-        ? SF.showProblem(form, problem, formError) : "error: " + String(problem && problem.message || problem);
-    } finally {
-      if (token === state.run) runButton.disabled = false;
-    }
+    return page.run({ endpoint: a.endpoint, spec: specFromForm, job: a.job, busy: "submitting…", show });
   }
 
   async function start() {
     state.doc = await (await fetch("openapi.json")).json();
     loadAnalyses(state.doc);
-    const params = new URLSearchParams(window.location.search);
-    const name = state.analyses[params.get("analysis")] ? params.get("analysis") : "stability";
-    let spec = null;
-    if (params.get("spec")) {
-      try { spec = JSON.parse(params.get("spec")); } catch (e) { statusEl.textContent = "bad spec in link"; }
-    }
-    showForm(name, spec);
+    const link = page.link();
+    const name = state.analyses[link.params.get("analysis")] ? link.params.get("analysis") : "stability";
+    showForm(name, link.spec);
     runButton.disabled = false;
-    const key = params.get("key");
-    if (!key) return;
-    statusEl.textContent = "loading " + key.slice(0, 12) + "…";
-    try {
-      const result = await fetchResult(key);
-      state.key = key;
-      render(result);
-      share(key, spec);
-      statusEl.textContent = "loaded result " + key.slice(0, 12) + "…";
-    } catch (problem) {
-      statusEl.textContent = SF.showProblem(form, problem, formError);
-    }
+    if (link.key) await page.open(link.key, (result) => show(result, link.spec));
   }
 
   form.addEventListener("submit", run);

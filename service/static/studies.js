@@ -13,6 +13,8 @@
 
 (function () {
   const SF = window.SchemaForm;
+  const P = window.PipeflowPages;
+  const { fmt, table } = P;
   const form = document.getElementById("study-form");
   const host = document.getElementById("fields");
   const runButton = document.getElementById("run");
@@ -20,7 +22,6 @@
   const statusEl = document.getElementById("job-status");
   const formError = document.getElementById("form-error");
   const ENDPOINT = "v1/studies";
-  const POLL_MS = 250;
   //: rows of the study's table shown on the page (the whole table: CSV / Parquet)
   const ROWS_SHOWN = 20;
   const BAR = "#4c78a8";
@@ -34,17 +35,9 @@
   const state = { doc: null, schema: null, key: null, result: null, history: [], charts: {}, run: 0 };
   window.pipeflowStudies = { state };
 
-  const fmt = (v, digits) => (v === null || v === undefined ? "—"
-    : typeof v === "number" ? (Number.isInteger(v) ? String(v) : +v.toPrecision(digits || 6) + "")
-      : String(v));
-
-  function tick(v) {
-    if (v === null || !Number.isFinite(v)) return "";
-    if (v === 0) return "0";
-    const a = Math.abs(v);
-    if (a >= 1e4 || a < 1e-2) return v.toExponential(2).replace("e+", "e").replace(/\.?0+e/, "e");
-    return String(+v.toPrecision(6));
-  }
+  const page = P.page({ form, formError, status: statusEl, button: runButton, state, progress: progressEl });
+  // axis ticks with two decimals in the exponent form (1.25e5, 2e-3)
+  const tick = P.tickFormat(2);
 
   const withUnit = (name, unit) => (unit ? name + " [" + unit + "]" : name);
 
@@ -270,37 +263,6 @@
     ]));
   }
 
-  // ---- tables ----------------------------------------------------------------------------
-
-  function table(title, headers, rows, note) {
-    const wrap = document.createElement("div");
-    const h = document.createElement("h2");
-    h.textContent = title;
-    const t = document.createElement("table");
-    t.className = "data";
-    const head = t.createTHead().insertRow();
-    for (const label of headers) {
-      const th = document.createElement("th");
-      th.textContent = label;
-      head.appendChild(th);
-    }
-    const body = t.createTBody();
-    for (const row of rows) {
-      const tr = body.insertRow();
-      for (const v of row) tr.insertCell().textContent = fmt(v);
-    }
-    wrap.append(h);
-    if (note) {
-      const p = document.createElement("p");
-      p.className = "note";
-      p.textContent = note;
-      wrap.append(p);
-    }
-    wrap.append(t);
-    wrap.dataset.rows = String(rows.length);
-    return wrap;
-  }
-
   // ---- the result ------------------------------------------------------------------------
 
   function unitOf(r, name) {
@@ -392,7 +354,7 @@
 
   function share(key, spec) {
     SF.shareLink(document.getElementById("share-link"), { key, spec });
-    const base = "v1/results/" + encodeURIComponent(key);
+    const base = P.resultUrl(key);
     document.getElementById("json-link").href = base;
     document.getElementById("csv-link").href = base + "?format=csv&table=study";
     document.getElementById("parquet-link").href = base + "?format=parquet&table=study";
@@ -401,78 +363,21 @@
 
   // ---- API calls -------------------------------------------------------------------------
 
-  function showJob(job) {
-    state.history.push({ status: job.status, progress: job.progress });
-    progressEl.hidden = false;
-    progressEl.value = job.progress;
-    statusEl.textContent = job.status + " " + Math.round(100 * job.progress) + " %";
+  function show(result, spec) {
+    state.key = result.key;
+    render(result);
+    share(result.key, spec);
   }
 
-  async function fetchResult(key) {
-    const response = await fetch("v1/results/" + encodeURIComponent(key), { headers: { Accept: "application/json" } });
-    if (!response.ok) throw await SF.problemOf(response);
-    return await response.json();
-  }
-
-  async function follow(job, run) {
-    // poll the job until it is finished; a newer run stops this one
-    for (;;) {
-      if (run !== state.run) return null;
-      showJob(job);
-      if (job.status === "succeeded") return await fetchResult(job.key);
-      if (job.status === "failed" || job.status === "cancelled") throw job.error || { title: "job " + job.status };
-      await new Promise((r) => setTimeout(r, POLL_MS));
-      const response = await fetch("v1/jobs/" + encodeURIComponent(job.key), { headers: { Accept: "application/json" } });
-      if (!response.ok) throw await SF.problemOf(response);
-      job = await response.json();
-    }
-  }
-
-  async function run(event) {
+  function run(event) {
     if (event) event.preventDefault();
-    SF.clearErrors(form);
-    const spec = SF.collect(host, state.doc, state.schema);
-    const token = ++state.run;
-    state.history = [];
-    runButton.disabled = true;
-    statusEl.textContent = "submitting…";
-    progressEl.hidden = false;
-    progressEl.value = 0;
-    try {
-      const answer = await SF.post(ENDPOINT, spec, form, formError);
-      if (!answer.ok) { statusEl.textContent = answer.title; return; }
-      const result = await follow(answer.body, token);
-      if (!result) return;
-      state.key = result.key;
-      render(result);
-      share(result.key, spec);
-      statusEl.textContent = "done (job " + result.key.slice(0, 12) + "…)";
-    } catch (problem) {
-      statusEl.textContent = problem && problem.title !== undefined
-        ? SF.showProblem(form, problem, formError) : "error: " + String(problem && problem.message || problem);
-    } finally {
-      if (token === state.run) runButton.disabled = false;
-    }
+    const spec = () => SF.collect(host, state.doc, state.schema);
+    return page.run({ endpoint: ENDPOINT, spec, job: true, busy: "submitting…", show });
   }
 
-  async function open(key, spec) {
+  function open(key, spec) {
     // a study by key: its job followed while it runs (a stored result has no job: loaded)
-    const token = ++state.run;
-    state.history = [];
-    SF.clearErrors(form);
-    statusEl.textContent = "loading " + key.slice(0, 12) + "…";
-    try {
-      const response = await fetch("v1/jobs/" + encodeURIComponent(key), { headers: { Accept: "application/json" } });
-      const result = response.ok ? await follow(await response.json(), token) : await fetchResult(key);
-      if (!result) return;
-      state.key = key;
-      render(result);
-      share(key, spec);
-      statusEl.textContent = "loaded result " + key.slice(0, 12) + "…";
-    } catch (problem) {
-      statusEl.textContent = problem && problem.title !== undefined
-        ? SF.showProblem(form, problem, formError) : "error: " + String(problem && problem.message || problem);
-    }
+    return page.open(key, (result) => show(result, spec), true);
   }
 
   async function start() {
@@ -480,32 +385,19 @@
     const req = SF.requestSchema(state.doc, "/" + ENDPOINT);
     state.schema = req.schema;
     const examples = Object.assign({}, req.examples, PAGE_EXAMPLES);
-    const params = new URLSearchParams(window.location.search);
-    let spec = null;
-    if (params.get("spec")) {
-      try { spec = JSON.parse(params.get("spec")); } catch (e) { statusEl.textContent = "bad spec in link"; }
-    }
-    const select = document.getElementById("example");
-    select.add(new Option("(as in the link)", ""));
-    for (const [name, ex] of Object.entries(examples)) {
-      const page = PAGE_EXAMPLES[name] ? " (this page)" : "";
-      select.add(new Option(name + (ex.summary ? ": " + ex.summary : "") + page, name));
-    }
+    const link = page.link();
     const first = Object.keys(req.examples)[0] || "monte_carlo";
-    select.value = spec ? "" : first;
-    select.addEventListener("change", () => {
-      const ex = examples[select.value];
-      if (ex) SF.render(host, state.doc, state.schema, JSON.parse(JSON.stringify(ex.value)));
-    });
-    SF.render(host, state.doc, state.schema, spec || JSON.parse(JSON.stringify(examples[first].value)));
+    const fill = (values) => SF.render(host, state.doc, state.schema, values);
+    P.examplesChooser(document.getElementById("example"), examples, link.spec ? "" : first, fill,
+      (name) => (PAGE_EXAMPLES[name] ? " (this page)" : ""));
+    fill(link.spec || JSON.parse(JSON.stringify(examples[first].value)));
     runButton.disabled = false;
     const keyInput = document.getElementById("open-key");
     document.getElementById("open").addEventListener("click", () => {
       const key = keyInput.value.trim();
       if (key) open(key, null);
     });
-    const key = params.get("key");
-    if (key) await open(key, spec);
+    if (link.key) await open(link.key, link.spec);
   }
 
   form.addEventListener("submit", run);

@@ -8,19 +8,19 @@
 "use strict";
 
 (function () {
-  const API = {
-    simulate: "v1/simulations",
-    result: (key) => "v1/results/" + encodeURIComponent(key),
-  };
   const SF = window.SchemaForm;
+  const P = window.PipeflowPages;
+  const { tick, finite } = P;
+  const API = { simulate: "v1/simulations", result: P.resultUrl };
   const form = document.getElementById("spec-form");
   const host = document.getElementById("fields");
   const statusEl = document.getElementById("status");
   const runButton = document.getElementById("run");
   const formError = document.getElementById("form-error");
   const charts = {};
-  const state = { result: null, key: null, doc: null, schema: null };
+  const state = { result: null, key: null, doc: null, schema: null, run: 0 };
   window.pipeflowViewer = { charts, state };
+  const page = P.page({ form, formError, status: statusEl, button: runButton, state, progress: null });
 
   // ---- the form, from the schema --------------------------------------------------------
 
@@ -38,21 +38,6 @@
   // ---- charts ----------------------------------------------------------------------------
 
   const COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"];
-
-  function finite(values) {
-    // uPlot needs null where a value is missing or not a finite number (overflow)
-    return values.map((v) => (typeof v === "number" && Number.isFinite(v) ? v : null));
-  }
-
-  function tick(v) {
-    // labels that stay short and readable from 1e-9 to 1e300 (the exponent form beyond
-    // 1e4 and below 1e-2), never "Infinity" or a 300-digit number
-    if (v === null || !Number.isFinite(v)) return "";
-    if (v === 0) return "0";
-    const a = Math.abs(v);
-    if (a >= 1e4 || a < 1e-2) return v.toExponential(1).replace("e+", "e");
-    return String(+v.toPrecision(6));
-  }
 
   // The symmetric-log (asinh) tip scale: the data are drawn as asinh(u / u_lin) on a
   // linear axis (u_lin: the initial tip amplitude, below which the axis is linear), with
@@ -81,7 +66,7 @@
   function drawChart(id, xLabel, yLabel, x, series, log) {
     const chartHost = document.getElementById(id);
     if (charts[id]) { charts[id].destroy(); delete charts[id]; }
-    const width = Math.max(320, Math.min(chartHost.clientWidth || 800, 1000));
+    const width = P.chartWidth(chartHost, 800);
     const label = (y) => tick(log ? log.back(y) : y);
     const yAxis = { label: log ? yLabel + " (sym. log)" : yLabel, size: 80, values: (u, splits) => splits.map(label) };
     if (log) yAxis.splits = log.splits;
@@ -292,35 +277,21 @@
     const doc = await (await fetch("openapi.json")).json();
     state.doc = doc;
     state.schema = SF.requestSchema(doc, "/v1/simulations").schema;
-    const params = new URLSearchParams(window.location.search);
-    let spec = null;
-    if (params.get("spec")) {
-      try { spec = JSON.parse(params.get("spec")); } catch (e) {
-        spec = null;
-        statusEl.textContent = "bad spec in link";
-      }
-    }
+    const link = page.link();
     // a new load: a point force at the tip (x = pipe.L as typed), harmonic, to be filled in
     SF.onNewItem("loads", (current) => (current.length ? current[current.length - 1] : {
       kind: "point_force",
       position: Number((form.querySelector("input[name='pipe.L']") || {}).value) || undefined,
       force: { kind: "harmonic" },
     }));
-    SF.render(host, doc, state.schema, spec || initialValues(state.schema));
+    SF.render(host, doc, state.schema, link.spec || initialValues(state.schema));
     runButton.disabled = false;
-    const key = params.get("key");
-    if (!key) return;
-    statusEl.textContent = "loading " + key.slice(0, 12) + "…";
-    const response = await fetch(API.result(key), { headers: { Accept: "application/json" } });
-    if (!response.ok) {
-      statusEl.textContent = SF.showProblem(form, await SF.problemOf(response), formError);
-      return;
-    }
-    const result = await response.json();
-    state.key = key;
-    render(result);
-    share(key, spec);
-    statusEl.textContent = "loaded result " + key.slice(0, 12) + "…";
+    if (!link.key) return;
+    await page.open(link.key, (result) => {
+      state.key = result.key;
+      render(result);
+      share(result.key, link.spec);
+    });
   }
 
   form.addEventListener("submit", run);

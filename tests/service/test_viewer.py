@@ -37,13 +37,34 @@ def tc(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
 @pytest.mark.parametrize(
     ("path", "scripts"),
     [
-        ("/", ["static/uPlot.iife.min.js", "static/schemaform.js", "static/viewer.js"]),
-        ("/stability", ["static/schemaform.js", "static/stability.js"]),
+        (
+            "/",
+            [
+                "static/uPlot.iife.min.js",
+                "static/schemaform.js",
+                "static/pages.js",
+                "static/viewer.js",
+            ],
+        ),
+        ("/stability", ["static/schemaform.js", "static/pages.js", "static/stability.js"]),
         (
             "/frequency-response",
-            ["static/uPlot.iife.min.js", "static/schemaform.js", "static/frequency.js"],
+            [
+                "static/uPlot.iife.min.js",
+                "static/schemaform.js",
+                "static/pages.js",
+                "static/frequency.js",
+            ],
         ),
-        ("/studies", ["static/uPlot.iife.min.js", "static/schemaform.js", "static/studies.js"]),
+        (
+            "/studies",
+            [
+                "static/uPlot.iife.min.js",
+                "static/schemaform.js",
+                "static/pages.js",
+                "static/studies.js",
+            ],
+        ),
     ],
 )
 def test_pages_build_their_forms_from_the_schema(tc: Any, path: str, scripts: list[str]) -> None:
