@@ -285,7 +285,7 @@ SIMULATION = register(
         run=run_simulation,
         budget=f"time.samples x (2 + output positions + 2 x modes with output.modal) + "
         "eigenvalue times x (4 + 6 x output.eigen_modes) + the mode shapes <= "
-        f"{MAX_OUTPUT_VALUES:,} numbers in the answer (about 40 MB of JSON; refused at "
+        f"{MAX_OUTPUT_VALUES:,} numbers in the answer (about 45 MB of JSON; refused at "
         "validation, naming time.samples and the most samples that fit); the solver refuses "
         "runs over options.max_steps steps",
         estimate=SimulationSpec.cost,
