@@ -33,6 +33,7 @@ skew-symmetric (perfectly conditioned eigenvectors).
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
@@ -114,6 +115,7 @@ class Pipe:
                 raise ValueError(f"pipe.{name} must be finite and >= 0, got {val}")
         if self.plane not in PLANES:
             raise ValueError(f"unknown plane {self.plane!r}; use one of {', '.join(PLANES)}")
+        check_stiffness(self.E, self.I)
 
     @property
     def in_plane(self) -> bool:
@@ -522,6 +524,27 @@ class PipeModel:
         d0[0] = u0 * scale
         v0[0] = du0 * scale
         return d0, v0
+
+
+#: the smallest bending stiffness E I [N m^2] a pipe may have: the smallest normal double.
+#: Below it the product underflows (E = I = 1e-200 Pa, m^4 gives 0): the model has no
+#: stiffness, and every method, the spectra and the frequency response would divide by zero
+MIN_BENDING_STIFFNESS = sys.float_info.min
+
+
+def check_stiffness(E: float, I: float) -> None:
+    """Refuse an ``E`` and ``I`` whose product, the bending stiffness, underflows double
+    precision (:data:`MIN_BENDING_STIFFNESS`): the one check every pipe passes (the
+    library's :class:`Pipe`, the request's pipe), so every method and analysis refuses it
+    alike (:class:`~pipeflow.errors.InvalidInput` naming ``E``)."""
+    EI = E * I
+    if not EI >= MIN_BENDING_STIFFNESS:
+        raise InvalidInput(
+            f"E x I = {E:g} Pa x {I:g} m^4 = {EI:g} N m^2 is below {MIN_BENDING_STIFFNESS:.4g} "
+            "N m^2, the smallest bending stiffness double precision holds (the product "
+            "underflows): raise pipe.E or pipe.I",
+            "E",
+        )
 
 
 #: the largest condition number of the mass matrix accepted: the solves with M then keep

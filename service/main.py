@@ -7,6 +7,7 @@ variables ``PIPEFLOW_*``); the module-level ``app`` uses the environment's setti
 from __future__ import annotations
 
 import asyncio
+import inspect
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -27,6 +28,15 @@ from service.settings import Settings, get_settings
 from service.store import Store, StoreRefused
 
 log = logging.getLogger("service")
+
+#: a body without Content-Type is read as JSON (the README; the hit fast path and
+#: :func:`service.http.negotiation.json_declared` do): FastAPI releases that have
+#: ``strict_content_type`` refuse such a body as not JSON unless told otherwise
+LENIENT_CONTENT_TYPE: dict[str, Any] = (
+    {"strict_content_type": False}
+    if "strict_content_type" in inspect.signature(FastAPI.__init__).parameters
+    else {}
+)
 
 DESCRIPTION = """\
 Vibration of a rotating cantilevered pipe conveying fluid with time-varying flow
@@ -70,6 +80,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,  # served offline by service.routes.docs
         redoc_url=None,
+        **LENIENT_CONTENT_TYPE,
     )
     app.state.settings = settings
     app.state.hits = HitCache(settings.hit_cache_bytes)

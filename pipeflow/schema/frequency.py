@@ -39,7 +39,7 @@ from pipeflow.frequency import (
     resonances,
 )
 from pipeflow.paper import PAPER_PIPE_JSON
-from pipeflow.schema.simulation import PipeSpec, StrictModel
+from pipeflow.schema.simulation import Cost, PipeSpec, StrictModel
 from pipeflow.schema.stability import (
     MAX_SPEED,
     MAX_SPIN,
@@ -61,6 +61,8 @@ POINTS_PER_RESONANCE = 3
 #: library parameter -> request field (pipeflow.frequency's names)
 FREQUENCY_FIELDS: dict[str, str] = {
     "pipe": "pipe",
+    "E": "pipe.E",
+    "I": "pipe.I",
     "tip_mass": "pipe.tip_mass",
     "tip_inertia": "pipe.tip_inertia",
     "velocity": "operating_points",
@@ -306,8 +308,8 @@ class FrequencyResponseSpec(_Mounted):
                 f"load.position = {self.load.position} m is outside (0, L = {L} m]",
                 "load.position",
             )
-        self._check_work()
-        return self
+        self._check_frequencies()
+        return self.within_budget()
 
     def points(self) -> list[tuple[float, float]]:
         """The operating points (v [m/s], w0 [rad/s]), in order."""
@@ -323,7 +325,7 @@ class FrequencyResponseSpec(_Mounted):
             return len(f.values)
         return f.count + POINTS_PER_RESONANCE * self.modes * len(self.points())
 
-    def _check_work(self) -> None:
+    def _check_frequencies(self) -> None:
         f = self.frequencies
         where = "frequencies.values" if f.values is not None else "frequencies.count"
         n_freq = self.frequency_bound()
@@ -334,14 +336,31 @@ class FrequencyResponseSpec(_Mounted):
                 "count, modes or the number of operating points",
                 where,
             )
-        work = len(self.response.positions) * n_freq * len(self.points())
-        if work > MAX_FRF_VALUES:
-            raise InvalidField(
-                f"positions x frequencies x operating points = {len(self.response.positions)}"
-                f" x {n_freq} x {len(self.points())} = {work} values, over the bound "
-                f"{MAX_FRF_VALUES:,}: ask for fewer frequencies, positions or points",
-                where,
-            )
+
+    def cost(self) -> Cost:
+        """The numbers H of the answer: positions x frequencies (:meth:`frequency_bound`)
+        x operating points against :data:`MAX_FRF_VALUES`, naming the frequencies."""
+        f = self.frequencies
+        where = "frequencies.values" if f.values is not None else "frequencies.count"
+        positions, points = len(self.response.positions), len(self.points())
+        n_freq = self.frequency_bound()
+        per_frequency = max(1, positions * points)
+        if f.values is not None:
+            advice = f"at most {MAX_FRF_VALUES // per_frequency} frequencies"
+        else:
+            extra = POINTS_PER_RESONANCE * self.modes * points
+            advice = f"count at most {MAX_FRF_VALUES // per_frequency - extra}"
+        return Cost(
+            units=positions * n_freq * points,
+            bound=MAX_FRF_VALUES,
+            unit="values",
+            fields=(where, "response.positions", "operating_points"),
+            terms=f"{positions} response.positions x {n_freq} frequencies x {points} "
+            "operating points",
+            budget="response budget",
+            advice=f"{advice} with these positions and operating points (or fewer positions "
+            "or points)",
+        )
 
     def canonical(self) -> dict[str, Any]:
         """One shape for the cache key: the operating points always as a list, the hub

@@ -38,15 +38,23 @@ from pipeflow.schema import frequency as f
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
 from pipeflow.schema.simulation import (
+    MAX_OUTPUT_VALUES,
     PAPER_EXAMPLE,
     SIMULATION_FIELDS,
     CompareSpec,
+    Cost,
     SimulationSpec,
     request_field,
 )
 from pipeflow.schema.simulation import run_simulation as simulate_request
 from pipeflow.schema.stability import STABILITY_FIELDS
-from pipeflow.schema.study import MAX_CASES, STABILITY_STUDY_EXAMPLE, STUDY_EXAMPLE, StudySpec
+from pipeflow.schema.study import (
+    MAX_CASES,
+    MAX_STUDY_REQUESTS,
+    STABILITY_STUDY_EXAMPLE,
+    STUDY_EXAMPLE,
+    StudySpec,
+)
 from pipeflow.schema.study_runner import Column, run_study
 from pipeflow.simulation import Simulation
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
@@ -70,6 +78,12 @@ class Computation:
     examples: Mapping[str, dict[str, Any]] = field(default_factory=dict)
     #: library parameter name -> request field (JSON path); unnamed ones map to themselves
     fields: Mapping[str, str] = field(default_factory=dict)
+    #: the request's estimated cost against its bound (units, bound, the fields that set
+    #: it: :class:`~pipeflow.schema.simulation.Cost`), the request model's own
+    #: :meth:`~pipeflow.schema.simulation.StrictModel.cost`; the model's validation refuses
+    #: a request over it (:meth:`~pipeflow.schema.simulation.StrictModel.within_budget`), so
+    #: the library call, the command line and the service refuse it alike
+    estimate: Callable[[Any], Cost | None] | None = None
     #: validation too costly for model validation (run by :func:`parse`, in a thread by the
     #: service before it accepts the request; raises ValidationError naming the field)
     check: Callable[[Any], None] | None = None
@@ -295,7 +309,12 @@ SIMULATION = register(
         request=SimulationSpec,
         response=r.SimulationResponse,
         run=run_simulation,
-        budget="the solver refuses runs over options.max_steps steps",
+        budget=f"time.samples x (2 + output positions + 2 x modes with output.modal) + "
+        "eigenvalue times x (4 + 6 x output.eigen_modes) + the mode shapes <= "
+        f"{MAX_OUTPUT_VALUES:,} numbers in the answer (about 45 MB of JSON; refused at "
+        "validation, naming time.samples and the most samples that fit); the solver refuses "
+        "runs over options.max_steps steps",
+        estimate=SimulationSpec.cost,
         plots=(
             "tip_displacement",
             "damping",
@@ -333,7 +352,9 @@ COMPARE = register(
         request=CompareSpec,
         response=r.CompareResponse,
         run=run_compare,
-        budget=f"one simulation's bound per method, at most {MAX_METHODS} methods",
+        budget=f"at most {MAX_METHODS} methods; methods x the simulation's numbers <= "
+        f"{MAX_OUTPUT_VALUES:,} (each method's run is held until the comparison is written)",
+        estimate=CompareSpec.cost,
         examples={
             "paper": {
                 "summary": "The paper's v = 0.4 t case with cma, magnus and rk4",
@@ -404,7 +425,9 @@ STABILITY = register(
         request=s.StabilitySpec,
         response=r.StabilityResponse,
         run=run_analysis,
-        budget="one frozen spectrum per point",
+        budget=f"one frozen spectrum per point: points x (2 modes)^3 <= {MAX_MAP_WORK:g} "
+        "(spectrum work)",
+        estimate=s.StabilitySpec.cost,
         examples={
             "paper": {
                 "summary": "The paper's pipe at w0 = 100 rad/s, v from 0 to 60 m/s, 10 modes",
@@ -442,6 +465,7 @@ def _sweep(
             response=response,
             run=run_analysis,
             budget=budget,
+            estimate=model.cost,
             plots=plots,
             examples={name: {"summary": summary, "value": {"kind": name, **example}}},
             fields=STABILITY_FIELDS,
@@ -452,7 +476,8 @@ def _sweep(
 ARGAND = _sweep(
     s.ArgandSweep,
     r.SweepResponse,
-    "one frozen spectrum per point, at most max_points (4 x points) after refinement",
+    "one frozen spectrum per point, at most max_points (4 x points) after refinement: "
+    f"max_points x (2 modes)^3 <= {MAX_MAP_WORK:g} (spectrum work)",
     ("argand", "sweep_frequency", "sweep_damping"),
     "Argand diagram: the paper's pipe, v from 0 to 60 m/s at w0 = 100 rad/s",
     {
@@ -467,7 +492,8 @@ ARGAND = _sweep(
 CAMPBELL = _sweep(
     s.CampbellSweep,
     r.SweepResponse,
-    "one frozen spectrum per point, at most max_points (4 x points) after refinement",
+    "one frozen spectrum per point, at most max_points (4 x points) after refinement: "
+    f"max_points x (2 modes)^3 <= {MAX_MAP_WORK:g} (spectrum work)",
     ("argand", "campbell", "sweep_frequency", "sweep_damping"),
     "Campbell diagram: the paper's pipe, w0 from 0 to 2000 rad/s at v = 10 m/s",
     {
@@ -519,7 +545,8 @@ RESONANCE_CHART = _sweep(
 FLOQUET = _sweep(
     s.FloquetSweep,
     r.FloquetResponse,
-    f"one monodromy matrix over the common period, at most {MAX_STEPS} Magnus steps",
+    "one monodromy matrix over the common period: Magnus steps x (2 modes)^3 <= "
+    f"{MAX_CHART_WORK:g} (chart work), at most {MAX_STEPS} steps",
     ("floquet_multipliers",),
     "Floquet multipliers: the paper's pipe with v = 10 + 5 sin(1000 t) m/s",
     {
@@ -550,6 +577,7 @@ FREQUENCY_RESPONSE = register(
         request=f.FrequencyResponseSpec,
         response=r.FrequencyResponseResponse,
         run=run_analysis,
+        estimate=f.FrequencyResponseSpec.cost,
         budget=f"response.positions x frequencies x operating points <= {f.MAX_FRF_VALUES:,} "
         f"values, frequencies being the list's length or count + 3 x modes x operating points "
         f"for a range (at most {MAX_FREQUENCIES}); one eigen-decomposition per operating point "
@@ -587,7 +615,10 @@ STUDY = register(
         run=run_study_request,
         budget=f"at most {MAX_CASES} cases (the list's length or the grid's product), each "
         f"bounded as its base computation is (simulation: {SIMULATION.cost}; stability: "
-        f"{STABILITY.cost}): at most {MAX_CASES} times the base's bound",
+        f"{STABILITY.cost}); cases x the estimate of the costliest case (the base with each "
+        f"overridden count at its largest value) <= {MAX_STUDY_REQUESTS} times the base's "
+        "bound",
+        estimate=StudySpec.cost,
         tables=("study",),
         check=StudySpec.check,
         examples={

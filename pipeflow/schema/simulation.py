@@ -14,9 +14,16 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
-from typing import Annotated, Any, Literal
+from contextvars import ContextVar
+from typing import Annotated, Any, Literal, Self
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_validator,
+)
 
 from pipeflow import paper, profiles
 from pipeflow._types import Progress
@@ -24,7 +31,7 @@ from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import InvalidField, PipeflowError
 from pipeflow.loads import MAX_LOADS, BaseAcceleration, DistributedForce, Load, PointForce
-from pipeflow.model import Pipe
+from pipeflow.model import Pipe, check_stiffness
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -40,6 +47,12 @@ MAX_TABLE_POINTS = 10_000
 MAX_POSITIONS = 64
 MAX_EIGEN_SAMPLES = 2001
 MAX_POLY_DEGREE = 8
+#: the most numbers one simulation's answer may hold (output times x series, eigenvalue
+#: traces, mode shapes: :meth:`SimulationSpec.cost`): about 45 MB of JSON (measured: 1.8
+#: million numbers, 200,001 samples x 7 positions, were 41 MB, 13 s and a 274 MB peak of
+#: the process; 200,001 samples x 145 series, 29 million numbers, had taken 2.7 GB and
+#: stored a 299 MB row); a comparison holds one run per method, so its methods share it
+MAX_OUTPUT_VALUES = 2_000_000
 #: bounds on profile values (m/s for v, rad/s for w0) and on total mass per length [kg/m]
 MAX_PROFILE_VALUE = 1e7
 MAX_COEFFICIENT = 1e9
@@ -72,6 +85,8 @@ Plane = Annotated[
 #: comes from; the one place where library error names become JSON paths
 SIMULATION_FIELDS: dict[str, str] = {
     "pipe": "pipe",
+    "E": "pipe.E",
+    "I": "pipe.I",
     "tip_mass": "pipe.tip_mass",
     "tip_inertia": "pipe.tip_inertia",
     "flow": "flow.velocity",
@@ -140,6 +155,64 @@ class StrictModel(BaseModel):
         """Normalised JSON form (every default filled in) that the cache key is computed from."""
         return self.model_dump(mode="json")
 
+    def cost(self) -> Cost | None:
+        """The request's estimated cost against its bound (None: a part of a request).
+        Every request model ends its validation with :meth:`within_budget`, which refuses
+        it when the estimate exceeds the bound; the registry gives it as each entry's
+        :attr:`~pipeflow.schema.registry.Computation.estimate`."""
+        return None
+
+    def within_budget(self) -> Self:
+        """The one cost check of every request kind, run last by its model's validator
+        (after the model's own rules, so :meth:`cost` reads a consistent request): a
+        request whose :meth:`cost` exceeds its bound is refused naming the field and the
+        largest value that fits, before anything runs (the library call, the command line
+        and the service validate alike).  Skipped inside :func:`costs_unchecked`."""
+        if _SKIP_COST.get():
+            return self
+        cost = self.cost()
+        if cost is not None and cost.units > cost.bound:
+            raise InvalidField(cost.message(), cost.fields[0])
+        return self
+
+
+_SKIP_COST: ContextVar[bool] = ContextVar("pipeflow_skip_cost", default=False)
+
+
+@contextmanager
+def costs_unchecked() -> Iterator[None]:
+    """Validate without the cost check inside (an estimate of a worst case, not a request
+    to run: :meth:`pipeflow.schema.study.StudySpec.cost`)."""
+    token = _SKIP_COST.set(True)
+    try:
+        yield
+    finally:
+        _SKIP_COST.reset(token)
+
+
+@dataclasses.dataclass(frozen=True)
+class Cost:
+    """A request's estimated cost: ``units`` (counted as ``terms`` says) against ``bound``.
+
+    ``fields``: the request fields that set it, the first being the one a refusal names;
+    ``budget``: the bound's name; ``advice``: what fits (the largest value of the first
+    field with the others as given)."""
+
+    units: int
+    bound: int
+    unit: str
+    fields: tuple[str, ...]
+    terms: str
+    budget: str
+    advice: str
+
+    def message(self) -> str:
+        """The refusal: the fields, the count, the bound and what fits."""
+        return (
+            f"{self.fields[0]}: {self.terms} = {self.units:,} {self.unit} exceeds the "
+            f"{self.budget} of {self.bound:,} {self.unit}; {self.advice}"
+        )
+
 
 class DampingSpec(StrictModel):
     """Damping of the pipe (issue 14): internal (Kelvin-Voigt) and external viscous."""
@@ -199,6 +272,10 @@ class PipeSpec(StrictModel):
     def _mass(self) -> PipeSpec:
         if self.M1 + self.M2 < MIN_MASS:
             raise InvalidField(f"M1 + M2 must be >= {MIN_MASS:g} kg/m", "M1")
+        try:
+            check_stiffness(self.E, self.I)
+        except PipeflowError as exc:
+            raise InvalidField(exc.message, exc.parameter) from None
         return self
 
     def to_pipe(self, hub_radius: float = 0.0, plane: str = "in-plane") -> Pipe:
@@ -579,7 +656,7 @@ class SimulationSpec(StrictModel):
                     f"{name}: the table ends at {prof.t[-1]} s, before time.t_end", name
                 )
         self._check_loads()
-        return self
+        return self.within_budget()
 
     def _check_loads(self) -> None:
         """Stations against the pipe's length, spans ordered, tables covering t_end; the
@@ -611,6 +688,40 @@ class SimulationSpec(StrictModel):
                 raise InvalidField(
                     f"{where}: the table ends at {prof.t[-1]} s, before time.t_end", where
                 )
+
+    def output_values(self) -> tuple[int, int, int, str]:
+        """The numbers of the answer (:func:`pipeflow.schema.documents.simulation`), an upper
+        bound: ``(per output time, eigenvalue and mode-shape numbers, total, terms)``.
+
+        Per output time: t, the tip, each output position and, with ``output.modal``, d and
+        d' of each mode.  Per eigenvalue time (``min(eigen_samples, samples)``): t twice,
+        the fundamental's sigma and omega, and sigma, omega and confidence of each traced
+        branch in the frozen spectrum and in the CMA exponents.  Mode shapes: t, x and per
+        branch (eigen_modes + 1 at most) sigma and omega per time and the real and
+        imaginary parts per time and station."""
+        samples = self.time.samples
+        branches = min(self.output.eigen_modes, self.modes)
+        per_sample = 2 + len(self.output.positions) + (2 * self.modes if self.output.modal else 0)
+        eigen_times = max(2, min(self.output.eigen_samples, samples))
+        fixed = eigen_times * (4 + 6 * branches)
+        shapes = self.output.mode_shapes
+        if shapes is not None:
+            times, points = len(shapes.times), shapes.points
+            fixed += times + points + (branches + 1) * times * (2 + 2 * points)
+        terms = f"{samples} samples x (2 + {len(self.output.positions)} positions"
+        if self.output.modal:
+            terms += f" + 2 x {self.modes} modes (output.modal)"
+        terms += f") + {eigen_times} eigenvalue times x (4 + 6 x {branches} output.eigen_modes)"
+        if shapes is not None:
+            terms += " + the mode shapes"
+        return per_sample, fixed, samples * per_sample + fixed, terms
+
+    def cost(self) -> Cost:
+        """The numbers of the answer (:meth:`output_values`) against
+        :data:`MAX_OUTPUT_VALUES`, naming ``time.samples`` (and the largest count that fits
+        with these outputs)."""
+        per_sample, fixed, units, terms = self.output_values()
+        return _output_cost(units, per_sample, fixed, terms, 1, "")
 
     def to_simulation(self) -> Simulation:
         """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
@@ -645,6 +756,31 @@ class SimulationSpec(StrictModel):
         if not data["loads"]:
             del data["loads"]  # no loads: the key of a request from before the field
         return data
+
+
+def _output_cost(
+    units: int, per_sample: int, fixed: int, terms: str, runs: int, prefix: str
+) -> Cost:
+    """A simulation's (or ``runs`` of them: a comparison's) numbers against
+    :data:`MAX_OUTPUT_VALUES`, naming ``{prefix}time.samples`` and the largest count that
+    fits (the eigenvalue times counted at their most, so the count fits as stated)."""
+    largest = (MAX_OUTPUT_VALUES // runs - fixed) // per_sample
+    times = "" if runs == 1 else f" and {runs} methods"
+    advice = (
+        f"at most {largest} samples with these outputs{times}"
+        if largest >= 2
+        else "fewer output.eigen_samples, output.eigen_modes or mode shapes first"
+    )
+    fields = ("time.samples", "output.positions", "output.modal", "output.eigen_samples")
+    return Cost(
+        units=units,
+        bound=MAX_OUTPUT_VALUES,
+        unit="values",
+        fields=tuple(prefix + f for f in fields),
+        terms=terms,
+        budget="output budget",
+        advice=advice,
+    )
 
 
 def run_simulation(spec: SimulationSpec, progress: Progress | None = None) -> Result:
@@ -687,6 +823,24 @@ class CompareSpec(StrictModel):
         if len(set(v)) != len(v):
             raise InvalidField("methods must be distinct", "methods")
         return v
+
+    @model_validator(mode="after")
+    def _budget(self) -> CompareSpec:
+        return self.within_budget()
+
+    def cost(self) -> Cost:
+        """Each method's run is held until the comparison is written: the methods times one
+        simulation's numbers against :data:`MAX_OUTPUT_VALUES`."""
+        runs = len(self.methods)
+        per_sample, fixed, units, terms = self.simulation.output_values()
+        return _output_cost(
+            runs * units,
+            per_sample,
+            fixed,
+            f"{runs} methods x ({terms})",
+            runs,
+            "simulation.",
+        )
 
     def canonical(self) -> dict[str, Any]:
         """Normalised form for the cache key: every option kept (each method reads its own)."""

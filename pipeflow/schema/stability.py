@@ -30,6 +30,7 @@ from pipeflow.paper import PAPER_PIPE_JSON
 from pipeflow.schema import documents
 from pipeflow.schema.simulation import (
     ConstantProfile,
+    Cost,
     HarmonicProfile,
     HubRadius,
     PipeSpec,
@@ -38,8 +39,14 @@ from pipeflow.schema.simulation import (
     library_check,
 )
 from pipeflow.stability.critical import critical_velocities
-from pipeflow.stability.floquet import check_chart_work, floquet, period_of, resonance_chart
-from pipeflow.stability.maps import beta_map, check_map_work, spin_map
+from pipeflow.stability.floquet import (
+    MAX_CHART_WORK,
+    chart_work,
+    floquet,
+    period_of,
+    resonance_chart,
+)
+from pipeflow.stability.maps import MAX_MAP_WORK, beta_map, spin_map
 from pipeflow.stability.sweeps import Parameter, sweep
 
 #: the paper's section-5 pipe, for the schema examples
@@ -62,7 +69,48 @@ STABILITY_FIELDS: dict[str, str] = {
     "tip_inertia": "pipe.tip_inertia",
     "spin": "rotation.omega0",
     "omega0": "rotation.omega0",
+    "E": "pipe.E",
+    "I": "pipe.I",
 }
+
+
+def spectrum_cost(points: int, modes: int, fields: tuple[str, ...], what: str) -> Cost:
+    """``points`` eigenvalue problems of size 2 ``modes``: points x (2 modes)^3 against
+    :data:`~pipeflow.stability.maps.MAX_MAP_WORK` (every sweep, map and critical-velocity
+    analysis), naming ``fields[0]`` and the most points that fit."""
+    unit = (2 * modes) ** 3
+    return Cost(
+        units=points * unit,
+        bound=int(MAX_MAP_WORK),
+        unit="units",
+        fields=fields,
+        terms=f"{what} = {points} points x (2 x {modes} modes)^3",
+        budget="spectrum budget",
+        advice=f"use fewer points or modes: at most {int(MAX_MAP_WORK) // unit} points with "
+        f"{modes} modes",
+    )
+
+
+def chart_cost(pipe: Pipe, modes: int, points: int, lowest_frequency: float, field: str) -> Cost:
+    """``points`` monodromy matrices over the period of ``lowest_frequency`` [rad/s]
+    (:func:`~pipeflow.stability.floquet.chart_work`) against
+    :data:`~pipeflow.stability.floquet.MAX_CHART_WORK`; a pipe whose magnitudes overflow
+    the model is refused naming ``pipe``."""
+    try:
+        units = chart_work(pipe, modes, points, lowest_frequency)
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise _out_of_range(exc) from None
+    per_point = max(1, units // points)
+    return Cost(
+        units=units,
+        bound=int(MAX_CHART_WORK),
+        unit="units",
+        fields=(field, "modes"),
+        terms=f"{points} points x Magnus steps over the longest period x (2 x {modes} modes)^3",
+        budget="monodromy budget",
+        advice=f"at most {int(MAX_CHART_WORK) // per_point} points with these modes and "
+        "lowest frequency (or fewer modes, or a higher lowest frequency)",
+    )
 
 
 def _check_range(value: tuple[float, float], name: str, bound: float, unit: str) -> None:
@@ -152,7 +200,11 @@ class StabilitySpec(_Mounted):
                 f"rotation.omega0.value must lie within +-{MAX_SPIN:g} rad/s",
                 "rotation.omega0.value",
             )
-        return self
+        return self.within_budget()
+
+    def cost(self) -> Cost:
+        """One frozen spectrum per grid point (:func:`spectrum_cost`)."""
+        return spectrum_cost(self.points, self.modes, ("points", "modes"), "points")
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.critical.critical_velocities`: its document."""
@@ -195,6 +247,13 @@ class _TrackedSweep(_Mounted):
             raise InvalidField("max_points must be >= points", "max_points")
         return self
 
+    def cost(self) -> Cost:
+        """One frozen spectrum per point after refinement (max_points, default 4 x points:
+        :func:`spectrum_cost`)."""
+        most = self.max_points if self.max_points is not None else 4 * self.points
+        field = "max_points" if self.max_points is not None else "points"
+        return spectrum_cost(most, self.modes, (field, "modes"), "points after refinement")
+
     def _sweep(
         self,
         parameter: Parameter,
@@ -229,7 +288,7 @@ class ArgandSweep(_TrackedSweep):
     @model_validator(mode="after")
     def _ranges(self) -> ArgandSweep:
         _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
-        return self
+        return self.within_budget()
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.sweeps.sweep` over flow velocity: its document."""
@@ -252,7 +311,7 @@ class CampbellSweep(_TrackedSweep):
     @model_validator(mode="after")
     def _ranges(self) -> CampbellSweep:
         _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
-        return self
+        return self.within_budget()
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.sweeps.sweep` over spin: its document."""
@@ -276,10 +335,17 @@ class SpinMapSweep(_Mounted):
     def _ranges(self) -> SpinMapSweep:
         _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
         _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
-        _library_check(
-            check_map_work, self.velocity_points * self.spin_points, self.modes, "spin_points"
+        return self.within_budget()
+
+    def cost(self) -> Cost:
+        """One frozen spectrum per (v, w0) point (:func:`spectrum_cost`)."""
+        points = self.velocity_points * self.spin_points
+        return spectrum_cost(
+            points,
+            self.modes,
+            ("spin_points", "velocity_points", "modes"),
+            f"{self.velocity_points} velocity_points x {self.spin_points} spin_points",
         )
-        return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.maps.spin_map`: its document."""
@@ -339,8 +405,16 @@ class BetaMapSweep(StrictModel):
             raise InvalidField(
                 "u_range must be >= 0 (reverse flow has no critical velocity)", "u_range"
             )
-        _library_check(check_map_work, self.beta_points * self.u_points, self.modes, "u_points")
-        return self
+        return self.within_budget()
+
+    def cost(self) -> Cost:
+        """One frozen spectrum per (beta, u) point (:func:`spectrum_cost`)."""
+        return spectrum_cost(
+            self.beta_points * self.u_points,
+            self.modes,
+            ("u_points", "beta_points", "modes"),
+            f"{self.beta_points} beta_points x {self.u_points} u_points",
+        )
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.maps.beta_map`: its document."""
@@ -386,15 +460,17 @@ class ResonanceChartSweep(_Mounted):
             raise InvalidField("amplitude_range must be >= 0 m/s", "amplitude_range")
         if self.frequency_range[0] <= 0:
             raise InvalidField("frequency_range must be > 0 rad/s", "frequency_range")
-        _library_check(
-            check_chart_work,
+        return self.within_budget()
+
+    def cost(self) -> Cost:
+        """amplitude_points x frequency_points monodromy matrices (:func:`chart_cost`)."""
+        return chart_cost(
             self.mounted_pipe(),
             self.modes,
-            self.amplitude_points,
-            self.frequency_points,
+            self.amplitude_points * self.frequency_points,
             self.frequency_range[0],
+            "frequency_points",
         )
-        return self
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.floquet.resonance_chart`: its document."""
@@ -444,7 +520,13 @@ class FloquetSweep(_Mounted):
         _library_check(
             period_of, self.flow.velocity.to_profile(), self.rotation.omega0.to_profile()
         )
-        return self
+        return self.within_budget()
+
+    def cost(self) -> Cost:
+        """One monodromy matrix over the common period (:func:`chart_cost`; the solver
+        refuses more than :data:`~pipeflow.stability.floquet.MAX_STEPS` steps)."""
+        period = period_of(self.flow.velocity.to_profile(), self.rotation.omega0.to_profile())
+        return chart_cost(self.mounted_pipe(), self.modes, 1, 2 * np.pi / period, "flow.velocity")
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """:func:`~pipeflow.stability.floquet.floquet`: its document."""
@@ -473,8 +555,13 @@ def _library_check(check: Callable[..., object], *args: Any) -> None:
     try:
         library_check(check, STABILITY_FIELDS, *args)
     except (ArithmeticError, np.linalg.LinAlgError) as exc:
-        raise InvalidField(
-            f"pipe: the pipe's magnitudes take the model out of double precision "
-            f"({type(exc).__name__}: {exc}); check E, I, L, M1 and M2",
-            "pipe",
-        ) from None
+        raise _out_of_range(exc) from None
+
+
+def _out_of_range(exc: Exception) -> InvalidField:
+    """The refusal of a pipe whose magnitudes overflow the model, naming ``pipe``."""
+    return InvalidField(
+        f"pipe: the pipe's magnitudes take the model out of double precision "
+        f"({type(exc).__name__}: {exc}); check E, I, L, M1 and M2",
+        "pipe",
+    )

@@ -67,11 +67,22 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from pipeflow import uq
 from pipeflow.errors import InvalidField
-from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec, StrictModel
+from pipeflow.schema.simulation import (
+    PAPER_EXAMPLE,
+    Cost,
+    SimulationSpec,
+    StrictModel,
+    costs_unchecked,
+)
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 
 #: bound on the cases of one study (list length or grid product) [-]
 MAX_CASES = 10_000
+#: bound on a study's estimated cost, in requests at its base's bound: the cases times the
+#: estimate of a case (:meth:`StudySpec.cost`) is at most this many times the bound of one
+#: base request (simulation: 500 x 2,000,000 output values, about 20 minutes of one core
+#: at the measured 1.4 us a value; stability: 500 x the spectrum budget)
+MAX_STUDY_REQUESTS = 500
 #: bound on the fields one case overrides, and on the axes of a grid [-]
 MAX_OVERRIDES = 16
 #: the base computations a study can vary, by their request model
@@ -527,7 +538,57 @@ class StudySpec(StrictModel):
                 f"grid: {sizes} = {self.count()} cases, more than {MAX_CASES}", "grid"
             )
         self._check_paths()
-        return self
+        return self.within_budget()
+
+    def case_cost(self) -> tuple[Cost | None, dict[str, int | float]]:
+        """The estimate of the costliest case: the base's :meth:`~StrictModel.cost` with every
+        overridden count (a field that is an integer in the base) at the largest value a
+        case gives it (each estimate grows with the counts); and those values.  When that
+        combination is not a valid request, the base's own estimate."""
+        _, full = self._base_json
+        # samples draw real numbers: only cases and grids override counts
+        paths = self.paths() if self.samples is None else []
+        counts = {p for p in paths if isinstance(_resolve(full, p)[1], int)}
+        largest: dict[str, int | float] = {}
+        if counts:
+            for overrides in self.overrides():
+                for path, value in overrides.items():
+                    if path in counts and isinstance(value, int):
+                        largest[path] = max(largest.get(path, value), value)
+        request: StrictModel = self.base.spec
+        if largest:
+            try:
+                with costs_unchecked():
+                    request = BASE_MODELS[self.base_kind].model_validate(
+                        self.case_data(dict(largest))
+                    )
+            except ValidationError:
+                largest = {}
+        return request.cost(), largest
+
+    def cost(self) -> Cost | None:
+        """The cases times the estimate of the costliest case (:meth:`case_cost`, at most
+        its own bound: a case over it is refused without running) against
+        :data:`MAX_STUDY_REQUESTS` times the base's bound."""
+        per_case, largest = self.case_cost()
+        if per_case is None:
+            return None
+        cases = self.count()
+        units = min(per_case.units, per_case.bound)
+        where = "grid" if self.grid is not None else "samples.count" if self.samples else "cases"
+        at = ", ".join(f"{p} = {v}" for p, v in largest.items())
+        bound = MAX_STUDY_REQUESTS * per_case.bound
+        return Cost(
+            units=cases * units,
+            bound=bound,
+            unit=per_case.unit,
+            fields=(where, "base"),
+            terms=f"{cases} cases x {units:,} {per_case.unit} per case ({per_case.terms}"
+            + (f", at {at}" if at else "")
+            + ")",
+            budget=f"study budget ({MAX_STUDY_REQUESTS} times the {self.base_kind} bound)",
+            advice=f"at most {bound // max(1, units)} cases of this base",
+        )
 
     def check(self) -> None:
         """Check every override value against its field's type and bounds in the base

@@ -110,15 +110,21 @@ def check_chart_work(
     The cost is points x Magnus steps over the longest period (lowest frequency [rad/s])
     x (2 modes)^3; cheap to evaluate, so request validation can refuse early.
     """
-    model = build_model(pipe, modes)
-    steps = _initial_steps(model, 2 * math.pi / lowest_frequency)
-    work = amplitude_points * frequency_points * steps * model.size**3
+    work = chart_work(pipe, modes, amplitude_points * frequency_points, lowest_frequency)
     if work > MAX_CHART_WORK:
         raise BudgetExceeded(
             f"the chart would cost about {work:.3g} units > {MAX_CHART_WORK:.3g}; use fewer "
             "points or modes, or a higher lowest frequency",
             parameter="frequency_points",
         )
+
+
+def chart_work(pipe: Pipe, modes: int, points: int, lowest_frequency: float) -> int:
+    """The cost of ``points`` monodromy matrices over the period of ``lowest_frequency``
+    [rad/s]: points x Magnus steps x (2 modes)^3 (the units of :data:`MAX_CHART_WORK`)."""
+    model = build_model(pipe, modes)
+    steps = _initial_steps(model, 2 * math.pi / lowest_frequency)
+    return int(points * steps * model.size**3)
 
 
 def _initial_steps(model: PipeModel, period: float) -> int:

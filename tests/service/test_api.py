@@ -392,3 +392,55 @@ def test_validation_field_comes_from_the_error_not_its_text() -> None:
     assert absent["field"] == "inner"
     again = pickle.loads(pickle.dumps(InvalidField("x: bad", "x.y")))
     assert (str(again), again.loc) == ("x: bad", ("x", "y"))
+
+
+def test_an_over_budget_output_is_refused_before_it_runs(client: TestClient) -> None:
+    """The audit's 1.6 kB request (200,001 samples x 64 positions x the modal state at 40
+    modes) ran 40 s and stored a 299 MB row: now a 422 naming time.samples, the bound and
+    the most samples that fit, at once (as a job too)."""
+    L = SMALL["pipe"]["L"]
+    body = _small(
+        modes=40,
+        time={"t_end": 1.0, "samples": 200_001},
+        output={"positions": [L * (i + 1) / 65 for i in range(64)], "modal": True},
+    )
+    for path in ("/v1/simulations", "/v1/simulations/jobs"):
+        doc = _problem(client.post(path, json=body), 422)
+        assert _fields(doc) == ["time.samples"], path
+        assert "output budget of 2,000,000 values" in doc["detail"]
+        assert "samples with these outputs" in doc["detail"]
+
+
+def test_an_underflowing_bending_stiffness_is_422_for_every_method(client: TestClient) -> None:
+    """E = I = 1e-200: E I underflows to 0.  magnus, reference and /v1/compare answered 500
+    with the exception's text; every method and endpoint now answers the same 422."""
+    pipe = {**SMALL["pipe"], "E": 1e-200, "I": 1e-200}
+    for method in ("auto", "cma", "magnus", "reference", "rk4"):
+        doc = _problem(client.post("/v1/simulations", json=_small(pipe=pipe, method=method)), 422)
+        assert _fields(doc) == ["pipe.E"], method
+        assert "pipe.I" in doc["detail"]
+    doc = _problem(client.post("/v1/compare", json={"simulation": _small(pipe=pipe)}), 422)
+    assert _fields(doc) == ["simulation.pipe.E"]
+    stability = {"pipe": pipe, "velocity_range": [0.0, 10.0], "modes": 3, "points": 11}
+    doc = _problem(client.post("/v1/stability", json=stability), 422)
+    assert _fields(doc) == ["pipe.E"]
+
+
+@pytest.mark.parametrize("first", ["none", "json"])
+def test_a_body_without_content_type_is_json_on_both_paths(client: TestClient, first: str) -> None:
+    """The README: a body without Content-Type is read as JSON.  The route refused it (422)
+    while the hit fast path answered the same bytes 200 HIT once cached: both read it as
+    JSON now, whichever came first."""
+    raw = json.dumps(_small(initial={"u0": 0.0041 if first == "none" else 0.0042})).encode()
+    declared = {"content-type": "application/json"}
+    miss = client.post("/v1/simulations", content=raw, headers=declared if first == "json" else {})
+    assert miss.status_code == 200, miss.text
+    assert miss.headers["x-cache"] == "MISS"
+    for _ in range(2):  # the route's hit, then the fast path's (it learnt the bytes' key)
+        hit = client.post("/v1/simulations", content=raw)
+        assert hit.status_code == 200, hit.text
+        assert hit.headers["x-cache"] == "HIT"
+        assert hit.json()["key"] == miss.json()["key"]
+    # and bytes that are not JSON are the same 400 as with a JSON Content-Type
+    doc = _problem(client.post("/v1/simulations", content=b"{not json"), 400)
+    assert doc["errors"][0]["type"] == "json_invalid"
