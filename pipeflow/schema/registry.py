@@ -99,9 +99,10 @@ class Computation:
     #: takes runs in larger chunks)
     batchable: Callable[[Any], bool] | None = None
     #: a validated request's estimated run time on one core [s] (execute + encode), or
-    #: None where it cannot be told cheaply; the service runs a request estimated below
+    #: None where it cannot be told cheaply (not its cost bound: :attr:`estimate`); the
+    #: service runs a request estimated below
     #: its ``fast_lane_max_s`` in the API process instead of a worker
-    estimate: Callable[[Any], float | None] | None = None
+    run_time: Callable[[Any], float | None] | None = None
 
     @property
     def cost(self) -> str:
@@ -234,8 +235,8 @@ LTI_FIXED_S = 2e-3
 LTI_PER_SAMPLE_MODE2_S = 1e-8
 
 
-def estimate_simulation(spec: SimulationSpec) -> float | None:
-    """:attr:`Computation.estimate` of a simulation: only the closed form has one (constant
+def run_time_simulation(spec: SimulationSpec) -> float | None:
+    """:attr:`Computation.run_time` of a simulation: only the closed form has one (constant
     flow and spin, ``auto`` or ``cma``: one eigen-decomposition, then one matrix product
     per sample); a time-variant run's cost depends on the step control (the paper's
     example: 37 ms to 6.4 s over 5-20 modes, 501-2001 samples, 1-4 s; fewer samples can
@@ -335,7 +336,7 @@ SIMULATION = register(
         summarize=summarize_simulation,
         summarize_many=summarize_simulations,
         batchable=simulation_batchable,
-        estimate=estimate_simulation,
+        run_time=run_time_simulation,
     )
 )
 

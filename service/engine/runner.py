@@ -373,13 +373,13 @@ class Runner:
 
     def _lane_takes(self, flight: Flight, job: Job) -> bool:
         """Whether the fast lane runs this attempt: the lane is on and has a free thread,
-        the computation estimates its run time (:attr:`Computation.estimate`) at most
+        the computation estimates its run time (:attr:`Computation.run_time`) at most
         ``fast_lane_max_s``, and it is the job's first attempt here (a recovered or
         retried job goes to a worker).  Below ~50 ms the cross-process round trip of a
         Dask task (client -> scheduler -> worker -> scheduler -> client, 10-25 ms on the
         2-core machine) costs as much as the computation; beyond, the worker's isolation
         (its own core and GIL, killed if it overruns) is worth it."""
-        estimate = flight.job.computation.estimate
+        estimate = flight.job.computation.run_time
         if (
             self._lane is None
             or estimate is None

@@ -55,6 +55,6 @@ SLEEP = register(
         SleepResult,
         sleep,
         budget="seconds <= 120",
-        estimate=sleep_estimate,
+        run_time=sleep_estimate,
     )
 )

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from pipeflow.schema.registry import COMPUTATIONS, estimate_simulation
+from pipeflow.schema.registry import COMPUTATIONS, run_time_simulation
 from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
 
 #: a closed-form (constant flow and spin) simulation: estimated at a few milliseconds
@@ -40,11 +40,11 @@ def lane(tmp_path_factory: pytest.TempPathFactory) -> Any:
 
 def test_the_simulation_estimate() -> None:
     request = COMPUTATIONS["simulation"].request
-    lti = estimate_simulation(request.model_validate(LTI))
+    lti = run_time_simulation(request.model_validate(LTI))
     assert lti is not None and lti < 0.01
-    assert estimate_simulation(request.model_validate(SMALL)) is None  # time-variant
-    assert estimate_simulation(request.model_validate({**LTI, "method": "rk4"})) is None
-    big = estimate_simulation(
+    assert run_time_simulation(request.model_validate(SMALL)) is None  # time-variant
+    assert run_time_simulation(request.model_validate({**LTI, "method": "rk4"})) is None
+    big = run_time_simulation(
         request.model_validate({**LTI, "modes": 40, "time": {"samples": 20001}})
     )
     assert big is not None and big > 0.05  # beyond the default fast_lane_max_s
