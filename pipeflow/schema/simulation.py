@@ -647,6 +647,16 @@ class SimulationSpec(StrictModel):
                     f"output.mode_shapes.times.{i}: {t} s is outside [0, time.t_end]",
                     f"output.mode_shapes.times.{i}",
                 )
+        if shapes is not None:  # the mode shapes' own bound first: it names their field
+            branches = min(self.output.eigen_modes, self.modes) + 1
+            values = len(shapes.times) * shapes.points * branches
+            if values > MAX_SHAPE_VALUES:
+                raise InvalidField(
+                    f"output.mode_shapes.points: {len(shapes.times)} times x {shapes.points} "
+                    f"points x {branches} branches (eigen_modes + 1) = {values} values, more "
+                    f"than {MAX_SHAPE_VALUES}; ask fewer points, times or eigen_modes",
+                    "output.mode_shapes.points",
+                )
         for name, prof in (
             ("flow.velocity", self.flow.velocity),
             ("rotation.omega0", self.rotation.omega0),
