@@ -160,6 +160,7 @@ def _reference(u0: float) -> Any:
     return _REF[u0]
 
 
+@pytest.mark.slow  # 8 runs against DOP853 at rtol 1e-12, cma's about 15 s each
 @pytest.mark.parametrize("u0", [0.0, 0.001], ids=["at-rest", "u0"])
 @pytest.mark.parametrize("method", ["cma", "magnus", "rk4", "auto"])
 def test_forced_time_variant_runs_match_the_reference(method: str, u0: float) -> None:
@@ -186,6 +187,7 @@ def test_forced_time_variant_runs_match_the_reference(method: str, u0: float) ->
         assert 1e-5 < err < 5e-3
 
 
+@pytest.mark.slow  # three load kinds against DOP853 at rtol 1e-12, 10-20 s
 def test_forced_constant_coefficient_cma_is_exact() -> None:
     """cma at constant v: the modal convolution, exact up to its quadrature (1e-12) and
     rounding; against the reference at rtol 1e-12 (its own error ~1e-11, measured):

@@ -203,6 +203,7 @@ def test_bad_log_settings_are_refused_naming_the_variable(tmp_path: Path) -> Non
         Settings(data_dir=tmp_path, log_level="LOUD")  # type: ignore[arg-type]
 
 
+@pytest.mark.slow  # a live server with two workers and their logs, 10-30 s
 def test_live_server_logs_and_metrics_carry_the_request_id(tmp_path: Path) -> None:
     """A real uvicorn server: its stdout has one JSON request line per request with the
     request id, and the worker's lines for that computation carry the same id; /metrics

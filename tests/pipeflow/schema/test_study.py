@@ -272,6 +272,7 @@ def test_simulation_summaries_are_the_standalone_computations() -> None:
     assert rows[0]["final_omega_1"] != rows[1]["final_omega_1"]
 
 
+@pytest.mark.slow  # a stability study against the library call per case, 8-16 s
 def test_stability_summaries_are_the_library_critical_velocities() -> None:
     """The paper's pipe at w0 = 100 rad/s, 10 modes: flutter of mode 3 at 27.69 m/s
     (README, tests/pipeflow/stability/test_critical.py); here checked against the library call."""

@@ -53,6 +53,7 @@ def _library(spec: dict[str, Any]) -> dict[str, Any]:
     return doc
 
 
+@pytest.mark.slow  # a 2-worker cluster and a map, 10-20 s
 def test_spin_map_job_runs_on_both_workers_and_equals_the_library_call(tmp_path: Path) -> None:
     """Over HTTP to a real uvicorn server with 2 workers: the 100 x 100 x 10-mode map's 8
     pieces ran on 2 distinct workers, and the result equals the serial library call exactly
