@@ -292,9 +292,18 @@ class Runner:
             flight.task = asyncio.create_task(self._drive(flight, force, recover))
             flight.task.add_done_callback(functools.partial(self._done, flight))
         elif not recover:
-            # joining: a finished record is accepted again (a new generation)
+            # joining: a finished record is accepted again (a new generation), but for a
+            # run that has just stored its result (a request that missed the store a moment
+            # before it was written: the flight answers it; resetting would compute twice)
             name = job.computation.name
-            await asyncio.to_thread(self.store.enqueue_job, key, name, job.canonical, refresh=force)
+            await asyncio.to_thread(
+                self.store.enqueue_job,
+                key,
+                name,
+                job.canonical,
+                refresh=force,
+                keep_stored=not force,
+            )
             flight.changed.set()
         await flight.accepted.wait()
         assert flight.task is not None

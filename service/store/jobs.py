@@ -101,24 +101,36 @@ class JobStore(StoreConnection):
         key: str,
         created: dict[str, Any],
         reset: dict[str, Any],
+        keep_stored: bool = False,
     ) -> None:
         """Insert job ``key`` with the ``created`` columns, or, if its row exists and is not
-        active, update it with the ``reset`` columns (an active job is shared as it is)."""
+        active, update it with the ``reset`` columns (an active job is shared as it is);
+        ``keep_stored``: a succeeded job whose result is stored is left as it is too."""
         inserted = conn.execute(
             self._insert(jobs)
             .values(key=key, **created)
             .on_conflict_do_nothing(index_elements=["key"])
         ).rowcount
         if not inserted:
-            conn.execute(
-                update(jobs).where(jobs.c.key == key, jobs.c.status.notin_(ACTIVE)).values(**reset)
-            )
+            resettable = [jobs.c.key == key, jobs.c.status.notin_(ACTIVE)]
+            if keep_stored:
+                stored = select(results.c.key).where(results.c.key == key).exists()
+                resettable.append(~((jobs.c.status == "succeeded") & stored))
+            conn.execute(update(jobs).where(*resettable).values(**reset))
 
     def enqueue_job(
-        self, key: str, kind: str, spec: dict[str, Any], *, refresh: bool = False
+        self,
+        key: str,
+        kind: str,
+        spec: dict[str, Any],
+        *,
+        refresh: bool = False,
+        keep_stored: bool = False,
     ) -> Job:
         """Create the job record, or reset a finished one to queued (a new generation);
-        an active one is left as it is (identical requests share it)."""
+        an active one is left as it is (identical requests share it), and with
+        ``keep_stored`` a succeeded one whose result is stored (a request joining a run
+        that has just ended: resetting it would compute the same key again)."""
         now = time.time()
         with self._write() as conn:
             self._create_or_reset(
@@ -153,6 +165,7 @@ class JobStore(StoreConnection):
                     worker=None,
                     heartbeat=now,
                 ),
+                keep_stored=keep_stored,
             )
             job = self._job(conn, key)
         assert job is not None  # written in this transaction

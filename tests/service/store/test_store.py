@@ -382,3 +382,24 @@ def test_running_total_is_exact_on_postgresql(postgres: str) -> None:
     assert size <= 20_000 + 3 * 450
     assert store.healthy
     store.close()
+
+
+def test_a_request_joining_a_run_that_just_stored_its_result_does_not_reset_it(
+    tmp_path: Path,
+) -> None:
+    """``enqueue_job(keep_stored=True)`` (a request joining an in-flight run, which may have
+    just ended) leaves a succeeded job whose result is stored as it is: resetting it made a
+    second computation of the same key (seen as 2 computations for 20 identical requests
+    under load); without its result, or failed, or with ``refresh``, it is run again."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10_000, memory_cache_bytes=0)
+    store.enqueue_job("k", "simulation", {})
+    store.finish_job("k", "succeeded")
+    # succeeded but its result not stored (evicted): accepted again, a new generation
+    job = store.enqueue_job("k", "simulation", {}, keep_stored=True)
+    assert (job.status, job.generation) == ("queued", 2)
+    store.put_result("k", "simulation", b'{"ok": true}')
+    store.finish_job("k", "succeeded")
+    job = store.enqueue_job("k", "simulation", {}, keep_stored=True)
+    assert (job.status, job.generation) == ("succeeded", 2)  # left as it is
+    job = store.enqueue_job("k", "simulation", {}, refresh=True)  # the runner's refresh
+    assert (job.status, job.generation) == ("queued", 3)  # computed again
