@@ -178,6 +178,7 @@ def test_auto_runs_cma_where_exact_and_magnus_otherwise() -> None:
     assert Simulation(PAPER_PIPE).method == "auto"
 
 
+@pytest.mark.slow  # DOP853 at rtol 1e-12 on the paper's example, 5-12 s
 def test_paper_example_by_default_is_right_to_1e_8() -> None:
     """The README / `pipeflow example` case (v = 0.4 t, w0 = 100 rad/s, 10 modes, 2001
     samples per second) with the default method runs without a warning, estimates its own

@@ -32,6 +32,7 @@ def test_pipeflow_data_dir_overrides_it(monkeypatch: pytest.MonkeyPatch, tmp_pat
     assert Settings().db_path == tmp_path / "d" / "pipeflow.sqlite3"
 
 
+@pytest.mark.slow  # a real server refusing to start, 5-9 s
 def test_an_unwritable_data_dir_stops_the_server_with_a_clear_message(tmp_path: Path) -> None:
     """uvicorn exits at start-up with a message that says what to do, instead of SQLite's
     'unable to open database file'.  (The case of the container, a root-owned bind mount and

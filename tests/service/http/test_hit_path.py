@@ -135,6 +135,7 @@ def test_hit_cache_is_bounded_lru() -> None:
 HEAVY = ("pipeflow", "service", "fastapi", "starlette", "pydantic", "numpy", "scipy", "matplotlib")
 
 
+@pytest.mark.slow  # a server's start-up with its workers' warm-up, 5-30 s
 def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
     """Ready means warmed up: a tiny run of each solver and of the default request's mode
     count went through the job function and the encoder, a warm-up task opened the
