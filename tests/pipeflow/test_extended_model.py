@@ -44,27 +44,8 @@ def galerkin_errors(pipe: Pipe, n: int, v: float, w0: float, ref: np.ndarray) ->
 
 
 # -- defaults: the paper's model ---------------------------------------------------------------
-@pytest.mark.parametrize("name", ["paper", "unit"])
-@pytest.mark.parametrize("n", [3, 10, 17])
-def test_defaults_reproduce_the_paper_model(name: str, n: int) -> None:
-    """With every new field at its default the model is the paper's.
-
-    Two checks of different strength:
-
-    - bit for bit, in this process: the pipe with the new fields left out and the same pipe
-      with each of them given explicitly as zero build the identical arrays (same bits, same
-      signs of zero: adding a zero term can turn -0.0 into 0.0), because ``build_model``
-      adds an extension's term only when its field is non-zero; both are built here, on this
-      CPU, past ``build_model``'s cache (the two pipes compare equal, so the cache would
-      hand back one object), so equality is exact;
-    - against the arrays ``build_model`` wrote at commit a19ec21 (main before issue 14,
-      ``data/paper_model_a19ec21.npz``), to 1e-13 of each array's largest entry: that file
-      was written on another machine, and the quadrature's sums round differently on
-      another CPU's SIMD path (seen: an off-diagonal mass entry -1.2021e-14 here against
-      -1.2055e-14 stored, 3e-17 on a diagonal of order 1), so bit equality across machines
-      would test the CPU, not the model.  1e-13 is a few hundred units of round-off of the
-      largest entry and far below any term's size: leaving out or mis-scaling a term
-      changes entries by their own magnitude."""
+def _paper_and_explicit(name: str) -> tuple[Pipe, Pipe]:
+    """The pipe with the new fields left out, and the same pipe with each given as zero."""
     pipe = PAPER_PIPE if name == "paper" else Pipe(**UNIT, M1=0.8, M2=0.2)
     explicit = dataclasses.replace(
         pipe,
@@ -75,17 +56,45 @@ def test_defaults_reproduce_the_paper_model(name: str, n: int) -> None:
         hub_radius=0.0,
         plane="in-plane",
     )
-    golden = np.load(GOLDEN)
+    return pipe, explicit
+
+
+@pytest.mark.parametrize("name", ["paper", "unit"])
+@pytest.mark.parametrize("n", [3, 10, 17])
+def test_explicit_zero_extensions_build_the_same_model(name: str, n: int) -> None:
+    """Bit for bit, both computed in this process (no file): the new fields left out or given
+    explicitly as zero build identical arrays (same bits, same signs of zero: adding a zero
+    term can turn -0.0 into 0.0), because ``build_model`` adds an extension's term only when
+    its field is non-zero.  Built past ``build_model``'s cache (the two pipes compare equal,
+    so the cache would hand back one object)."""
+    pipe, explicit = _paper_and_explicit(name)
     build = build_model.__wrapped__  # uncached: two separate computations
     plain, zeros = build(pipe, n), build(explicit, n)
     for a in ARRAYS:
         new, same = getattr(plain, a), getattr(zeros, a)
         assert np.array_equal(new, same) and np.array_equal(np.signbit(new), np.signbit(same)), a
-        old = golden[f"{name}_{n}_{a}"]
-        assert old.shape == new.shape, a
-        scale = float(np.max(np.abs(old)))
-        assert float(np.max(np.abs(new - old))) <= 1e-13 * scale, a
     assert not plain.C_0.any() and not zeros.C_0.any()
+
+
+@pytest.mark.parametrize("name", ["paper", "unit"])
+@pytest.mark.parametrize("n", [3, 10, 17])
+def test_defaults_reproduce_the_paper_model(name: str, n: int) -> None:
+    """Against the arrays ``build_model`` wrote at commit a19ec21 (main before issue 14,
+    ``data/paper_model_a19ec21.npz``), to 1e-13 of each array's largest entry: that file was
+    written on another machine, and the quadrature's sums round differently on another
+    CPU's SIMD path (seen: an off-diagonal mass entry -1.2021e-14 here against -1.2055e-14
+    stored, 3e-17 on a diagonal of order 1), so bit equality across machines would test
+    the CPU, not the model.  1e-13 is a few hundred units of round-off of the largest entry
+    and far below any term's size: leaving out or mis-scaling a term changes entries by
+    their own magnitude."""
+    golden = np.load(GOLDEN)
+    for pipe in _paper_and_explicit(name):
+        model = build_model(pipe, n)
+        for a in ARRAYS:
+            new, old = getattr(model, a), golden[f"{name}_{n}_{a}"]
+            assert old.shape == new.shape, a
+            scale = float(np.max(np.abs(old)))
+            np.testing.assert_allclose(new, old, rtol=0, atol=1e-13 * scale, err_msg=a)
 
 
 # -- damping ---------------------------------------------------------------------------------
