@@ -82,7 +82,9 @@ class Trace(BaseModel):
     sigma: list[float] = Field(description="Real part of xi = sigma + i omega: damping [1/s].")
     omega: list[float] = Field(description="Imaginary part: frequency [rad/s].")
     confidence: list[float] = Field(
-        description="Tracking confidence in [0, 1] (eigenvector correlation between steps)."
+        description="Tracking confidence in [0, 1] [-] of the link to the previous time: "
+        "1 - d1/d2 (> 0.99) where the eigenvalues alone decided (the nearest eigenvalue d1 "
+        "much nearer than the second nearest d2), else the eigenvector correlation."
     )
     least_stable: bool | None = Field(
         None,

@@ -1,6 +1,7 @@
 """Eigenvalue tracking through crossings (not re-sorting)."""
 
 import numpy as np
+import pytest
 
 from pipeflow.spectra import track
 
@@ -57,3 +58,72 @@ def test_least_stable_branch_is_traced_even_when_it_is_no_representative() -> No
     assert j == 1  # so the other member is traced too, as an extra column
     assert abs(tr.sigma[:, j].max() - 1.0) < 1e-9
     assert abs(np.linalg.eigvals(S).real.max() - 1.0) < 1e-9
+
+
+def _paper_frozen_matrices() -> np.ndarray:
+    from pipeflow.model import Loading, build_model
+    from pipeflow.paper import PAPER_FLOW, PAPER_PIPE, PAPER_SPIN
+
+    model = build_model(PAPER_PIPE, 10)
+    times = np.linspace(0.0, 1.0, 201)
+    return np.asarray(model.state_matrix(Loading(PAPER_FLOW, PAPER_SPIN).coefficients(times)))
+
+
+def test_link_by_eigenvalues_equals_the_overlap_assignment(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Identity check of :func:`link` (eigenvalues, vectors only where they cannot decide)
+    against :func:`assign` (eigenvector overlaps at every point): the same branches on the
+    paper's frozen spectrum (201 times, 20 eigenvalues), a crossing and a veering.  On
+    the paper's example no point needs eigenvectors (d1/d2 < 2e-4 there): counted by
+    wrapping ``decompose``."""
+    from pipeflow import spectra
+
+    cases = {
+        "paper": _paper_frozen_matrices(),
+        "crossing": oscillators(1 + np.linspace(0, 1, 41), 2 - np.linspace(0, 1, 41)),
+        "veering": oscillators(1 + np.linspace(0, 1, 201), 2 - np.linspace(0, 1, 201), 0.05),
+    }
+    original = spectra.decompose
+    calls: list[int] = []
+
+    def counting(M: np.ndarray) -> tuple[np.ndarray, ...]:
+        calls.append(M.shape[0])
+        return original(M)
+
+    monkeypatch.setattr(spectra, "decompose", counting)
+    decomposed: dict[str, int] = {}
+    for name, S in cases.items():
+        w = np.linalg.eigvals(S)
+        calls.clear()
+        perm, conf = spectra.link(S, w)
+        decomposed[name] = sum(calls)
+        we, V, W = original(S)
+        ref_perm, _ = spectra.assign(we, V, W)
+        xi = np.take_along_axis(w, perm, axis=1)
+        ref = np.take_along_axis(we, ref_perm, axis=1)
+        # the same branches: eig and eigvals agree to rounding, columns matched at point 0
+        cols = spectra.match_branches(ref[0], xi[0])
+        np.testing.assert_allclose(xi, ref[:, cols], rtol=0, atol=1e-9 * np.abs(ref).max())
+        assert np.all((conf >= 0) & (conf <= 1))
+    assert decomposed["paper"] == 0
+    assert decomposed["crossing"] > 0  # every step moves 2.5% of the gap: vectors
+
+
+def test_link_by_eigenvalues_never_swaps_close_branches() -> None:
+    """Two branches that pass close to each other within one grid step (the nearest
+    eigenvalue of the next point is not 100x nearer than the second nearest) are linked
+    by eigenvectors: w1 = 1 + p and w2 = 1.06 - p on 7 points cross between two points,
+    and each branch keeps its own line (sorting by eigenvalue distance alone would swap
+    them at the crossing step)."""
+    from pipeflow.spectra import link
+
+    p = np.linspace(0.0, 0.06, 7)
+    S = oscillators(1 + p, 1.06 - p + 0.005)
+    w = np.linalg.eigvals(S)
+    perm, _ = link(S, w)
+    xi = np.take_along_axis(w, perm, axis=1)
+    up = np.flatnonzero(xi[0].imag > 0)
+    lines = sorted(up, key=lambda j: xi[0, j].imag)
+    np.testing.assert_allclose(xi[:, lines[0]].imag, 1 + p, atol=1e-12)
+    np.testing.assert_allclose(xi[:, lines[1]].imag, 1.065 - p, atol=1e-12)
