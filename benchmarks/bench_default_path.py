@@ -1,6 +1,7 @@
 """The whole default path of ``simulate()``, not only the solver (issue 9, section 3).
 
     python benchmarks/bench_default_path.py [--repeats 7]
+    python benchmarks/bench_default_path.py --ab main=/work/main branch=. [--rounds 15]
 
 On the paper's example (10 modes, 1 s, 2001 samples, w0 = 100 rad/s, default method
 ``auto``) for v = 0.4 m/s (constant: ``auto`` runs ``cma``) and v = 0.4 t m/s (``auto``
@@ -9,11 +10,23 @@ the solver's own time (``diagnostics.solve_seconds``), the error check
 (``diagnostics.error_estimate_seconds``), the frozen-spectrum and CMA-exponent traces
 (timed separately with the same functions), and the ratio simulate / solver of the same
 run (median over the runs).  Target of the issue for the constant case: simulate <= 3x the solver.
+
+``--ab NAME=TREE ...``: an A/B of source trees (e.g. main's checkout against this one), the
+issue-23 target "the paper example's ``simulate().to_dict()`` at most 0.6x of main's".  One
+child process per tree (its ``PYTHONPATH`` the tree) times ``documents.simulation(simulate())``
+of the paper example (the service's request example: v = 0.4 t, w0 = 100 rad/s, 10 modes,
+1 s, 2001 samples, default method), one call per round, the trees in rotating order within
+each round, so that the load of the shared machine hits every side alike; it prints each
+tree's best and median and the ratios to the first tree's.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import statistics
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -38,10 +51,103 @@ def best(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
     return fastest, out
 
 
+#: the child of one tree in --ab: times one paper-example document per line read
+_CHILD = """
+import sys, time
+from pipeflow.schema import documents
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
+from pipeflow.simulation import simulate
+spec = {k: v for k, v in PAPER_EXAMPLE.items() if k != "method"}
+sim = SimulationSpec.model_validate(spec).to_simulation()
+documents.simulation(simulate(sim))  # warm-up
+from pipeflow.model import Loading, build_model
+from pipeflow.solvers import SOLVERS, Problem
+import numpy as np
+model = build_model(sim.pipe, sim.modes)
+d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
+problem = Problem(
+    model, Loading(sim.flow, sim.spin), model.to_balanced(d0, v0),
+    np.linspace(0.0, sim.t_end, sim.samples), sim.options,
+)
+print("ready", flush=True)
+for line in sys.stdin:
+    t0, c0 = time.perf_counter(), time.process_time()
+    if line.strip() == "document":
+        diagnostics = documents.simulation(simulate(sim))["diagnostics"]
+    else:  # the solver alone (magnus, what "auto" runs here)
+        diagnostics = SOLVERS["magnus"].solve(problem).diagnostics
+    dt, dc = time.perf_counter() - t0, time.process_time() - c0
+    print(dt, dc, diagnostics["estimated_relative_error"], flush=True)
+"""
+
+
+def ab(trees: list[str], rounds: int, what: str = "document") -> None:
+    """Interleaved A/B of ``simulate().to_dict()`` on the paper example across trees."""
+    children: dict[str, subprocess.Popen[str]] = {}
+    for item in trees:
+        name, _, path = item.partition("=")
+        env = dict(os.environ, PYTHONPATH=os.path.abspath(path))
+        children[name] = subprocess.Popen(
+            [sys.executable, "-c", _CHILD],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            env=env,
+            cwd=os.path.abspath(path),
+        )
+    names = list(children)
+    times: dict[str, list[float]] = {n: [] for n in names}
+    cpu: dict[str, list[float]] = {n: [] for n in names}
+    estimate: dict[str, str] = {}
+    try:
+        for child in children.values():
+            assert child.stdout is not None and child.stdout.readline().strip() == "ready"
+        for r in range(rounds):
+            for name in names[r % len(names) :] + names[: r % len(names)]:
+                child = children[name]
+                assert child.stdin is not None and child.stdout is not None
+                child.stdin.write(what + "\n")
+                child.stdin.flush()
+                dt, dc, est = child.stdout.readline().split()
+                times[name].append(float(dt))
+                cpu[name].append(float(dc))
+                estimate[name] = est
+    finally:
+        for child in children.values():
+            if child.stdin is not None:
+                child.stdin.close()
+            child.wait(timeout=60)
+    print(f"{what}: load average {os.getloadavg()[0]:.2f} (1 min), {rounds} interleaved rounds")
+    print(
+        "| tree | best [ms] | median [ms] | best / first | median / first | "
+        "CPU median [ms] | CPU / first | estimate |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|---|")
+    b0, m0 = min(times[names[0]]), statistics.median(times[names[0]])
+    c0 = statistics.median(cpu[names[0]])
+    for n in names:
+        b, m, c = min(times[n]), statistics.median(times[n]), statistics.median(cpu[n])
+        print(
+            f"| {n} | {b * 1e3:.1f} | {m * 1e3:.1f} | {b / b0:.2f} | {m / m0:.2f} | "
+            f"{c * 1e3:.1f} | {c / c0:.2f} | {estimate[n]} |"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--ab", nargs="+", metavar="NAME=TREE", help="A/B of source trees")
+    parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument(
+        "--what",
+        choices=("document", "solve"),
+        default="document",
+        help="--ab times simulate() + the document, or the magnus solver alone",
+    )
     args = parser.parse_args()
+    if args.ab:
+        ab(args.ab, args.rounds, args.what)
+        return
     model = build_model(PAPER_PIPE, 10)
     eigen_t = np.linspace(0.0, 1.0, 201)
     print("| case | method used | simulate [ms] | solver [ms] | check [ms] | traces [ms] | ratio |")

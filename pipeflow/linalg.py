@@ -148,12 +148,13 @@ def _expm_block(X: FloatArray) -> FloatArray:
     scal = np.maximum(scal, 0).astype(np.int64)
     s = int(scal.max())
     K, n, _ = X.shape
-    Y = X * (0.5**scal)[:, None, None]
-    A2 = Y @ Y
-    A3 = A2 @ Y
-    A6 = A3 @ A3
-    powers = np.stack([Y, A2, A3, A6]).reshape(4, -1)
-    flat = (_T18_COEF[:, 1:] @ powers).reshape(5, K, n * n)
+    # the powers Y, Y^2, Y^3, Y^6 written into one array (no stacking copy)
+    P = np.empty((4, K, n, n))
+    np.multiply(X, (0.5**scal)[:, None, None], out=P[0])
+    np.matmul(P[0], P[0], out=P[1])
+    np.matmul(P[1], P[0], out=P[2])
+    np.matmul(P[2], P[2], out=P[3])
+    flat = (_T18_COEF[:, 1:] @ P.reshape(4, -1)).reshape(5, K, n * n)
     flat[:, :, :: n + 1] += _T18_COEF[:, :1, None]
     B = flat.reshape(5, K, n, n)
     A9 = B[0] @ B[4]
@@ -162,9 +163,11 @@ def _expm_block(X: FloatArray) -> FloatArray:
     R = R @ A9
     R += B[1]
     if np.all(scal == s):
+        spare = P[0]  # Y is no longer needed: the other buffer of the squarings
         for _ in range(s):
-            R = R @ R
-        return R
+            np.matmul(R, R, out=spare)
+            R, spare = spare, R
+        return R.copy() if R.base is P else R
     # most squarings first: the matrices still being squared are a leading slice (a view)
     order = np.argsort(-scal, kind="stable")
     R, counts = R[order], np.count_nonzero(scal[:, None] > np.arange(s)[None, :], axis=0)
