@@ -191,10 +191,11 @@ def link(S: NDArray[np.float64], w: ComplexArray) -> tuple[NDArray[np.intp], Flo
     for k in range(1, N):
         prev = perm[k - 1]
         if by_values[k - 1]:
-            perm[k] = near[k - 1][prev]
-            conf[k] = 1.0 - ratio[k - 1][prev]
+            perm[k] = near[k - 1].take(prev)
         else:
             perm[k], conf[k] = _link_by_vectors(w[k - 1][prev], Wl[k - 1][prev], V[k], w[k])
+    rows = np.flatnonzero(by_values) + 1
+    conf[rows] = 1.0 - np.take_along_axis(ratio[rows - 1], perm[rows - 1], axis=1)
     return perm, conf
 
 
