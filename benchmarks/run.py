@@ -647,6 +647,21 @@ def section_targets(s: Setup, summary: dict[str, Any], quick: bool) -> None:
             verdict(tm <= 0.060),
         ))  # fmt: skip
 
+    # issue 23: the cost of output samples (magnus on the paper example, v = 0.4 t): 1e5
+    # samples against the default 2,001, same tolerance (target: within 3x)
+    many = 10 * s.samples if quick else 100_001
+    p_few = problem(model, CASES["v=0.4t"], t)
+    p_many = problem(model, CASES["v=0.4t"], np.linspace(0.0, s.t_end, many))
+    tm_few, o_few = best_time(lambda: SOLVERS["magnus"].solve(p_few), s.repeats)
+    tm_many, o_many = best_time(lambda: SOLVERS["magnus"].solve(p_many), 1)
+    r = tm_many / tm_few
+    label = f"magnus at {many} samples within 3x of {s.samples} (paper example, v=0.4t)"
+    runs = [
+        f"{tm * 1e3:.1f} ms ({o.stats.steps} steps)"
+        for tm, o in ((tm_many, o_many), (tm_few, o_few))
+    ]
+    lines.append((label, " vs ".join(runs), f"{r:.1f}x", verdict(r <= 3)))
+
     # peak memory of the constant-coefficient cma at 1e6 samples
     n_big = 10_001 if quick else 1_000_001
     p = problem(model, Constant(0.4), np.linspace(0.0, s.t_end, n_big))

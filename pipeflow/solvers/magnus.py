@@ -258,22 +258,16 @@ class MagnusGenerator:
             return magnus4_omega(A[:k], A[k:], h)
         return np.asarray(magnus6_omega(A[:k], A[k : 2 * k], A[2 * k :], h))
 
-    def propagators(
-        self,
-        starts: FloatArray,
-        h: FloatArray,
-        order: int = 4,
-        weights: FloatArray | None = None,
-    ) -> FloatArray:
-        """exp(Omega) of each step; with loads the affine step [[P, r], [0, 1]] (size N + 1)
-        cut from the exponential of the Jordan-bordered generator.  ``weights``: as
-        :meth:`omega`."""
+    def propagators(self, omega: FloatArray) -> FloatArray:
+        """exp(Omega) of each step's generator (:meth:`omega`); with loads the affine step
+        [[P, r], [0, 1]] (size N + 1) cut from the exponential of the Jordan-bordered
+        generator."""
         if not self.jordan:
-            return expm_stack(self.omega(starts, h, order, weights))
+            return expm_stack(omega)
         # exp([[Omega, Y], [0, J]]) restricted to (z, w_0): [[P, r], [0, 1]] (exp(J) is
         # lower triangular with unit diagonal, and w(0) = e_0)
         N = self.model.size
-        E = expm_stack(self.omega(starts, h, order, weights))
+        E = expm_stack(omega)
         return np.ascontiguousarray(E[:, : N + 1, : N + 1])
 
     def local_errors(self, starts: FloatArray, h: FloatArray, order: int) -> FloatArray:
@@ -284,9 +278,11 @@ class MagnusGenerator:
         """
         k = starts.size
         E = self.propagators(
-            np.concatenate([starts, starts, starts + h / 2]),
-            np.concatenate([h, h / 2, h / 2]),
-            order,
+            self.omega(
+                np.concatenate([starts, starts, starts + h / 2]),
+                np.concatenate([h, h / 2, h / 2]),
+                order,
+            )
         )
         full, two = E[:k], E[2 * k :] @ E[k : 2 * k]
         with np.errstate(all="ignore"):
@@ -585,7 +581,7 @@ def propagate(
             lengths, inverse = dt[:1], np.zeros(dt.size, dtype=np.int64)
         else:
             lengths, inverse = np.unique(dt, return_inverse=True)
-        E = gen.propagators(np.zeros(lengths.size), lengths.astype(float))
+        E = gen.propagators(gen.omega(np.zeros(lengths.size), lengths.astype(float)))
         for k in range(dt.size):
             z = E[inverse[k]] @ z
             Zaug[k + 1] = z
@@ -617,7 +613,7 @@ def propagate(
             for b in range(0, members.size, limit):
                 idx = members[b : b + limit]
                 rows = slice(b * m, (b + idx.size) * m)
-                E = gen.propagators(starts_all[rows], h_all[rows], q, weights[:, rows])
+                E = gen.propagators(gen.omega(starts_all[rows], h_all[rows], q, weights[:, rows]))
                 exps += E.shape[0]
                 E_win[idx - k] = product_of_steps(E.reshape(idx.size, m, gen.size, gen.size))
         for j in range(window.size):
