@@ -69,11 +69,17 @@ problem = Problem(
     model, Loading(sim.flow, sim.spin), model.to_balanced(d0, v0),
     np.linspace(0.0, sim.t_end, sim.samples), sim.options,
 )
+from pipeflow.profiles import Harmonic
+pulsating = Problem(
+    model, Loading(Harmonic(2.0, 1.0, 50.0), sim.spin), problem.z0, problem.t, sim.options
+)
 print("ready", flush=True)
 for line in sys.stdin:
     t0, c0 = time.perf_counter(), time.process_time()
     if line.strip() == "document":
         diagnostics = documents.simulation(simulate(sim))["diagnostics"]
+    elif line.strip() == "pulsating":  # the solver on v = 2 + sin 50 t instead
+        diagnostics = SOLVERS["magnus"].solve(pulsating).diagnostics
     else:  # the solver alone (magnus, what "auto" runs here)
         diagnostics = SOLVERS["magnus"].solve(problem).diagnostics
     dt, dc = time.perf_counter() - t0, time.process_time() - c0
@@ -140,9 +146,10 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=15)
     parser.add_argument(
         "--what",
-        choices=("document", "solve"),
+        choices=("document", "solve", "pulsating"),
         default="document",
-        help="--ab times simulate() + the document, or the magnus solver alone",
+        help="--ab times simulate() + the document, the magnus solver alone, or the solver "
+        "on the pulsating flow v = 2 + sin 50 t m/s",
     )
     args = parser.parse_args()
     if args.ab:
