@@ -546,7 +546,9 @@ class Magnus(Solver):
             "tolerance": opts.tolerance,
             "estimated_relative_error": estimate,
             "error_estimate_method": (
-                "exact for constant coefficients (rounding only)" if invariant else method
+                "exact for constant coefficients (rounding only)"
+                if invariant
+                else f"{method}, plus one unit roundoff per step (rounding)"
             ),
         }
         return SolverOutput(z=Z, diagnostics=diagnostics, warnings=warnings)
