@@ -18,9 +18,10 @@ cases it leaves (``None``) run one by one as above.  Pieces hold up to
 :data:`BATCH_CHUNK_CASES` cases when the base says the study's cases are ``batchable``
 (constant coefficients: microseconds a case), else :data:`CHUNK_CASES` (time-variant cases,
 tens of milliseconds each: 16 fill one stacked magnus,
-:data:`pipeflow.solvers.magnus_stack.MAX_RUNS`, and keep every worker busy).  One failing case does not fail the study: its
-row says ``failed`` with the problem's type, field and detail; a case its base model
-refuses (a rule across fields) is such a row too (``invalid-input``, no key).
+:data:`pipeflow.solvers.magnus_stack.MAX_RUNS`, and keep every worker busy).  One
+failing case does not fail the study: its row says ``failed`` with the problem's type,
+field and detail; a case its base model refuses (a rule across fields) is such a row too
+(``invalid-input``, no key).
 
 Cases are validated and keyed here, in the job's process; the pieces carry the study's
 base and each case's overrides (plain JSON, small to ship) and validate them again where

@@ -9,7 +9,9 @@ are at the same stage done together.
 How.  Each problem's step control is a generator (:func:`_control`, the batched version of
 ``Magnus._solve_impl``: that method calls :func:`~pipeflow.solvers.magnus.propagate`
 inline, so it could not be reused here without editing ``magnus.py``; its logic is the
-same line for line, and tests/pipeflow/test_batch.py checks that the diagnostics agree).
+same line for line, and tests/pipeflow/test_batch.py checks that :func:`solve_one`, the
+generator driven by the single run's ``propagate``, gives ``Magnus.solve``'s output bit
+for bit, loads and constant coefficients included: ``_solve_impl`` could be that driver).
 Where the single run propagates, the generator yields the run it needs (its generator,
 output times, plan and initial state) and is sent the states back.  The driver collects
 the pending runs of every problem, groups those on the same output times and state size,
@@ -61,7 +63,9 @@ from pipeflow.solvers.magnus import (
     StepPlan,
     _substeps,
     choose_orders,
+    load_scale,
     observed_rate,
+    propagate,
 )
 
 #: most runs propagated together (bounds the window's propagators: 16 runs x 256
@@ -100,14 +104,22 @@ _Control = Generator[_Run, tuple[FloatArray, int], SolverOutput]
 
 def _control(problem: Problem, stats: SolverStats) -> _Control:
     """The step control of :meth:`Magnus._solve_impl` for one problem, yielding its
-    propagations (see the module docstring); returns the solver's output."""
+    propagations (see the module docstring); returns the solver's output.
+
+    Complete (constant coefficients and external loads included): :func:`solve_one`
+    drives it with the single run's :func:`~pipeflow.solvers.magnus.propagate` and gives
+    ``Magnus.solve``'s output (tested), so ``Magnus._solve_impl`` could become that driver
+    (one definition of the control) when ``magnus.py`` is next edited."""
     loading, t = problem.loading, problem.t
     opts = problem.options
     dt = np.diff(t)
     t_end = float(t[-1])
     N = problem.model.size
     scale = float(np.linalg.norm(problem.z0)) or 1.0
-    gen = MagnusGenerator(problem.model, loading, scale, None)
+    if problem.loads is not None:
+        scale = load_scale(problem)
+    gen = MagnusGenerator(problem.model, loading, scale, problem.loads)
+    invariant = gen.invariant
     z0 = problem.z0.astype(float)
     if gen.forced:
         z0 = np.append(z0, gen.scale)
@@ -117,9 +129,9 @@ def _control(problem: Problem, stats: SolverStats) -> _Control:
         raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
     h0 = step if step is not None else t_end / PILOT_STEPS
     refines = step is None
-    first = (4 * budget) // 7 if refines else (2 * budget) // 3
+    first = budget if invariant else (4 * budget) // 7 if refines else (2 * budget) // 3
     substeps = step_counts(dt, h0, first, "magnus", step is not None)
-    if dt.size == 1:
+    if dt.size == 1 and not invariant:
         substeps = np.maximum(substeps, 2)
     warnings: list[str] = []
     exps = 0
@@ -131,11 +143,16 @@ def _control(problem: Problem, stats: SolverStats) -> _Control:
     while True:
         attempts += 1
         Magnus._check_budget(int(substeps.sum()), budget, dt, substeps, opts.tolerance)
-        orders, used = choose_orders(gen, t, substeps)
-        exps += used
-        plan = StepPlan(substeps, orders)
+        if invariant:
+            plan = StepPlan(substeps, np.full(dt.size, 4, dtype=np.int64))
+        else:
+            orders, used = choose_orders(gen, t, substeps)
+            exps += used
+            plan = StepPlan(substeps, orders)
         Zaug, used = yield _Run(gen, t, plan, z0)
         exps += used
+        if invariant:
+            break
         if previous is not None:
             Zprev, steps_prev = previous
             ratio = plan.steps / steps_prev
@@ -174,16 +191,38 @@ def _control(problem: Problem, stats: SolverStats) -> _Control:
     h_used = dt / plan.substeps
     stats.steps, stats.attempts, stats.matrix_exponentials = plan.steps, attempts, exps
     diagnostics: dict[str, Any] = {
-        "time_invariant": False,
+        "time_invariant": invariant,
         "step_source": "step" if opts.step is not None else "tolerance",
         "step_max": float(h_used.max()),
         "step_min": float(h_used.min()),
         "steps_order_6": int(plan.substeps[plan.order == 6].sum()),
         "tolerance": opts.tolerance,
         "estimated_relative_error": estimate,
-        "error_estimate_method": method,
+        "error_estimate_method": (
+            "exact for constant coefficients (rounding only)" if invariant else method
+        ),
     }
     return SolverOutput(z=Zaug[:, :N].copy(), diagnostics=diagnostics, warnings=warnings)
+
+
+def solve_one(problem: Problem) -> SolverOutput:
+    """``Magnus.solve(problem)`` by :func:`_control` and the single run's
+    :func:`~pipeflow.solvers.magnus.propagate` (any problem, loads included)."""
+    started = time.perf_counter()
+    out = _finish([_drive_one(problem)], started)[0]
+    assert isinstance(out, SolverOutput)
+    return out
+
+
+def _drive_one(problem: Problem) -> tuple[SolverOutput, SolverStats]:
+    stats = SolverStats()
+    control = _control(problem, stats)
+    run = next(control)
+    try:
+        while True:
+            run = control.send(propagate(problem, run.gen, run.t, run.plan))
+    except StopIteration as stop:
+        return stop.value, stats
 
 
 def propagate_stack(runs: Sequence[_Run]) -> tuple[FloatArray, list[int]]:
@@ -274,14 +313,22 @@ def solve_many(problems: Sequence[Problem]) -> list[SolverOutput | Exception]:
                 Z, used = propagate_stack([pending[i] for i in part])
                 for b, i in enumerate(part):
                     advance(i, (Z[b], used[b]))
-    share = (time.perf_counter() - started) / max(1, len(problems))
+    return _finish(list(zip(out, stats, strict=True)), started)
+
+
+def _finish(
+    results: Sequence[tuple[SolverOutput | Exception | None, SolverStats]], started: float
+) -> list[SolverOutput | Exception]:
+    """The outputs as ``Solver.solve`` completes them (counters in the diagnostics, the
+    method); ``solve_seconds`` is the wall time since ``started`` shared evenly."""
+    share = (time.perf_counter() - started) / max(1, len(results))
     done: list[SolverOutput | Exception] = []
-    for i, result in enumerate(out):
+    for result, stats in results:
         assert result is not None
         if isinstance(result, SolverOutput):
-            stats[i].solve_seconds = share
-            result.stats = stats[i]
+            stats.solve_seconds = share
+            result.stats = stats
             result.method = "magnus"
-            result.diagnostics.update(stats[i].as_dict())
+            result.diagnostics.update(stats.as_dict())
         done.append(result)
     return done
