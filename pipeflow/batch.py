@@ -64,6 +64,9 @@ THRESHOLD_RTOL = 1e-8
 _BLOCK = 64  # the block of modal_exponentials
 #: matrix entries of the frozen spectra decomposed at once (time-variant cases) [-]
 SPECTRUM_ENTRIES = 400_000
+#: bytes of state histories of the time-variant cases stacked at once (a single run of
+#: 40 modes at 20,001 samples holds ~40 MB of them) [B]
+STACK_BYTES = 128 * 2**20
 
 
 @dataclass(frozen=True)
@@ -279,7 +282,8 @@ def time_variant_summaries(sims: Sequence[Simulation]) -> list[CaseSummary | Non
     """The study rows of time-variant simulations (:func:`time_variant`), or None where the
     caller must run :func:`~pipeflow.simulation.simulate`.
 
-    In chunks of :data:`~pipeflow.solvers.magnus_stack.MAX_RUNS` cases: the states by
+    In chunks of :data:`~pipeflow.solvers.magnus_stack.MAX_RUNS` cases (fewer where their
+    state histories would pass :data:`STACK_BYTES`): the states by
     :func:`~pipeflow.solvers.magnus_stack.solve_many` (the magnus runs of the chunk
     stacked, each with the single run's step control: the same steps, estimate and
     refinements, so the same states to rounding), the tip and its peak from them, and the
@@ -306,13 +310,29 @@ def time_variant_summaries(sims: Sequence[Simulation]) -> list[CaseSummary | Non
             model, Loading(sim.flow, sim.spin), model.to_balanced(d0, v0), t, sim.options
         )
         cases.append((i, _Varying(sim, model, problem)))
-    for s0 in range(0, len(cases), MAX_RUNS):
-        part = cases[s0 : s0 + MAX_RUNS]
+    for part in _chunks(cases):
         solved = solve_many([c.problem for _, c in part])
         finals = _final_fundamentals([c for _, c in part])
         for (i, case), result, final in zip(part, solved, finals, strict=True):
             if isinstance(result, SolverOutput):
                 out[i] = _varying_row(case, result, final)
+    return out
+
+
+def _chunks(cases: list[tuple[int, _Varying]]) -> list[list[tuple[int, _Varying]]]:
+    """Consecutive chunks of at most MAX_RUNS cases whose state histories (the states at
+    every output time: ~3 of them held per case during the step control) stay within
+    :data:`STACK_BYTES`."""
+    out: list[list[tuple[int, _Varying]]] = []
+    size = 0
+    for item in cases:
+        problem = item[1].problem
+        need = 3 * 8 * problem.t.size * (problem.model.size + 1)
+        if not out or len(out[-1]) >= MAX_RUNS or size + need > STACK_BYTES:
+            out.append([])
+            size = 0
+        out[-1].append(item)
+        size += need
     return out
 
 

@@ -283,3 +283,21 @@ def test_a_study_piece_of_time_variant_cases_equals_the_per_case_path() -> None:
                 assert _relative(got[name], value, abs(value)) <= RTOL, name
             else:
                 assert got[name] == value, name
+
+
+def test_time_variant_chunks_bound_the_stacked_state_histories(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """At most MAX_RUNS cases a chunk, fewer where their state histories would pass
+    STACK_BYTES (a 40-mode, 20,001-sample case alone holds ~40 MB)."""
+    from pipeflow import batch
+
+    cases = [(i, batch._Varying(s, build_model(s.pipe, s.modes), _problem(s)))
+             for i, s in enumerate(_varying_cases() * 2)]  # fmt: skip
+    sizes = [len(c) for c in batch._chunks(cases)]
+    assert sizes == [16, 8]
+    one = 3 * 8 * cases[0][1].problem.t.size * (cases[0][1].problem.model.size + 1)
+    monkeypatch.setattr(batch, "STACK_BYTES", 2 * one)
+    chunks = batch._chunks(cases)
+    assert max(len(c) for c in chunks) <= 2 and sum(len(c) for c in chunks) == len(cases)
+    assert [i for c in chunks for i, _ in c] == list(range(len(cases)))
