@@ -4,6 +4,7 @@
     python benchmarks/bench_study.py --cases 2500   # a 50 x 50 grid
     python benchmarks/bench_study.py --smoke        # seconds: a 6 x 6 grid, 2 modes
     python benchmarks/bench_study.py --label x      # names the section written to RESULTS.md
+    python benchmarks/bench_study.py --time-variant # the 100-case v = a t study (library)
 
 The study: the paper's pipe, a grid of constant flow v in [0, 20] m/s by constant spin w0 in
 [0, 200] rad/s (sqrt(cases) values each), 10 modes, 1 s, 201 samples, method ``auto``
@@ -27,12 +28,31 @@ sigma and omega, method_used, result_status).  Measured in the same run:
 
 Prints the ratios against the floor with the targets (HTTP within 2.5x of the floor, peak
 RSS within 1.5x of idle) and writes a section to benchmarks/RESULTS.md.
+
+``--time-variant`` measures the issue's other study instead, in the library (serial, one
+core): v = a t with a in [0.1, 2] m/s^2 by constant w0 in [0, 200] rad/s (10 x 10), the
+paper's pipe, 10 modes, 1 s, 2001 samples, ``auto`` (= magnus at tolerance 1e-8).  Measured
+in the same run, interleaved round by round (:func:`time_variant`):
+
+- the floor: batched Magnus-4 written here in plain numpy (:func:`magnus_floor`): every
+  case at the uniform step the library's accepted run ends with (so at the library's
+  accuracy, told the step it would otherwise have to find), the step exponentials of all
+  cases with that step formed together (scaling and squaring of a Taylor polynomial
+  written here), one batched product per output interval, the peak tip and the lowest
+  eigenvalue of S(t_end); no error control, no branch tracking;
+- the library's study runner (``COMPUTATIONS["study"].execute``): the stacked magnus of
+  :mod:`pipeflow.solvers.magnus_stack` through :func:`pipeflow.batch.summaries`;
+- the per-case path the runner took before (each case ``execute`` + ``summarize``: the
+  full result and its document), the same runner with the base's ``summarize_many`` off.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import os
+import re
 import sys
 import tempfile
 import threading
@@ -224,6 +244,247 @@ def report(side: int, modes: int, raw: dict[str, Any], started: float, smoke: bo
     return "\n".join(lines)
 
 
+# -- the time-variant study (library) -----------------------------------------------------
+
+TV_TARGET = 1.5
+
+
+def tv_body(side: int, modes: int, samples: int) -> dict[str, Any]:
+    """v = a t for ``side`` values of a in [0.1, 2] m/s^2 by ``side`` spins in [0, 200]."""
+    base = {
+        "pipe": PAPER_EXAMPLE["pipe"],
+        "modes": modes,
+        "time": {"t_end": 1.0, "samples": samples},
+        "flow": {"velocity": {"kind": "polynomial", "coefficients": [0.0, 0.4]}},
+    }
+    return {
+        "base": {"kind": "simulation", "spec": base},
+        "grid": {
+            "flow.velocity.coefficients.1": [float(x) for x in np.linspace(0.1, 2.0, side)],
+            "rotation.omega0.value": [float(x) for x in np.linspace(0.0, 200.0, side)],
+        },
+    }
+
+
+def taylor_expm(X: np.ndarray) -> np.ndarray:
+    """exp(X) of a stack by scaling and squaring: Taylor degree 15 (Paterson-Stockmeyer,
+    6 products) of X / 2^s with |X / 2^s|_1 <= 1/2 (truncation 0.5^16 / 16! ~ 7e-19)."""
+    norm = np.abs(X).sum(axis=-2).max(axis=-1)
+    s = np.maximum(0, np.ceil(np.log2(np.maximum(norm, 1e-300) / 0.5))).astype(int)
+    Y = X * (0.5**s)[:, None, None]
+    eye = np.eye(X.shape[-1])
+    Y2 = Y @ Y
+    Y3 = Y2 @ Y
+    Y4 = Y2 @ Y2
+    f = [1.0 / math.factorial(j) for j in range(16)]
+    R = f[12] * eye + f[13] * Y + f[14] * Y2 + f[15] * Y3
+    for i in (2, 1, 0):
+        R = R @ Y4 + (f[4 * i] * eye + f[4 * i + 1] * Y + f[4 * i + 2] * Y2 + f[4 * i + 3] * Y3)
+    for k in range(int(s.max())):
+        sq = s > k
+        R[sq] = R[sq] @ R[sq]
+    return R
+
+
+def magnus_floor(
+    a: np.ndarray, w0: np.ndarray, steps: np.ndarray, modes: int, samples: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Peak |u(L, t)| [m], the lowest eigenvalue of S(t_end) [1/s] and the final balanced
+    state of each case (flow a t, spin w0), by Magnus-4 with ``steps[c]`` equal steps per
+    output interval."""
+    model = build_model(PAPER_PIPE, modes)
+    pieces = model.state_pieces.reshape(5, -1)
+    d0, v0 = model.initial_state(0.001, 0.0)
+    z0 = model.to_balanced(d0, v0)
+    tipw = model.from_balanced(np.eye(2 * modes))[0] @ model.tip  # tip of each state entry
+    t = np.linspace(0.0, 1.0, samples)
+    dt = t[1] - t[0]
+    n = 2 * modes
+    g = np.array([0.5 - math.sqrt(3) / 6, 0.5 + math.sqrt(3) / 6])
+    peaks = np.empty(a.size)
+    final = np.empty((a.size, 2 * modes))
+    block = 32  # output intervals whose exponentials are formed at once
+    for m in np.unique(steps):
+        cases = np.flatnonzero(steps == m)
+        G, h = cases.size, dt / m
+        z = np.repeat(z0[None], G, axis=0)
+        peak = np.abs(z @ tipw)
+        for k0 in range(0, samples - 1, block):
+            k1 = min(samples - 1, k0 + block)
+            starts = (t[k0:k1, None] + h * np.arange(m)[None, :]).ravel()  # (nb m,)
+            nodes = starts[None, :] + g[:, None] * h  # (2, nb m)
+            v = a[cases, None, None] * nodes[None]  # (G, 2, nb m)
+            wts = np.stack(
+                [np.ones_like(v), v, np.broadcast_to(a[cases, None, None], v.shape), v * v,
+                 np.broadcast_to((w0[cases] ** 2)[:, None, None], v.shape)], axis=-1,
+            )  # fmt: skip
+            A = (wts @ pieces).reshape(G, 2, -1, n, n)
+            A1, A2 = A[:, 0], A[:, 1]
+            Om = 0.5 * h * (A1 + A2) + (math.sqrt(3) / 12 * h * h) * (A2 @ A1 - A1 @ A2)
+            E = taylor_expm(Om.reshape(-1, n, n)).reshape(G, k1 - k0, m, n, n)
+            for j in range(k1 - k0):
+                for i in range(m):
+                    z = np.einsum("gij,gj->gi", E[:, j, i], z)
+                peak = np.maximum(peak, np.abs(z @ tipw))
+        peaks[cases] = peak
+        final[cases] = z
+    weights = np.stack([np.ones_like(a), a, a, a * a, w0 * w0], axis=1)  # v(1) = a
+    lam = np.linalg.eigvals((weights @ pieces).reshape(-1, n, n))
+    upper = np.where(lam.imag > 0, lam.imag, np.inf)
+    lowest = np.take_along_axis(lam, upper.argmin(axis=1)[:, None], axis=1)[:, 0]
+    return peaks, lowest, final
+
+
+def _per_case_base() -> Any:
+    """The simulation computation without its stacked summaries: each case through
+    ``execute`` and ``summarize`` (the study runner's path before the stacked magnus)."""
+    return dataclasses.replace(COMPUTATIONS["simulation"], summarize_many=None, batchable=None)
+
+
+def time_variant(side: int, modes: int, samples: int, rounds: int) -> dict[str, Any]:
+    """Interleaved rounds of the floor, the library and the per-case path [s]."""
+    from pipeflow.batch import time_variant_summaries
+    from pipeflow.schema.study_runner import run_study
+    from pipeflow.solvers.magnus_stack import solve_many
+
+    spec = StudySpec.model_validate(tv_body(side, modes, samples))
+    sims = [r.to_simulation() for r in (spec.validate_case(o)[0] for o in spec.overrides())]
+    a = np.array([s.flow.coefficients[1] for s in sims])  # type: ignore[attr-defined]
+    w0 = np.array([s.spin.value(0.0) for s in sims], dtype=float)
+    # the library's accepted step per case (and its work), unmeasured
+    problems = [batch_problem(s) for s in sims]
+    outs = solve_many(problems)
+    steps = np.array([o.diagnostics["steps"] // (samples - 1) for o in outs])  # type: ignore[union-attr]
+    exps = sum(o.diagnostics["matrix_exponentials"] for o in outs)  # type: ignore[union-attr]
+    order6 = sum(o.diagnostics["steps_order_6"] for o in outs)  # type: ignore[union-attr]
+    rows = time_variant_summaries(sims)
+    peaks, lowest, final = magnus_floor(a, w0, steps, modes, samples)
+    # the floor's accuracy: its final states against the library's accepted runs (the same
+    # steps, both order 4 here: rounding apart, the same states and so the same error)
+    final_diff = max(
+        float(np.linalg.norm(f - o.z[-1]) / np.max(np.linalg.norm(o.z, axis=1)))  # type: ignore[union-attr]
+        for f, o in zip(final, outs, strict=True)
+    )
+    lib_peaks = np.array([r.peak_tip_displacement for r in rows])  # type: ignore[union-attr]
+    study = COMPUTATIONS["study"]
+    per_case = _per_case_base()
+    times: dict[str, list[float]] = {"floor": [], "library": [], "per_case": []}
+    cpu: dict[str, list[float]] = {"floor": [], "library": [], "per_case": []}
+
+    def timed(name: str, call: Any) -> Any:
+        wall, used = time.perf_counter(), time.process_time()
+        out = call()
+        times[name].append(time.perf_counter() - wall)
+        cpu[name].append(time.process_time() - used)
+        return out
+
+    for _ in range(rounds):
+        timed("floor", lambda: magnus_floor(a, w0, steps, modes, samples))
+        result = timed("library", lambda: study.execute(spec))
+        before = timed("per_case", lambda: run_study(spec, per_case))
+    assert result["counts"]["ok"] == side * side, result["counts"]
+    same = [r[4:] == b[4:] for r, b in zip(result["rows"], before["rows"], strict=True)]
+    return {
+        "times": times,
+        "cpu": cpu,
+        "steps": steps,
+        "exps": exps,
+        "order6": order6,
+        "floor_steps": int(steps.sum()) * (samples - 1),
+        "peak_diff": float(np.max(np.abs(peaks - lib_peaks) / lib_peaks)),
+        "final_diff": final_diff,
+        "estimates": [o.diagnostics["estimated_relative_error"] for o in outs],  # type: ignore[union-attr]
+        "lowest": lowest,
+        "rows_equal": sum(same),
+    }
+
+
+def batch_problem(sim: Any) -> Any:
+    """The solver problem of a simulation, as :func:`pipeflow.simulation.simulate` forms it."""
+    from pipeflow.model import Loading
+    from pipeflow.solvers import Problem
+
+    model = build_model(sim.pipe, sim.modes)
+    d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
+    t = np.linspace(0.0, sim.t_end, sim.samples)
+    return Problem(model, Loading(sim.flow, sim.spin), model.to_balanced(d0, v0), t, sim.options)
+
+
+def tv_report(side: int, modes: int, samples: int, raw: dict[str, Any], started: float) -> str:
+    cases = side * side
+    t, c = raw["times"], raw["cpu"]
+    fl, lib, old = min(t["floor"]), min(t["library"]), min(t["per_case"])
+    cfl, clib, cold = min(c["floor"]), min(c["library"]), min(c["per_case"])
+    ratio = lib / fl
+    verdict = "met" if ratio <= TV_TARGET else "**missed**"
+    counts = ", ".join(f"{int((raw['steps'] == m).sum())} x {m}" for m in np.unique(raw["steps"]))
+    load = " ".join(f"{x:.1f}" for x in raw["load_after"])
+    fmt = lambda xs: ", ".join(f"{x:.2f}" for x in xs)  # noqa: E731
+    lines = [
+        f"`python benchmarks/bench_study.py --time-variant{' --smoke' if side < 10 else ''}` "
+        f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+        f"{time.monotonic() - started:.0f} s): {raw['machine']}; load average {load} at the "
+        f"end. v = a t, a in [0.1, 2] m/s^2 x w0 in [0, 200] rad/s ({side} x {side}), "
+        f"{modes} modes, 1 s, {samples} samples, auto (= magnus, tolerance 1e-8); "
+        f"{len(t['floor'])} interleaved rounds, best of each.",
+        "",
+        "| what | wall [s] (rounds) | cases/s | / floor | CPU [s] (rounds) | CPU / floor |",
+        "|---|---:|---:|---:|---:|---:|",
+        f"| batched Magnus-4 floor (written here, the accepted steps given) | {fmt(t['floor'])} "
+        f"| {cases / fl:.1f} | 1.00x | {fmt(c['floor'])} | 1.00x |",
+        f"| library study runner, stacked magnus (after) | {fmt(t['library'])} | "
+        f"{cases / lib:.1f} | {lib / fl:.2f}x | {fmt(c['library'])} | {clib / cfl:.2f}x |",
+        f"| library study runner, per case (before: execute + summarize) | "
+        f"{fmt(t['per_case'])} | {cases / old:.1f} | {old / fl:.2f}x | {fmt(c['per_case'])} "
+        f"| {cold / cfl:.2f}x |",
+        "",
+        "| target | measured | verdict |",
+        "|---|---:|---|",
+        f"| library within {TV_TARGET}x of the floor (wall, best of the rounds) | {ratio:.2f}x "
+        f"| {verdict} |",
+        f"| the same in CPU time of this process (less sensitive to the machine's load) | "
+        f"{clib / cfl:.2f}x | {'met' if clib / cfl <= TV_TARGET else '**missed**'} |",
+        "",
+        f"Work: the floor takes the accepted steps only ({raw['floor_steps']:,} exponentials; "
+        f"steps per output interval: {counts}); the library's step control forms "
+        f"{raw['exps']:,} ({raw['exps'] / raw['floor_steps']:.2f}x: the first attempt, its "
+        "check with twice the step, and where refined the run with four times the step and "
+        f"the refined attempt; {raw['order6']} steps of order 6). The floor against the "
+        f"library's accepted runs: peak tip max relative difference {raw['peak_diff']:.1e}, "
+        f"final state {raw['final_diff']:.1e} of the state's largest norm (the library's "
+        f"estimated errors {min(raw['estimates']):.1e} to {max(raw['estimates']):.1e}: the "
+        "floor is at the library's accuracy). Rows of the stacked "
+        f"and the per-case runner identical (every summary column, == on floats): "
+        f"{raw['rows_equal']} of {cases}. Speed-up of the stacked runner over the per-case "
+        f"one: {old / lib:.2f}x (CPU {cold / clib:.2f}x).",
+    ]
+    return "\n".join(lines)
+
+
+def write_top(path: Path, title: str, text: str) -> None:
+    """Put the section ``## <title>`` first in ``path`` (after its heading), replacing an
+    older one of that title."""
+    old = path.read_text() if path.exists() else "# Benchmark results\n"
+    head, _, rest = old.partition("\n")
+    pattern = re.compile(rf"^## {re.escape(title)}\n.*?(?=^## |\Z)", re.S | re.M)
+    rest = pattern.sub("", rest)
+    path.write_text(f"{head}\n\n## {title}\n\n{text.rstrip()}\n\n{rest.lstrip()}")
+
+
+def main_time_variant(args: argparse.Namespace) -> int:
+    side, modes, samples, rounds = (3, 3, 201, 1) if args.smoke else (10, 10, 2001, args.rounds)
+    started = time.monotonic()
+    raw = time_variant(side, modes, samples, rounds)
+    raw["machine"] = BENCH.machine()
+    raw["load_after"] = os.getloadavg()
+    text = tv_report(side, modes, samples, raw, started)
+    print(text, flush=True)
+    if not args.no_write:
+        write_top(args.out, f"Study benchmark, time-variant (issue 19): {args.label}", text)
+        print(f"\nwritten to {args.out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=10_000, help="grid size (a square)")
@@ -232,7 +493,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--label", default="latest", help="section name in RESULTS.md")
     ap.add_argument("--out", type=Path, default=RESULTS, help="Markdown file to write into")
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--time-variant", action="store_true", help="the v = a t study (library)")
+    ap.add_argument("--rounds", type=int, default=3, help="--time-variant: interleaved rounds")
     args = ap.parse_args(argv)
+    if args.time_variant:
+        return main_time_variant(args)
     side = 6 if args.smoke else max(2, round(args.cases**0.5))
     modes = 2 if args.smoke else 10
     started = time.monotonic()

@@ -1,19 +1,23 @@
-"""Summaries of many constant-coefficient simulations at once: one stacked computation.
+"""Summaries of many simulations at once: stacked computations, never the full documents.
 
-A design study of LTI simulations (constant flow and spin, method ``cma`` or ``auto``, no
-external loads) wants five numbers per case, not its histories.  :func:`lti_summaries`
-computes exactly those numbers for a list of :class:`~pipeflow.simulation.Simulation`,
-the same ones :func:`~pipeflow.simulation.simulate` reports:
+A design study wants five numbers per case, not its histories.  :func:`summaries` computes
+exactly those numbers for a list of :class:`~pipeflow.simulation.Simulation`, the same ones
+:func:`~pipeflow.simulation.simulate` reports, by two stacked paths:
+:func:`lti_summaries` for constant flow and spin (method ``cma`` or ``auto``, no external
+loads; below) and :func:`time_variant_summaries` for flow or spin varying in time (method
+``magnus`` or ``auto``, no external loads; see that function).  The numbers:
 
 - ``peak_tip_displacement`` [m]: max |u(L, t)| over the output times;
 - ``final_sigma_1``, ``final_omega_1``: the fundamental's eigenvalue at t_end (mode 1 as
   the single run numbers it, :func:`pipeflow.spectra.order_lowest`; at constant
-  coefficients the frozen spectrum is the same at every time);
-- ``method_used`` (``cma``: what ``auto`` runs here) and ``result_status`` (``ok`` or
+  coefficients the frozen spectrum is the same at every time, with varying ones the
+  branch of mode 1 at t = 0 followed to t_end as the single run follows it);
+- ``method_used`` (``cma`` or ``magnus``: what ``auto`` runs) and ``result_status`` (``ok`` or
   ``diverging``: the tip past the divergence bound, or a growth rate of the frozen
   spectrum above rounding, :func:`pipeflow.spectra.max_growth_rates`).
 
-Cases sharing the number of modes and the time grid are one computation: their state
+Constant coefficients.  Cases sharing the number of modes and the time grid are one
+computation: their state
 matrices S stacked, one batched ``np.linalg.eig``, and the tip history by broadcasting
 z(t) = V exp(Lambda t) V^-1 z0 in the balanced state (z0 from the initial shape as
 :func:`~pipeflow.simulation.simulate` builds it), the conjugate pairs taken once with
@@ -39,13 +43,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow._types import FloatArray
-from pipeflow.model import Loading, build_model
+from pipeflow.model import Loading, PipeModel, build_model
 from pipeflow.simulation import Simulation, SimulationStatus, validate
+from pipeflow.solvers import Problem, SolverOutput
 from pipeflow.solvers.cma import _uniform_step
-from pipeflow.spectra import MARGINAL_RTOL, order_lowest
+from pipeflow.solvers.magnus_stack import MAX_RUNS, solve_many
+from pipeflow.spectra import MARGINAL_RTOL, assign, decompose, max_growth_rates, order_lowest
 
 #: the methods whose constant-coefficient run is one eigen-decomposition (``auto`` runs cma)
 BATCHED_METHODS = ("auto", "cma")
+#: the methods whose time-variant run is the tolerance-controlled magnus (``auto`` runs it)
+STACKED_METHODS = ("auto", "magnus")
 #: most cases in one stacked computation (bounds the temporaries: 256 cases x 40 modes)
 MAX_STACK = 256
 #: a state whose bound sum_j |c_j| max_i |V_ij| 2 exp(sigma_j t_end) passes e^LOG_OVERFLOW
@@ -54,11 +62,16 @@ LOG_OVERFLOW = 700.0
 #: a status within this relative distance of its threshold is left to the single run
 THRESHOLD_RTOL = 1e-8
 _BLOCK = 64  # the block of modal_exponentials
+#: matrix entries of the frozen spectra decomposed at once (time-variant cases) [-]
+SPECTRUM_ENTRIES = 400_000
+#: bytes of state histories of the time-variant cases stacked at once (a single run of
+#: 40 modes at 20,001 samples holds ~40 MB of them) [B]
+STACK_BYTES = 128 * 2**20
 
 
 @dataclass(frozen=True)
-class LTISummary:
-    """The study row of one constant-coefficient simulation (see the module docstring)."""
+class CaseSummary:
+    """The study row of one simulation (see the module docstring)."""
 
     peak_tip_displacement: float  # [m]
     final_sigma_1: float  # [1/s]
@@ -107,10 +120,10 @@ def _prepare(sim: Simulation) -> _Case | None:
     )  # fmt: skip
 
 
-def lti_summaries(sims: Sequence[Simulation]) -> list[LTISummary | None]:
+def lti_summaries(sims: Sequence[Simulation]) -> list[CaseSummary | None]:
     """The study row of every simulation in ``sims``, or None where the caller must run
     :func:`~pipeflow.simulation.simulate` (see the module docstring)."""
-    out: list[LTISummary | None] = [None] * len(sims)
+    out: list[CaseSummary | None] = [None] * len(sims)
     groups: dict[tuple[int, int, float], list[tuple[int, _Case]]] = defaultdict(list)
     for i, sim in enumerate(sims):
         if not eligible(sim):
@@ -148,7 +161,7 @@ def _fundamental(w: NDArray[np.complex128]) -> NDArray[np.intp]:
     return np.asarray(np.argmin(r, axis=1))
 
 
-def _stack(cases: list[_Case], t: FloatArray) -> list[LTISummary | None]:
+def _stack(cases: list[_Case], t: FloatArray) -> list[CaseSummary | None]:
     """One stacked computation for cases of one size and time grid."""
     S = np.stack([c.S for c in cases])
     m = S.shape[-1]
@@ -203,16 +216,15 @@ def _stack(cases: list[_Case], t: FloatArray) -> list[LTISummary | None]:
     )
     damped = np.array([c.damped for c in cases])
     mode1 = _fundamental(w)
-    out: list[LTISummary | None] = []
+    out: list[CaseSummary | None] = []
     for b in range(len(cases)):
         if not fine[b]:
             out.append(None)
             continue
         j = int(order_lowest(w[b], 1, True)[0]) if damped[b] else int(mode1[b])
         status = SimulationStatus.DIVERGING if diverging[b] else SimulationStatus.OK
-        out.append(
-            LTISummary(float(peak[b]), float(w[b, j].real), float(w[b, j].imag), "cma", str(status))
-        )
+        xi = complex(w[b, j])
+        out.append(CaseSummary(float(peak[b]), xi.real, xi.imag, "cma", str(status)))
     return out
 
 
@@ -235,3 +247,161 @@ def _tip_history(w: NDArray[np.complex128], a: NDArray[np.complex128], t: FloatA
     offsets = np.exp(w[:, :, None] * (dt * np.arange(_BLOCK))[None, None, :])  # (B, K, 64)
     tip = ((starts * a[:, None, :]) @ offsets).real  # (B, nb, 64)
     return np.asarray(tip.reshape(w.shape[0], -1)[:, :T])
+
+
+def time_variant(sim: Simulation) -> bool:
+    """Whether :func:`time_variant_summaries` computes ``sim`` itself: flow or spin varying
+    in time, method ``magnus`` or ``auto``, no external loads and no mode shapes asked for."""
+    return (
+        sim.method in STACKED_METHODS
+        and not sim.loads
+        and not sim.mode_shape_times
+        and not (sim.flow.is_constant and sim.spin.is_constant)
+    )
+
+
+def summaries(sims: Sequence[Simulation]) -> list[CaseSummary | None]:
+    """The study row of every simulation in ``sims`` (:func:`lti_summaries` for the
+    constant-coefficient ones, :func:`time_variant_summaries` for the others), or None
+    where the caller must run :func:`~pipeflow.simulation.simulate`."""
+    out = lti_summaries(sims)
+    varying = [i for i, sim in enumerate(sims) if time_variant(sim)]
+    for i, row in zip(varying, time_variant_summaries([sims[i] for i in varying]), strict=True):
+        out[i] = row
+    return out
+
+
+@dataclass
+class _Varying:
+    sim: Simulation
+    model: PipeModel
+    problem: Problem
+
+
+def time_variant_summaries(sims: Sequence[Simulation]) -> list[CaseSummary | None]:
+    """The study rows of time-variant simulations (:func:`time_variant`), or None where the
+    caller must run :func:`~pipeflow.simulation.simulate`.
+
+    In chunks of :data:`~pipeflow.solvers.magnus_stack.MAX_RUNS` cases (fewer where their
+    state histories would pass :data:`STACK_BYTES`): the states by
+    :func:`~pipeflow.solvers.magnus_stack.solve_many` (the magnus runs of the chunk
+    stacked, each with the single run's step control: the same steps, estimate and
+    refinements, so the same states to rounding), the tip and its peak from them, and the
+    frozen spectra of the chunk at the single run's eigenvalue times in one batched
+    decomposition, each case's branches followed as :func:`pipeflow.spectra.spectrum`
+    follows them (the fundamental: mode 1 at t = 0, followed to t_end).  None for the
+    cases the library refuses (validation, the model, the solver's budget or options: the
+    single run reports why), that overflow, or whose status sits within
+    :data:`THRESHOLD_RTOL` of a threshold.
+    """
+    out: list[CaseSummary | None] = [None] * len(sims)
+    cases: list[tuple[int, _Varying]] = []
+    for i, sim in enumerate(sims):
+        if not time_variant(sim):
+            continue
+        try:
+            validate(sim)
+            model = build_model(sim.pipe, sim.modes, sim.quadrature_order)
+        except Exception:
+            continue
+        d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
+        t = np.linspace(0.0, sim.t_end, sim.samples)
+        problem = Problem(
+            model, Loading(sim.flow, sim.spin), model.to_balanced(d0, v0), t, sim.options
+        )
+        cases.append((i, _Varying(sim, model, problem)))
+    for part in _chunks(cases):
+        solved = solve_many([c.problem for _, c in part])
+        finals = _final_fundamentals([c for _, c in part])
+        for (i, case), result, final in zip(part, solved, finals, strict=True):
+            if isinstance(result, SolverOutput):
+                out[i] = _varying_row(case, result, final)
+    return out
+
+
+def _chunks(cases: list[tuple[int, _Varying]]) -> list[list[tuple[int, _Varying]]]:
+    """Consecutive chunks of at most MAX_RUNS cases whose state histories (the states at
+    every output time: ~3 of them held per case during the step control) stay within
+    :data:`STACK_BYTES`."""
+    out: list[list[tuple[int, _Varying]]] = []
+    size = 0
+    for item in cases:
+        problem = item[1].problem
+        need = 3 * 8 * problem.t.size * (problem.model.size + 1)
+        if not out or len(out[-1]) >= MAX_RUNS or size + need > STACK_BYTES:
+            out.append([])
+            size = 0
+        out[-1].append(item)
+        size += need
+    return out
+
+
+def _eigen_times(sim: Simulation) -> FloatArray:
+    """The single run's eigenvalue times [s]."""
+    return np.linspace(0.0, sim.t_end, max(2, min(sim.eigen_samples, sim.samples)))
+
+
+def _final_fundamentals(cases: Sequence[_Varying]) -> list[tuple[complex, NDArray[np.complex128]]]:
+    """Per case: the fundamental's eigenvalue at t_end [1/s] (mode 1 at t = 0 followed
+    as :func:`pipeflow.spectra.spectrum` follows it) and the whole spectrum at t_end."""
+    out: list[tuple[complex, NDArray[np.complex128]] | None] = [None] * len(cases)
+    groups: dict[tuple[int, int], list[int]] = defaultdict(list)
+    for c, case in enumerate(cases):
+        groups[(case.model.size, _eigen_times(case.sim).size)].append(c)
+    for (m, T), group in groups.items():
+        # the decompositions of a few cases at a time (complex V and W: 32 bytes an entry)
+        per = max(1, SPECTRUM_ENTRIES // (T * m * m))
+        for s0 in range(0, len(group), per):
+            members = group[s0 : s0 + per]
+            _follow(cases, members, m, T, out)
+    return [o for o in out if o is not None]
+
+
+def _follow(
+    cases: Sequence[_Varying],
+    members: list[int],
+    m: int,
+    T: int,
+    out: list[tuple[complex, NDArray[np.complex128]] | None],
+) -> None:
+    """:func:`_final_fundamentals` of the cases ``members`` (state size m, T eigenvalue
+    times): one batched decomposition, each case's branches followed."""
+    S = np.stack(
+        [
+            cases[c].model.state_matrix(
+                cases[c].problem.loading.coefficients(_eigen_times(cases[c].sim))
+            )
+            for c in members
+        ]
+    )
+    w, V, W = decompose(S.reshape(-1, m, m))
+    w, V, W = (a.reshape(len(members), T, *a.shape[1:]) for a in (w, V, W))
+    for g, c in enumerate(members):
+        perm, _ = assign(w[g], V[g], W[g])
+        j = int(order_lowest(w[g, 0], 1, cases[c].model.pipe.damped)[0])
+        out[c] = (complex(w[g, -1, perm[-1, j]]), w[g, -1])
+
+
+def _varying_row(
+    case: _Varying, result: SolverOutput, final: tuple[complex, NDArray[np.complex128]]
+) -> CaseSummary | None:
+    """The row of one solved time-variant case, as :func:`~pipeflow.simulation.simulate`
+    decides it; None where it overflowed or sits at a threshold."""
+    Z = result.z
+    if not np.all(np.isfinite(Z)):
+        return None  # the single run reports the overflow and the finite prefix
+    model, sim = case.model, case.sim
+    tip = model.from_balanced(Z)[0] @ model.tip
+    peak = float(np.max(np.abs(tip)))
+    bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
+    xi, last = final
+    sigma = float(np.max(last.real))
+    level = float(MARGINAL_RTOL * np.max(np.abs(last)))
+    if abs(abs(sigma) - level) <= THRESHOLD_RTOL * level:
+        return None
+    if abs(peak - bound) <= THRESHOLD_RTOL * bound:
+        return None
+    growing = bool(max_growth_rates(last) > 0)
+    diverging = growing or peak > bound
+    status = SimulationStatus.DIVERGING if diverging else SimulationStatus.OK
+    return CaseSummary(peak, float(xi.real), float(xi.imag), str(result.method), str(status))

@@ -174,3 +174,28 @@ def test_study_benchmark_smoke(tmp_path: Path) -> None:
     for row in ("batched numpy floor", "library study runner", "POST to result over HTTP"):
         assert row in section, row
     assert "'computed': 36" in section and "'failed': 0" in section
+
+
+@pytest.mark.slow  # a benchmark's smoke run, ~5-15 s
+def test_time_variant_study_benchmark_smoke(tmp_path: Path) -> None:
+    """benchmarks/bench_study.py --time-variant --smoke (a 3 x 3 grid, 3 modes) prints the
+    floor, the stacked and the per-case runner with the target, finds every row of the two
+    runners identical, and writes its section first in the file.  No timing is asserted."""
+    import subprocess
+
+    from tests.live import ROOT
+
+    out = tmp_path / "RESULTS.md"
+    out.write_text("# results\n\n## other section\n\nkept\n")
+    proc = subprocess.run(
+        [sys.executable, "benchmarks/bench_study.py", "--time-variant", "--smoke", "--label",
+         "smoke", "--out", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    text = out.read_text()
+    title = "## Study benchmark, time-variant (issue 19): smoke"
+    assert text.startswith(f"# results\n\n{title}\n") and "## other section\n\nkept" in text
+    for row in ("batched Magnus-4 floor", "stacked magnus (after)", "per case (before"):
+        assert row in text, row
+    assert "identical (every summary column, == on floats): 9 of 9" in text

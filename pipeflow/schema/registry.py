@@ -26,7 +26,7 @@ from typing import Annotated, Any, Union
 from pydantic import BaseModel, Field, TypeAdapter
 
 from pipeflow._types import Progress
-from pipeflow.batch import eligible, lti_summaries
+from pipeflow.batch import eligible, summaries
 from pipeflow.compare import MAX_METHODS, compare
 from pipeflow.errors import PipeflowError
 from pipeflow.frequency import MAX_FREQUENCIES
@@ -278,8 +278,8 @@ def summarize_simulation(result: dict[str, Any]) -> dict[str, Any]:
 
 
 def summarize_simulations(requests: Sequence[SimulationSpec]) -> list[dict[str, Any] | None]:
-    """The study rows of the constant-coefficient cases among ``requests`` by one stacked
-    computation (:func:`pipeflow.batch.lti_summaries`, equal to
+    """The study rows of the constant-coefficient and time-variant cases among ``requests``
+    by stacked computations (:func:`pipeflow.batch.summaries`, equal to
     :func:`summarize_simulation` of each one's result); None for the others."""
     sims: list[Simulation | None] = []
     for spec in requests:
@@ -287,7 +287,7 @@ def summarize_simulations(requests: Sequence[SimulationSpec]) -> list[dict[str, 
             sims.append(spec.to_simulation())
         except Exception:  # the single run reports it
             sims.append(None)
-    found = iter(lti_summaries([s for s in sims if s is not None]))
+    found = iter(summaries([s for s in sims if s is not None]))
     out: list[dict[str, Any] | None] = []
     for sim in sims:
         row = next(found) if sim is not None else None

@@ -12,11 +12,16 @@ Each case is run by its base computation's ``execute`` (the same call as a stand
 request) and reduced on the spot to a summary by the base computation's own
 ``summarize`` (a few numbers, not its time histories, under its ``summary_columns``),
 which is what the memo stores.  A base computation with ``summarize_many`` (simulation:
-:mod:`pipeflow.batch`, one stacked computation for the constant-coefficient cases) is
-given a whole chunk first, in chunks of up to :data:`BATCH_CHUNK_CASES`; the cases it
-leaves (``None``) run one by one as above.  One failing case does not fail the study: its
-row says ``failed`` with the problem's type, field and detail; a case its base model
-refuses (a rule across fields) is such a row too (``invalid-input``, no key).
+:func:`pipeflow.batch.summaries`, one stacked computation for the constant-coefficient
+cases, stacked magnus runs for the time-variant ones) is given a whole piece first; the
+cases it leaves (``None``) run one by one as above.  Pieces hold up to
+:data:`BATCH_CHUNK_CASES` cases when the base says the study's cases are ``batchable``
+(constant coefficients: microseconds a case), else :data:`CHUNK_CASES` (time-variant cases,
+tens of milliseconds each: 16 fill one stacked magnus,
+:data:`pipeflow.solvers.magnus_stack.MAX_RUNS`, and keep every worker busy).  One
+failing case does not fail the study: its row says ``failed`` with the problem's type,
+field and detail; a case its base model refuses (a rule across fields) is such a row too
+(``invalid-input``, no key).
 
 Cases are validated and keyed here, in the job's process; the pieces carry the study's
 base and each case's overrides (plain JSON, small to ship) and validate them again where
