@@ -447,6 +447,11 @@ class Runner:
             return None, None
         claim = claimed.result()  # raises the StorageError
         if claim.outcome != "claimed":
+            # it computed nothing: its thread is released before the ordinary path asks
+            # for the lane again (a request joining this flight may have written the
+            # record first, queued: the lane then claims it as a worker would)
+            self.lane_runs -= 1
+            await waiter
             return claim.job, None
         self.computations += 1
         return None, waiter
