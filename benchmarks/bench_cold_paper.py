@@ -91,7 +91,8 @@ async def measure(rounds: int) -> dict[str, list[float]]:
             runner = app.state.runner
             while not runner.ready:
                 await asyncio.sleep(0.05)
-            address = next(iter(runner.client.scheduler_info()["workers"]))
+            identity = await runner.client.scheduler.identity()
+            address = next(iter(identity["workers"]))
             transport = httpx.ASGITransport(app=app)
             async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
 

@@ -213,21 +213,13 @@ class JobStore(StoreConnection):
 
     def mark_succeeded(self, key: str, kind: str, spec: dict[str, Any]) -> None:
         """Record a job whose result is already stored (a resubmission of a cached run)."""
-        now = time.time()
+        created, _ = _queued(kind, spec, False)
+        now = created["created"]
         with self._write() as conn:
             self._create_or_reset(
                 conn,
                 key,
-                dict(
-                    kind=kind,
-                    spec=json.dumps(spec),
-                    status="succeeded",
-                    progress=1.0,
-                    created=now,
-                    started=now,
-                    finished=now,
-                    updated=now,
-                ),
+                created | dict(status="succeeded", progress=1.0, started=now, finished=now),
                 dict(
                     status="succeeded",
                     progress=1.0,
