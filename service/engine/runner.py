@@ -42,10 +42,10 @@ from pipeflow.errors import ErrorRecord, StorageError
 from pipeflow.schema.registry import COMPUTATIONS
 from service import observability
 from service.engine.preload import WORKER_ENV
-from service.engine.task import Outcome, TaskConfig, run_job
+from service.engine.task import Accept, Outcome, TaskConfig, run_job
 from service.keys import Keyed
 from service.settings import Settings
-from service.store import Job, Store
+from service.store import Claim, Job, Store
 
 log = logging.getLogger("service.engine")
 
@@ -380,20 +380,21 @@ class Runner:
         self.computations += 1
         return self._execute(flight, job)
 
-    def _lane_takes(self, flight: Flight, job: Job) -> bool:
+    def _lane_takes(self, flight: Flight, job: Job | None) -> bool:
         """Whether the fast lane runs this attempt: the lane is on and has a free thread,
         the computation estimates its run time (:attr:`Computation.run_time`) at most
         ``fast_lane_max_s``, and it is the job's first attempt here (a recovered or
-        retried job goes to a worker).  Below ~50 ms the cross-process round trip of a
-        Dask task (client -> scheduler -> worker -> scheduler -> client, 10-25 ms on the
-        2-core machine) costs as much as the computation; beyond, the worker's isolation
-        (its own core and GIL, killed if it overruns) is worth it."""
+        retried job goes to a worker; ``job`` None: a new record, see :meth:`_lane_first`).
+        Below ~50 ms the cross-process round trip of a Dask task (client -> scheduler ->
+        worker -> scheduler -> client, 10-25 ms on the 2-core machine) costs as much as
+        the computation; beyond, the worker's isolation (its own core and GIL, killed if
+        it overruns) is worth it."""
         estimate = flight.job.computation.run_time
         if (
             self._lane is None
             or estimate is None
             or self._lane_busy >= self.settings.fast_lane_threads
-            or job.attempts > 0
+            or (job is not None and job.attempts > 0)
             or flight.resubmits > 0
         ):
             return False
@@ -404,11 +405,65 @@ class Runner:
             return False
         return seconds is not None and seconds <= self.settings.fast_lane_max_s
 
-    def _in_lane(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
+    async def _lane_first(
+        self, flight: Flight, force: bool
+    ) -> tuple[Job | None, asyncio.Future[Outcome] | None]:
+        """A new job the fast lane takes (:meth:`_lane_takes`): its record is written by
+        the lane's thread already leased to the computation that starts there at once
+        (:meth:`Store.enqueue_and_claim`: one transaction, one thread hop, instead of the
+        record, then the lease).  Answers once the record is written, as
+        :meth:`Store.enqueue_job` would: ``(None, the computation's outcome)`` when the
+        lane claimed it; ``(the record, None)`` when it did not (an active record was
+        there first, or the result was stored: the ordinary path goes on from it);
+        ``(None, None)`` when the lane does not take it or did not start.  Raises the
+        :class:`StorageError` that refused the write."""
+        if not self._lane_takes(flight, None):
+            return None, None
+        loop = asyncio.get_running_loop()
+        claimed: asyncio.Future[Claim] = loop.create_future()
+
+        def settle(result: Claim | StorageError) -> None:
+            if claimed.done():
+                return
+            if isinstance(result, StorageError):
+                claimed.set_exception(result)
+            else:
+                claimed.set_result(result)
+
+        def on_claim(result: Claim | StorageError) -> None:  # in the lane's thread
+            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
+                loop.call_soon_threadsafe(settle, result)
+
+        accept = Accept(flight.job.canonical, force, on_claim)
+        try:
+            run = self._in_lane(flight, flight.key, accept)
+            waiter = asyncio.ensure_future(self._result_of(run))
+        except RuntimeError:  # the lane is shut down (the replica is stopping)
+            return None, None
+        pending: set[asyncio.Future[Any]] = {claimed, waiter}
+        await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
+        if not claimed.done():  # the lane's run ended before writing anything
+            claimed.cancel()
+            return None, None
+        claim = claimed.result()  # raises the StorageError
+        if claim.outcome != "claimed":
+            # it computed nothing: its thread is released before the ordinary path asks
+            # for the lane again (a request joining this flight may have written the
+            # record first, queued: the lane then claims it as a worker would)
+            self.lane_runs -= 1
+            await waiter
+            return claim.job, None
+        self.computations += 1
+        return None, waiter
+
+    def _in_lane(
+        self, flight: Flight, key: str, accept: Accept | None = None
+    ) -> Awaitable[Outcome]:
         """:func:`run_job` in a thread of the fast lane, with this replica's store: the
         record, its lease and the result as a worker writes them (a restart finds the
         lease stale and recovers the job); the event loop only awaits.  The lane's thread
-        counts as busy until its computation returns, even one abandoned past its limit."""
+        counts as busy until its computation returns, even one abandoned past its limit.
+        ``accept``: the lane writes the job's record too (:meth:`_lane_first`)."""
         assert self._lane is not None
         loop = asyncio.get_running_loop()
         self._lane_busy += 1
@@ -418,13 +473,15 @@ class Runner:
                 run_job,
                 flight.job.computation,
                 flight.job.request,
-                job.key,
+                key,
                 self._config(),
                 observability.request_id(),
                 self.store,
+                accept,
             )
         except RuntimeError:  # shut down (the replica is stopping)
             self._lane_busy -= 1
+            self.lane_runs -= 1
             raise
 
         def release(_: Any) -> None:
@@ -441,7 +498,7 @@ class Runner:
         from distributed import fire_and_forget
 
         if self._lane_takes(flight, job):
-            return self._in_lane(flight, job)
+            return self._in_lane(flight, job.key)
 
         dask_key = f"{job.kind}-{job.key}-g{job.generation}-a{job.attempts}"
         if flight.resubmits:
@@ -505,19 +562,23 @@ class Runner:
     async def _drive_once(self, flight: Flight, force: bool, recover: bool) -> bytes:
         key, job_in = flight.key, flight.job
         known: Job | None = None  # the record as enqueue_job left it: not read again
+        waiter: asyncio.Future[Any] | None = None
         try:
             if not recover:
-                known = await asyncio.to_thread(
-                    self.store.enqueue_job,
-                    key,
-                    job_in.computation.name,
-                    job_in.canonical,
-                    refresh=force,
-                )
+                known, waiter = await self._lane_first(flight, force)
+                if known is None and waiter is None:
+                    known = await asyncio.to_thread(
+                        self.store.enqueue_job,
+                        key,
+                        job_in.computation.name,
+                        job_in.canonical,
+                        refresh=force,
+                    )
         finally:
             flight.accepted.set()
+        if waiter is not None:  # computing in the lane already: its end is the next news
+            await self._wait(flight, waiter)
         await self._connected.wait()
-        waiter: asyncio.Future[Any] | None = None
         tag: tuple[int, int] | None = None
         while True:
             if flight.cancelled:

@@ -2,8 +2,9 @@
 
 :func:`run_job` takes the job's lease in the store, computes, stores the compressed
 result and finishes the job record itself, so it does not depend on the replica that
-submitted it staying alive.  While it runs, a heartbeat thread renews the lease, records
-progress and reads the cancel flag every ``progress_interval_s``; the kind's function
+submitted it staying alive.  While it runs, the process's heartbeat thread (one for all
+its computations) renews the lease, records progress and reads the cancel flag every
+``progress_interval_s``; the kind's function
 stops at its next progress callback (cooperative cancel and runtime limit).  A function
 that stops reporting is still held to the runtime limit: past it plus a grace period the
 heartbeat thread fails the job with the reason and kills its own worker process (the
@@ -33,6 +34,7 @@ import socket
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -40,7 +42,7 @@ from pipeflow import parallel
 from pipeflow.errors import Cancelled, ErrorRecord, StorageError, classify
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
-from service.store import Store
+from service.store import Claim, Store
 from service.store.memo import StoreMemo
 
 log = logging.getLogger("service.engine.task")
@@ -108,41 +110,47 @@ def _worker_address() -> str:
         return f"{socket.gethostname()}:{os.getpid()}"
 
 
-class _Heartbeat(threading.Thread):
-    """Renews the lease and records progress; sets ``stop`` on cancel or a lost lease;
-    kills the process when the computation overruns the limit without stopping."""
+class _Heartbeat:
+    """One computation's lease as this process's :class:`_Beats` thread renews it: renews
+    the lease and records ``progress``; sets ``stop`` on cancel or a lost lease; past the
+    runtime limit plus the grace period, a computation that did not stop fails its job and
+    (on a worker) its process is killed."""
 
     def __init__(
         self, store: Store, key: str, owner: str, cfg: TaskConfig, *, inline: bool = False
     ) -> None:
-        super().__init__(name=f"heartbeat-{key[:8]}", daemon=True)
         self.store, self.key, self.owner, self.cfg = store, key, owner, cfg
         self.inline = inline
         self.progress: float | None = None
         self.stop: str | None = None
         self.deadline = time.monotonic() + cfg.timeout_s
-        self._done = threading.Event()
+        self.due = time.monotonic() + cfg.progress_interval_s  # next renewal [monotonic s]
+        self.done = False
+
+    def start(self) -> None:
+        """Renewed from now on, every ``progress_interval_s``."""
+        _beats().add(self)
 
     def finish(self) -> None:
-        """Stop renewing.  Not joined: the thread leaves at its next wake-up, which this
-        wakes, without writing (a renewal it is writing meanwhile is guarded by the owner
-        and the running status, so it cannot touch the finished record); waiting for it
-        to be scheduled cost the fast lane ~1 ms per computation on the loaded machine."""
-        self._done.set()
+        """Stop renewing (a renewal being written meanwhile is guarded by the owner and the
+        running status, so it cannot touch the finished record)."""
+        self.done = True
+        _beats().remove(self)
 
-    def run(self) -> None:
-        while not self._done.wait(self.cfg.progress_interval_s):
-            if time.monotonic() > self.deadline + self.cfg.grace_s:
-                if self.inline:
-                    self._abandon_overdue()
-                    return
-                self._kill_overdue()
-            try:
-                state = self.store.heartbeat(self.key, self.owner, self.progress)
-            except StorageError:
-                continue  # the store recovers by itself; the lease may go stale meanwhile
-            if state != "ok":
-                self.stop = "cancelled by request" if state == "cancelled" else state
+    def beat(self) -> bool:
+        """One renewal (by the :class:`_Beats` thread); False: stop renewing this lease."""
+        if time.monotonic() > self.deadline + self.cfg.grace_s:
+            if self.inline:
+                self._abandon_overdue()
+                return False
+            self._kill_overdue()
+        try:
+            state = self.store.heartbeat(self.key, self.owner, self.progress)
+        except StorageError:
+            return True  # the store recovers by itself; the lease may go stale meanwhile
+        if state != "ok":
+            self.stop = "cancelled by request" if state == "cancelled" else state
+        return True
 
     def _abandon_overdue(self) -> None:
         """The fast lane's watchdog: the API process is not killed for a computation that
@@ -159,6 +167,8 @@ class _Heartbeat(threading.Thread):
         )
 
     def _kill_overdue(self) -> None:
+        if self.done:
+            return  # the computation returned meanwhile
         log.error("job %s overran the runtime limit without stopping: killing worker", self.key)
         try:
             self.store.finish_job(
@@ -171,6 +181,83 @@ class _Heartbeat(threading.Thread):
             os.kill(os.getpid(), signal.SIGKILL)
 
 
+class _Beats(threading.Thread):
+    """The one heartbeat thread of a process: renews every lease the process's
+    computations hold, each at its own ``progress_interval_s``.  Starting a thread per
+    computation cost the fast lane ~0.3-1 ms per cold request on the 2-core machine; a
+    lease is now registered without waking this thread (it sleeps until the next renewal
+    due, :data:`IDLE_WAKE_S` when it holds none, and is woken only for a lease whose first
+    renewal would otherwise be more than one interval late)."""
+
+    def __init__(self) -> None:
+        super().__init__(name="heartbeats", daemon=True)
+        self._leases: set[_Heartbeat] = set()
+        self._cond = threading.Condition()
+        self._wake_at = 0.0  # when the thread's wait ends [monotonic s]
+
+    def add(self, lease: _Heartbeat) -> None:
+        with self._cond:
+            self._leases.add(lease)
+            # its first renewal may come up to one interval late rather than wake the
+            # thread (a context switch per cold request); only a short interval wakes it
+            if lease.due + lease.cfg.progress_interval_s < self._wake_at:
+                self._cond.notify()
+
+    def remove(self, lease: _Heartbeat) -> None:
+        with self._cond:
+            self._leases.discard(lease)
+
+    def run(self) -> None:
+        while True:
+            with self._cond:
+                now = time.monotonic()
+                due = [lease for lease in self._leases if lease.due <= now]
+                for lease in due:
+                    lease.due = now + lease.cfg.progress_interval_s
+                nxt = min((lease.due for lease in self._leases), default=now + IDLE_WAKE_S)
+                if not due:
+                    self._wake_at = nxt
+                    self._cond.wait(max(nxt - now, 0.0))
+                    self._wake_at = 0.0
+                    continue
+            for lease in due:  # outside the lock: a slow store delays renewals, not starts
+                try:
+                    keep = lease.beat()
+                except Exception:
+                    log.exception("heartbeat of job %s", lease.key)
+                    keep = True
+                if not keep:
+                    self.remove(lease)
+
+
+#: how long the heartbeat thread sleeps when no lease is held [s] (it then wakes to look)
+IDLE_WAKE_S = 0.5
+_BEATS: list[_Beats] = []
+_BEATS_LOCK = threading.Lock()
+
+
+def _beats() -> _Beats:
+    """This process's heartbeat thread, started on first use (again in a forked child)."""
+    with _BEATS_LOCK:
+        if not _BEATS or not _BEATS[0].is_alive():
+            _BEATS[:] = [_Beats()]
+            _BEATS[0].start()
+        return _BEATS[0]
+
+
+@dataclass(frozen=True)
+class Accept:
+    """A new job that the attempt itself accepts (the fast lane's first attempt): the
+    record is written already leased to the attempt, in one transaction
+    (:meth:`Store.enqueue_and_claim`), and ``claimed`` is called right after it (in the
+    attempt's thread) with the :class:`~service.store.Claim`, or with the
+    :class:`StorageError` that refused the write."""
+
+    spec: dict[str, Any]  # the request's canonical JSON (the record's spec)
+    refresh: bool  # recompute even if a result is stored
+    claimed: Callable[[Claim | StorageError], None]
+
+
 def run_job(
     computation: Computation,
     request: Any,
@@ -178,6 +265,7 @@ def run_job(
     cfg: TaskConfig,
     request_id: str | None = None,
     store: Store | None = None,
+    accept: Accept | None = None,
 ) -> Outcome:
     """Compute the job ``key`` (``computation.execute(request, progress)``) once.
 
@@ -186,23 +274,38 @@ def run_job(
     in the API process (the fast lane, :mod:`service.engine.runner`) with its store: the
     same lease, record and result, but a computation that overruns its limit without
     stopping fails its job and is abandoned, not killed with the process, and the
-    answer carries the result's body."""
+    answer carries the result's body.  ``accept``: the job's record is written by this
+    call, with its lease (see :class:`Accept`); otherwise it exists and is claimed."""
     token = observability.REQUEST_ID.set(request_id)
     try:
-        return _run_job(computation, request, key, cfg, store)
+        return _run_job(computation, request, key, cfg, store, accept)
     finally:
         observability.REQUEST_ID.reset(token)
 
 
 def _run_job(
-    computation: Computation, request: Any, key: str, cfg: TaskConfig, inline: Store | None
+    computation: Computation,
+    request: Any,
+    key: str,
+    cfg: TaskConfig,
+    inline: Store | None,
+    accept: Accept | None,
 ) -> Outcome:
     store = inline if inline is not None else _store(cfg)
     owner = uuid.uuid4().hex
     try:
-        claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
+        if accept is None:
+            claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
+        else:
+            claim = store.enqueue_and_claim(
+                key, computation.name, accept.spec, owner, _worker_address(), refresh=accept.refresh
+            )
     except StorageError as exc:
+        if accept is not None:
+            accept.claimed(exc)
         return Outcome("storage", classify(exc))
+    if accept is not None:
+        accept.claimed(claim)
     if claim.outcome == "stored":
         return Outcome("succeeded")  # computed by an earlier attempt; the claim finished it
     if claim.outcome != "claimed":

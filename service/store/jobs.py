@@ -79,7 +79,9 @@ class Job:
 class Claim:
     """What :meth:`Store.claim` found: ``"claimed"`` (compute now), ``"elsewhere"`` (a live
     attempt holds the lease), ``"done"`` (the job is finished or gone: nothing to do),
-    ``"stored"`` (its result was stored already: the claim finished the job as succeeded)."""
+    ``"stored"`` (its result was stored already: the claim finished the job as succeeded);
+    :meth:`Store.enqueue_and_claim` also ``"queued"`` (an active record was there first:
+    not claimed)."""
 
     outcome: str
     job: Job | None
@@ -102,21 +104,23 @@ class JobStore(StoreConnection):
         created: dict[str, Any],
         reset: dict[str, Any],
         keep_stored: bool = False,
-    ) -> None:
+    ) -> bool:
         """Insert job ``key`` with the ``created`` columns, or, if its row exists and is not
         active, update it with the ``reset`` columns (an active job is shared as it is);
-        ``keep_stored``: a succeeded job whose result is stored is left as it is too."""
+        ``keep_stored``: a succeeded job whose result is stored is left as it is too.
+        True if the row was inserted or reset (False: left as it was)."""
         inserted = conn.execute(
             self._insert(jobs)
             .values(key=key, **created)
             .on_conflict_do_nothing(index_elements=["key"])
         ).rowcount
-        if not inserted:
-            resettable = [jobs.c.key == key, jobs.c.status.notin_(ACTIVE)]
-            if keep_stored:
-                stored = select(results.c.key).where(results.c.key == key).exists()
-                resettable.append(~((jobs.c.status == "succeeded") & stored))
-            conn.execute(update(jobs).where(*resettable).values(**reset))
+        if inserted:
+            return True
+        resettable = [jobs.c.key == key, jobs.c.status.notin_(ACTIVE)]
+        if keep_stored:
+            stored = select(results.c.key).where(results.c.key == key).exists()
+            resettable.append(~((jobs.c.status == "succeeded") & stored))
+        return bool(conn.execute(update(jobs).where(*resettable).values(**reset)).rowcount)
 
     def enqueue_job(
         self,
@@ -131,45 +135,40 @@ class JobStore(StoreConnection):
         an active one is left as it is (identical requests share it), and with
         ``keep_stored`` a succeeded one whose result is stored (a request joining a run
         that has just ended: resetting it would compute the same key again)."""
-        now = time.time()
         with self._write() as conn:
-            self._create_or_reset(
-                conn,
-                key,
-                dict(
-                    kind=kind,
-                    spec=json.dumps(spec),
-                    status="queued",
-                    progress=0.0,
-                    created=now,
-                    updated=now,
-                    heartbeat=now,
-                    refresh=refresh,
-                ),
-                dict(
-                    kind=kind,
-                    spec=json.dumps(spec),
-                    status="queued",
-                    progress=0.0,
-                    error=None,
-                    created=now,
-                    started=None,
-                    finished=None,
-                    updated=now,
-                    cancel=0,
-                    attempts=0,
-                    last_retry_reason=None,
-                    refresh=refresh,
-                    generation=jobs.c.generation + 1,
-                    owner=None,
-                    worker=None,
-                    heartbeat=now,
-                ),
-                keep_stored=keep_stored,
-            )
+            self._create_or_reset(conn, key, *_queued(kind, spec, refresh), keep_stored=keep_stored)
             job = self._job(conn, key)
         assert job is not None  # written in this transaction
         return job
+
+    def enqueue_and_claim(
+        self, key: str, kind: str, spec: dict[str, Any], owner: str, worker: str, *, refresh: bool
+    ) -> Claim:
+        """:meth:`enqueue_job` and :meth:`claim` in one transaction, for an attempt that
+        starts computing right away in the process that accepts the job (the fast lane):
+        the record is written already leased to ``owner`` on ``worker``, so there is never
+        a moment where it is accepted but unowned, and one write fewer per job.
+
+        ``"claimed"``: the record was created (or a finished one reset to a new
+        generation) and is running under ``owner``; ``"stored"``: the result is stored and
+        ``refresh`` is not asked, so the record was finished as succeeded (as
+        :meth:`claim` does); ``"queued"``: an active record exists (another request or
+        replica accepted it first): it is left as it is and not claimed, ``job`` is it,
+        and the caller goes the ordinary way (:meth:`claim` by the attempt it submits).
+        """
+        with self._write() as conn:
+            if not refresh and self._stored(conn, key):
+                if self._create_or_reset(conn, key, *_queued(kind, spec, refresh)):
+                    self._finish(conn, key, "succeeded", None, None)
+                    return Claim("stored", self._job(conn, key))
+                return Claim("queued", self._job(conn, key))
+            created, reset = _queued(kind, spec, refresh)
+            lease = dict(
+                status="running", started=created["created"], owner=owner, worker=worker, attempts=1
+            )
+            changed = self._create_or_reset(conn, key, created | lease, reset | lease)
+            job = self._job(conn, key)
+        return Claim("claimed" if changed else "queued", job)
 
     def finish_job(
         self,
@@ -214,21 +213,13 @@ class JobStore(StoreConnection):
 
     def mark_succeeded(self, key: str, kind: str, spec: dict[str, Any]) -> None:
         """Record a job whose result is already stored (a resubmission of a cached run)."""
-        now = time.time()
+        created, _ = _queued(kind, spec, False)
+        now = created["created"]
         with self._write() as conn:
             self._create_or_reset(
                 conn,
                 key,
-                dict(
-                    kind=kind,
-                    spec=json.dumps(spec),
-                    status="succeeded",
-                    progress=1.0,
-                    created=now,
-                    started=now,
-                    finished=now,
-                    updated=now,
-                ),
+                created | dict(status="succeeded", progress=1.0, started=now, finished=now),
                 dict(
                     status="succeeded",
                     progress=1.0,
@@ -422,3 +413,34 @@ class JobStore(StoreConnection):
             conn.execute(
                 update(jobs).where(jobs.c.key == key, jobs.c.owner == owner).values(**values)
             )
+
+
+def _queued(
+    kind: str, spec: dict[str, Any], refresh: bool
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The columns of a job record accepted now and queued: ``(created, reset)``, those of
+    a new row and those that reset a finished row to a new generation
+    (:meth:`JobStore._create_or_reset`)."""
+    now = time.time()
+    created: dict[str, Any] = dict(
+        kind=kind,
+        spec=json.dumps(spec),
+        status="queued",
+        progress=0.0,
+        created=now,
+        updated=now,
+        heartbeat=now,
+        refresh=refresh,
+    )
+    reset: dict[str, Any] = created | dict(
+        error=None,
+        started=None,
+        finished=None,
+        cancel=0,
+        attempts=0,
+        last_retry_reason=None,
+        generation=jobs.c.generation + 1,
+        owner=None,
+        worker=None,
+    )
+    return created, reset

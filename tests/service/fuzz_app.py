@@ -64,7 +64,8 @@ class FakeRunner(Runner):
 def create_fuzz_app() -> FastAPI:
     """The service over a fresh data directory, numerics faked (see the module docstring)."""
     data_dir = os.environ.get("PIPEFLOW_DATA_DIR") or tempfile.mkdtemp(prefix="pipeflow-fuzz-")
-    settings = Settings(data_dir=data_dir, workers=1, queue_size=64)
+    # no fast lane: it runs the real computation before the faked `_execute` would see it
+    settings = Settings(data_dir=data_dir, workers=1, queue_size=64, fast_lane_threads=0)
     app = create_app(settings)
     results = tiny_results()
     real_lifespan = app.router.lifespan_context

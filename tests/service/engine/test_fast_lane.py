@@ -112,3 +112,22 @@ def test_the_setting_turns_the_lane_off(tmp_path: Any) -> None:
         assert runner.lane_runs == 0
         job = runner.store.get_job(resp.json()["key"])
         assert job.worker.startswith("tcp://")  # a Dask worker's address
+
+
+def test_identical_lane_requests_compute_once(lane: TestClient) -> None:
+    """Twenty identical small requests at once: the first writes the record leased to its
+    lane computation; the others join that flight (or, when one of them wrote the record
+    first, the lane claims it as a worker would): one computation, one attempt."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    runner = _runner(lane)
+    computations, lane_runs = runner.computations, runner.lane_runs
+    body = {**LTI, "initial": {"u0": 0.0021}}
+    with ThreadPoolExecutor(20) as pool:
+        responses = list(pool.map(lambda _: lane.post("/v1/simulations", json=body), range(20)))
+    assert [r.status_code for r in responses] == [200] * 20
+    assert runner.computations == computations + 1 and runner.lane_runs == lane_runs + 1
+    docs = [r.json() for r in responses]
+    assert all(d["tip_displacement"] == docs[0]["tip_displacement"] for d in docs)
+    job = runner.store.get_job(docs[0]["key"])
+    assert job.status == "succeeded" and job.attempts == 1 and job.generation == 1

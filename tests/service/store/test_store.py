@@ -403,3 +403,55 @@ def test_a_request_joining_a_run_that_just_stored_its_result_does_not_reset_it(
     assert (job.status, job.generation) == ("succeeded", 2)  # left as it is
     job = store.enqueue_job("k", "simulation", {}, refresh=True)  # the runner's refresh
     assert (job.status, job.generation) == ("queued", 3)  # computed again
+
+
+def test_enqueue_and_claim_writes_the_record_already_leased(tmp_path: Path) -> None:
+    """The fast lane's first attempt: record and lease in one transaction (one BEGIN), the
+    record running under the attempt from its first moment; an active record is left to
+    its owner, a stored result finishes the job instead, a finished one is a new
+    generation."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10_000, memory_cache_bytes=0)
+    begins: list[str] = []
+
+    @event.listens_for(store.engine, "before_cursor_execute")
+    def _count(conn: object, cursor: object, statement: str, *args: object) -> None:
+        if statement.startswith("BEGIN"):
+            begins.append(statement)
+
+    claim = store.enqueue_and_claim("k", "simulation", {"m": 1}, "a1", "w1", refresh=False)
+    assert begins == ["BEGIN IMMEDIATE"]  # one write transaction
+    job = claim.job
+    assert claim.outcome == "claimed" and job is not None
+    assert (job.status, job.owner, job.worker, job.attempts, job.generation) == (
+        "running",
+        "a1",
+        "w1",
+        1,
+        1,
+    )
+    assert job.spec == {"m": 1} and job.started is not None and job.heartbeat is not None
+    assert store.heartbeat("k", "a1", 0.5) == "ok"  # the lease is the one claim gives
+    # an active record is not claimed twice: the second caller goes the ordinary way
+    again = store.enqueue_and_claim("k", "simulation", {"m": 1}, "a2", "w2", refresh=False)
+    assert again.outcome == "queued" and again.job is not None and again.job.owner == "a1"
+    # recovery sees it as any claimed job: active, and taken over once its lease is stale
+    assert [j.key for j in store.active_jobs()] == ["k"]
+    time.sleep(0.01)
+    taken = store.claim("k", "a3", "w3", stale_after_s=0.0)
+    assert taken.outcome == "claimed" and taken.job is not None and taken.job.attempts == 2
+    assert "attempt 1 on w1 stopped heartbeating" in (taken.job.last_retry_reason or "")
+    store.finish_with_result("k", "a3", "simulation", b'{"ok": true}')
+    # the result is stored: a new request finishes the record instead of computing
+    stored = store.enqueue_and_claim("k", "simulation", {"m": 1}, "a4", "w4", refresh=False)
+    assert stored.outcome == "stored" and stored.job is not None
+    assert (stored.job.status, stored.job.owner) == ("succeeded", None)
+    # refresh: a new generation, leased, fresh attempts
+    fresh = store.enqueue_and_claim("k", "simulation", {"m": 1}, "a5", "w5", refresh=True)
+    assert fresh.outcome == "claimed" and fresh.job is not None
+    assert (fresh.job.status, fresh.job.generation, fresh.job.attempts, fresh.job.owner) == (
+        "running",
+        3,
+        1,
+        "a5",
+    )
+    assert fresh.job.refresh and fresh.job.finished is None and fresh.job.error is None
