@@ -253,7 +253,7 @@ def test_a_study_fans_its_cases_out_through_the_same_host(two: TestClient) -> No
     assert r.status_code == 202, r.text
     key = r.json()["key"]
     assert wait_job(two, key, timeout=120)["status"] == "succeeded"
-    submitted, finished = _stopped_pieces(two, "run_cases")
+    submitted, finished = _stopped_pieces(two, "run_piece")
     assert submitted == finished == 8
     doc = two.get(f"/v1/results/{key}").json()
     assert len(doc["rows"]) == 64
