@@ -4,6 +4,8 @@
     python benchmarks/bench_study.py --cases 2500   # a 50 x 50 grid
     python benchmarks/bench_study.py --smoke        # seconds: a 6 x 6 grid, 2 modes
     python benchmarks/bench_study.py --label x      # names the section written to RESULTS.md
+    python benchmarks/bench_study.py --cpu          # print only: CPU of the shipped path
+    PIPEFLOW_TREE=/work/main python benchmarks/bench_study.py --cpu   # of another checkout
 
 The study: the paper's pipe, a grid of constant flow v in [0, 20] m/s by constant spin w0 in
 [0, 200] rad/s (sqrt(cases) values each), 10 modes, 1 s, 201 samples, method ``auto``
@@ -29,6 +31,13 @@ sigma and omega, method_used, result_status).  Measured in the same run:
 - the resident memory of the server and its workers (:func:`rss_bytes` of the process
   tree, sampled every 20 ms) idle before the first study and at its peak.
 
+``--cpu`` prints, instead, the CPU time of the study on a host of width 2 that ships its
+pieces through pickle and runs them in this process (the service's path on the workers,
+with the store's memo on a fresh SQLite file), cold (every case computed) and warm (the
+memo serving all but one grid value), against the floor's CPU time: a measure the other
+engineers' load hardly changes, comparable between checkouts (``PIPEFLOW_TREE`` names the
+tree whose packages are measured: e.g. main, for a before/after in alternation).
+
 Prints the ratios against the floor with the targets (HTTP within 2.5x of the floor, peak
 RSS within 1.5x of idle) and writes a section to benchmarks/RESULTS.md.
 """
@@ -49,7 +58,7 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(os.environ.get("PIPEFLOW_TREE") or Path(__file__).resolve().parents[1])
 # this tree's packages first (a checkout or worktree measures its own code), then this
 # directory (bench_service)
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
@@ -267,6 +276,36 @@ def report(side: int, modes: int, raw: dict[str, Any], started: float, smoke: bo
     return "\n".join(lines)
 
 
+def shipped_cpu(side: int, modes: int) -> dict[str, float]:
+    """CPU seconds of the floor and of the study on a width-2 host shipping its pieces
+    through pickle (run here), cold then warm, with the store's memo on SQLite."""
+    import pickle
+
+    from pipeflow import parallel
+    from service import encoding
+    from service.store import Store
+    from service.store.memo import StoreMemo
+
+    class Shipping:
+        width = 2
+
+        def map(self, fn: Any, items: Any) -> Any:
+            for i, item in enumerate(items):
+                yield i, pickle.loads(pickle.dumps(fn(pickle.loads(pickle.dumps(item)))))
+
+    store = Store(Path(tempfile.mkdtemp(prefix="pipeflow-bench-cpu-")) / "s.sqlite3", 1 << 30, 0)
+    floor(2, modes)  # first use, unmeasured
+    out = {"floor": timed_floor(side, modes)[1]}
+    for name, shift in (("cold", 1e-3), ("warm", 2e-3)):
+        spec = StudySpec.model_validate(study_body(side, modes, shift))
+        cpu = time.process_time()
+        with parallel.hosting(host=Shipping(), memo=StoreMemo(store)):
+            result = COMPUTATIONS["study"].execute(spec)
+        store.put_result(f"study-{shift}", "study", encoding.dumps(result))
+        out[name] = time.process_time() - cpu
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=10_000, help="grid size (a square)")
@@ -275,9 +314,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--label", default="latest", help="section name in RESULTS.md")
     ap.add_argument("--out", type=Path, default=RESULTS, help="Markdown file to write into")
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--cpu", action="store_true", help="print the shipped path's CPU only")
     args = ap.parse_args(argv)
     side = 6 if args.smoke else max(2, round(args.cases**0.5))
     modes = 2 if args.smoke else 10
+    if args.cpu:
+        c = shipped_cpu(side, modes)
+        print(
+            f"{ROOT}: CPU [s] floor {c['floor']:.2f}; study on a shipping host: cold "
+            f"{c['cold']:.2f} ({c['cold'] / c['floor']:.2f}x the floor), warm {c['warm']:.2f} "
+            f"({c['warm'] / c['floor']:.2f}x)",
+            flush=True,
+        )
+        return 0
     started = time.monotonic()
     raw: dict[str, Any] = {"machine": BENCH.machine()}
     floor(2, modes)  # first use, unmeasured
