@@ -21,6 +21,12 @@ processes at once against one alone (2 x alone / both, at most 2).  Reports medi
 record's started..finished) and the result's ``diagnostics.fan_out`` (pieces and the
 distinct workers that ran them).
 
+``--study`` measures the same way the 10,000-case LTI design study of issue 19 instead
+of the map (``POST /v1/studies``, the grid of ``benchmarks/bench_study.py``: v in [0, 20]
+m/s x w0 in [0, 200] rad/s, 10 modes, 1 s, 201 samples; ``--smoke``: 6 x 6, 2 modes), each
+repetition a distinct study (v's top value moved by 1e-9 relative: the store's memo serves
+nothing, every case is computed), the library call being the serial study runner.
+
 ``--sweeps`` adds the measurement behind leaving argand/campbell sweeps serial: the batched
 frozen spectra of a sweep (``pipeflow.spectra.decompose``: eigenvalues and left/right
 eigenvectors at every point) computed here against 8 pieces on a 2-worker LocalCluster
@@ -65,15 +71,31 @@ SMOKE_MAP = MAP | {"modes": 4, "velocity_points": 20, "spin_points": 12}
 
 
 def variant(spec: dict[str, Any], i: int) -> dict[str, Any]:
-    """A distinct key: the spin range's upper end moved by ``i`` x 1e-9 relative."""
+    """A distinct key: the spin range's upper end moved by ``i`` x 1e-9 relative; a study:
+    every velocity moved by ``i`` x 1e-9 m/s (every case new: the memo serves none)."""
+    if "grid" in spec:
+        v = [x + 1e-9 * i for x in spec["grid"]["flow.velocity.value"]]
+        return spec | {"grid": spec["grid"] | {"flow.velocity.value": v}}
     lo, hi = spec["spin_range"]
     return spec | {"spin_range": [lo, hi * (1.0 + 1e-9 * i)]}
 
 
+def study(smoke: bool) -> dict[str, Any]:
+    """The study of issue 19 (``benchmarks/bench_study.py``'s grid), with ``kind`` for
+    :func:`library_call` (the study request has no such field: dropped before the POST)."""
+    import bench_study
+
+    side, modes = (6, 2) if smoke else (100, 10)
+    return {"kind": "study", **bench_study.study_body(side, modes)}
+
+
 def job_over_http(client: httpx.Client, url: str, spec: dict[str, Any]) -> dict[str, Any]:
     """POST, poll to success, GET the result: wall time [s], compute time [s], fan_out."""
+    path, body = "sweeps", spec
+    if spec.get("kind") == "study":
+        path, body = "studies", {k: v for k, v in spec.items() if k != "kind"}
     started = time.perf_counter()
-    r = client.post(f"{url}/v1/sweeps", json=spec)
+    r = client.post(f"{url}/v1/{path}", json=body)
     r.raise_for_status()
     key = r.json()["key"]
     while True:
@@ -86,12 +108,16 @@ def job_over_http(client: httpx.Client, url: str, spec: dict[str, Any]) -> dict[
     doc = client.get(f"{url}/v1/results/{key}").json()
     wall = time.perf_counter() - started
     t0, t1 = (datetime.fromisoformat(job[k]).timestamp() for k in ("started", "finished"))
-    return {"wall": wall, "compute": t1 - t0, "fan_out": doc["diagnostics"].get("fan_out")}
+    fan_out = (doc.get("diagnostics") or {}).get("fan_out")
+    if spec.get("kind") == "study":
+        fan_out = doc["counts"]  # a study has no diagnostics: its counts say what ran
+    return {"wall": wall, "compute": t1 - t0, "fan_out": fan_out}
 
 
 def library_call(spec: dict[str, Any]) -> float:
     computation = COMPUTATIONS[spec["kind"]]
-    request = computation.request.model_validate(spec)
+    body = {k: v for k, v in spec.items() if k != "kind"} if spec["kind"] == "study" else spec
+    request = computation.request.model_validate(body)
     started = time.perf_counter()
     computation.execute(request)
     return time.perf_counter() - started
@@ -204,7 +230,19 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
     ratio = one / two
     fan = raw["runs"][2][-1]["fan_out"]
     fan1 = raw["runs"][1][-1]["fan_out"]
-    size = f"{spec['velocity_points']} x {spec['spin_points']} x {spec['modes']} modes"
+    if spec["kind"] == "study":
+        grid = spec["grid"]
+        what = (
+            f"Design study {len(grid['flow.velocity.value'])} x "
+            f"{len(grid['rotation.omega0.value'])} (v in [0, 20] m/s x w0 in [0, 200] rad/s), "
+            f"{spec['base']['spec']['modes']} modes, 1 s, 201 samples, auto (= cma), every "
+            "case computed"
+        )
+    else:
+        what = (
+            f"Spin map {spec['velocity_points']} x {spec['spin_points']} x {spec['modes']} "
+            "modes, the paper's pipe, v in [0, 60] m/s, w0 in [0, 2000] rad/s"
+        )
     rows = [
         ["library call `execute` (serial, 1 BLAS thread)", f"{lib * 1e3:.0f} ms", "", ""],
         ["job over HTTP, `PIPEFLOW_WORKERS=1`", f"{one * 1e3:.0f} ms", f"{c1 * 1e3:.0f} ms",
@@ -217,8 +255,7 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
         f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
         f"{time.monotonic() - started:.0f} s): {raw['machine']}; load average "
         + " ".join(f"{x:.1f}" for x in raw["load_after"])
-        + f" at the end. Spin map {size}, the paper's pipe, v in [0, 60] m/s, w0 in "
-        f"[0, 2000] rad/s; {len(raw['library'])} repetitions, medians.",
+        + f" at the end. {what}; {len(raw['library'])} repetitions, medians.",
         "",
         "| what | median wall time (POST to result) | median compute (job started..finished) "
         "| diagnostics.fan_out |",
@@ -251,8 +288,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=RESULTS, help="Markdown file to write into")
     ap.add_argument("--no-write", action="store_true", help="print only")
     ap.add_argument("--sweeps", action="store_true", help="also the sweep-spectra probe")
+    ap.add_argument("--study", action="store_true", help="the 10,000-case study, not the map")
     args = ap.parse_args(argv)
-    spec = SMOKE_MAP if args.smoke else MAP
+    spec = study(args.smoke) if args.study else SMOKE_MAP if args.smoke else MAP
     started = time.monotonic()
     desc = BENCH.machine()
     raw = run(spec, 1 if args.smoke else args.repeats)
@@ -262,7 +300,8 @@ def main(argv: list[str] | None = None) -> int:
         text += "\n\n" + sweep_probe()
     print(text, flush=True)
     if not args.no_write:
-        BENCH.write_section(args.out, args.label, text, prefix="Fan-out benchmark (issue 11)")
+        prefix = "Fan-out benchmark (issue " + ("19, study)" if args.study else "11)")
+        BENCH.write_section(args.out, args.label, text, prefix=prefix)
         print(f"\nwritten to {args.out}")
     return 0
 

@@ -94,11 +94,7 @@ _STORES_LOCK = threading.Lock()
 
 def _store(cfg: TaskConfig) -> Store:
     """One store per worker process and database (no migrations: the service ran them)."""
-    with _STORES_LOCK:
-        store = _STORES.get(cfg.db_url)
-        if store is None:
-            store = _STORES[cfg.db_url] = Store(cfg.db_url, cfg.cache_max_bytes, 0, migrate=False)
-        return store
+    return worker_store(cfg.db_url, cfg.cache_max_bytes)
 
 
 def _worker_address() -> str:
@@ -387,3 +383,14 @@ def _compute(
         return ("ok", encoding.dumps(result), None)  # non-finite numbers -> null (the one rule)
     except Exception as exc:
         return ("error", None, ErrorRecord.internal(f"internal error: {type(exc).__name__}: {exc}"))
+
+
+def worker_store(db_url: str, cache_max_bytes: int) -> Store:
+    """One store per worker process and database (no migrations: the service ran them),
+    shared by the tasks (:func:`_store`) and by the memos their pieces carry
+    (:class:`service.store.memo.StoreMemo` reopens itself here)."""
+    with _STORES_LOCK:
+        store = _STORES.get(db_url)
+        if store is None:
+            store = _STORES[db_url] = Store(db_url, cache_max_bytes, 0, migrate=False)
+        return store

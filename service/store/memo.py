@@ -10,6 +10,11 @@ full result of the standalone request.
 A failing store does not fail the computation using the memo: a failed look-up is a miss,
 a failed write is logged (the store is marked unhealthy and the computation's own result
 write reports it).
+
+A memo travels with the pieces of a study to the workers that run them (each piece looks
+up and writes its own cases, :mod:`pipeflow.schema.study_runner`): it pickles as its
+store's URL and reopens as the worker process's own store of that database
+(:func:`service.engine.task.worker_store`), never as a copy of a connection.
 """
 
 from __future__ import annotations
@@ -32,6 +37,9 @@ class StoreMemo:
     def __init__(self, store: Store) -> None:
         self.store = store
 
+    def __reduce__(self) -> tuple[Any, tuple[str, int]]:
+        return _reopen, (self.store.url, self.store.cache_max_bytes)
+
     def get_many(self, keys: Sequence[str]) -> dict[str, dict[str, Any]]:
         try:
             bodies = self.store.get_results(keys)
@@ -46,3 +54,10 @@ class StoreMemo:
             self.store.put_results(items)
         except StorageError as exc:
             log.warning("memo write failed (%d results not kept): %s", len(items), exc)
+
+
+def _reopen(url: str, cache_max_bytes: int) -> StoreMemo:
+    """A pickled :class:`StoreMemo` in the process that unpickles it (a Dask worker)."""
+    from service.engine.task import worker_store  # the engine imports this module
+
+    return StoreMemo(worker_store(url, cache_max_bytes))

@@ -446,3 +446,93 @@ def test_an_lti_study_runs_batched_with_the_standalone_keys_and_summaries(
             for col in ("final_sigma_1", "final_omega_1"):
                 assert abs(r[col] - want[col]) <= 1e-10 * scale
         assert statuses == {"ok", "diverging"}
+
+
+class ShippingHost:
+    """A host of width 2 that ships every piece and its result through pickle, as a
+    cluster does, and runs it here (so the counting fixture sees the computations).  The
+    memo a piece carries is this test's own object (a shared store, like the service's
+    database), not a copy."""
+
+    width = 2
+
+    def __init__(self, memo: DictMemo | None = None) -> None:
+        self.memo = memo
+        self.pieces = 0
+
+    def map(self, fn: Any, items: Sequence[Any]) -> Any:
+        import pickle
+
+        for i, item in enumerate(items):
+            shipped = pickle.loads(pickle.dumps(item))
+            if getattr(shipped, "memo", None) is not None:
+                object.__setattr__(shipped, "memo", self.memo)
+            self.pieces += 1
+            yield i, pickle.loads(pickle.dumps(fn(shipped)))
+
+
+def test_a_shipped_study_gives_the_serial_hosts_table(counted: list[Any]) -> None:
+    """On a host that ships its pieces every case is validated, keyed, looked up and
+    computed in its piece: the same document as the serial host's, cell for cell (same
+    process, same numerics: exact), invalid cases and equal keys included."""
+    base = {"kind": "simulation", "spec": {**BASE_SIM, "output": {"positions": [0.02]}}}
+    cases = [
+        {},
+        {"options.rtol": 1e-6},
+        {"pipe.L": 0.01},
+        *({"pipe.E": 7e9 + i} for i in range(30)),
+    ]
+    s = StudySpec.model_validate({"base": base, "cases": cases})
+    serial = COMPUTATIONS["study"].execute(s)
+    assert len(counted) == 31  # the two equal keys once, the invalid case never
+    host = ShippingHost()
+    with parallel.hosting(host=host):
+        shipped = COMPUTATIONS["study"].execute(s)
+    assert host.pieces == 7  # 33 cases in about 4 pieces per unit of width (of 5)
+    assert len(counted) == 62
+    assert shipped == serial
+    assert shipped["rows"][2][1] is None and shipped["rows"][2][2] == "failed"
+
+
+def test_a_shipped_study_uses_the_memo_in_its_pieces(counted: list[Any]) -> None:
+    """Overlapping studies on a shipping host: each piece looks up its cases in one batch
+    and writes the ones it computed in one batch; the rows say which were served."""
+    memo = DictMemo()
+    first = study(cases=[{"pipe.E": e} for e in (7.0e9, 7.5e9, 8.0e9, 8.5e9)])
+    with parallel.hosting(host=ShippingHost(memo), memo=memo):
+        a = COMPUTATIONS["study"].execute(first)
+    assert len(counted) == 4 and a["counts"]["computed"] == 4 and len(memo.items) == 4
+    second = study(cases=[{"pipe.E": e} for e in (8.0e9, 8.5e9, 9.0e9)])
+    seen: list[float] = []
+    with parallel.hosting(host=ShippingHost(memo), memo=memo):
+        b = COMPUTATIONS["study"].execute(second, seen.append)
+    assert len(counted) == 5  # only 9e9 was computed
+    assert b["counts"] == {"total": 3, "ok": 3, "failed": 0, "cached": 2, "computed": 1}
+    assert [row[3] for row in b["rows"]] == [True, True, False]
+    assert b["rows"][0][4:] == a["rows"][2][4:] and b["rows"][1][4:] == a["rows"][3][4:]
+    # one look-up per piece (of one case here: 4 pieces per unit of width), one write
+    # per piece that computed something
+    assert memo.gets == [1] * 7 and memo.puts == [1] * 5
+    assert seen == [1 / 3, 2 / 3, 1.0]
+
+
+def test_a_store_memo_travels_as_its_database(tmp_path: Any) -> None:
+    """A piece's memo pickles as its store's URL and reopens there as that process's
+    store of the same database: what one side writes, the other reads."""
+    import pickle
+
+    pytest.importorskip("sqlalchemy")
+    from service.store import Store
+    from service.store.memo import StoreMemo
+
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**6, memory_cache_bytes=0)
+    memo = StoreMemo(store)
+    blob = pickle.dumps(memo)
+    assert b"db.sqlite3" in blob and len(blob) < 500  # the URL, not a connection
+    there = pickle.loads(blob)
+    assert there.store is not store and there.store.url == store.url
+    there.put_many({"study_case:" + "a" * 64: {"status": "ok", "peak": 1.5}})
+    assert memo.get_many(["study_case:" + "a" * 64]) == {
+        "study_case:" + "a" * 64: {"status": "ok", "peak": 1.5}
+    }
+    assert pickle.loads(pickle.dumps(memo)).store is there.store  # one per process

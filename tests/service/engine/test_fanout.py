@@ -242,18 +242,40 @@ def _wait_released(client: TestClient) -> bool:
 
 def test_a_study_fans_its_cases_out_through_the_same_host(two: TestClient) -> None:
     """A 64-case grid study (tiny simulations): its chunks of cases ran as Dask pieces (8 on
-    a cluster of 2 threads, all finished) and every case has its row."""
+    a cluster of 2 threads, all finished), each validating, keying, computing and memoising
+    its own cases on its worker; the table is the serial library call's (keys, statuses and
+    counts exactly; numbers to 1e-12 relative: other processes, whose BLAS may round
+    differently), and an overlapping study is served by the memo the pieces wrote."""
+    from pipeflow.schema.study import StudySpec
     from tests.pipeflow.cases import TINY
 
-    body = {
-        "base": TINY["study"]["base"],
-        "grid": {"pipe.E": [7e9 + i * 1e7 for i in range(64)]},
-    }
-    r = two.post("/v1/studies", json=body)
+    def grid(values: list[float]) -> dict[str, Any]:
+        return {"base": TINY["study"]["base"], "grid": {"pipe.E": values}}
+
+    values = [7e9 + i * 1e7 for i in range(64)]
+    r = two.post("/v1/studies", json=grid(values))
     assert r.status_code == 202, r.text
     key = r.json()["key"]
     assert wait_job(two, key, timeout=120)["status"] == "succeeded"
-    submitted, finished = _stopped_pieces(two, "run_cases")
+    submitted, finished = _stopped_pieces(two, "run_piece")
     assert submitted == finished == 8
     doc = two.get(f"/v1/results/{key}").json()
     assert len(doc["rows"]) == 64
+    want = COMPUTATIONS["study"].execute(StudySpec.model_validate(grid(values)))
+    assert doc["counts"] == want["counts"] == {
+        "total": 64, "ok": 64, "failed": 0, "cached": 0, "computed": 64
+    }  # fmt: skip
+    for got, row in zip(doc["rows"], want["rows"], strict=True):
+        for a, b in zip(got, row, strict=True):
+            if isinstance(b, float):
+                assert a == pytest.approx(b, rel=1e-12, abs=0.0)
+            else:
+                assert a == b
+    # half of it again, with 8 new cases: the memo rows the pieces wrote serve the rest
+    r = two.post("/v1/studies", json=grid(values[32:] + [6e9 + i * 1e7 for i in range(8)]))
+    key = r.json()["key"]
+    assert wait_job(two, key, timeout=120)["status"] == "succeeded"
+    again = two.get(f"/v1/results/{key}").json()
+    assert again["counts"] == {"total": 40, "ok": 40, "failed": 0, "cached": 32, "computed": 8}
+    assert [row[3] for row in again["rows"]] == [True] * 32 + [False] * 8
+    assert [row[1] for row in again["rows"][:32]] == [row[1] for row in doc["rows"][32:]]
