@@ -108,6 +108,8 @@ class DaskHost:
                         done = wait(pending, self.tick_s, return_when="FIRST_COMPLETED").done
                     except TimeoutError:
                         continue
+                    # a "lost" piece (its worker died with its result) is recomputed: not done
+                    done = {f for f in done if f.status in ("finished", "error", "cancelled")}
                     pending -= done
                     ordered = sorted(done, key=lambda f: index[f.key])
                     # an erred piece raises its exception here, as in-process
