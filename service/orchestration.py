@@ -41,19 +41,12 @@ Refresh = Annotated[
 ]
 
 
-def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
+def _saturated(runner: Runner, exc: QueueFull, what: str | None = None) -> ProblemError:
+    """503 with Retry-After: ``what`` is full (default: the computation slots)."""
+    what = what or f"all {runner.capacity} computation slots are taken"
     return ProblemError(
         503,
-        f"all {runner.capacity} computation slots are taken ({exc}); retry later",
-        slug="saturated",
-        headers={"Retry-After": str(runner.settings.retry_after_s)},
-    )
-
-
-def _queue_full(runner: Runner, exc: QueueFull) -> ProblemError:
-    return ProblemError(
-        503,
-        f"the job queue is full ({exc}); retry later",
+        f"{what} ({exc}); retry later",
         slug="saturated",
         headers={"Retry-After": str(runner.settings.retry_after_s)},
     )
@@ -205,7 +198,7 @@ async def submit_job(
         try:
             return await runner.enqueue(job, force=refresh, principal=principal, cost=cost)
         except QueueFull as exc:
-            raise _queue_full(runner, exc) from None
+            raise _saturated(runner, exc, "the job queue is full") from None
     record = await asyncio.to_thread(store.get_job, key)
     assert record is not None
     return record
