@@ -52,6 +52,34 @@ class Settings(BaseSettings):
         le=10_000,
         description="Computations that may wait for a worker; beyond workers + queue_size: 503.",
     )
+    max_queued_jobs: int = Field(
+        5000,
+        ge=0,
+        le=1_000_000,
+        description="Jobs (POST .../jobs) that may wait in the store's durable queue for a "
+        "worker, over all replicas sharing the store; beyond: 503 with Retry-After.",
+    )
+    quota_concurrent_jobs: int | None = Field(
+        None,
+        ge=1,
+        description="Per client (service.http.identity.principal): jobs computing at once; a "
+        "synchronous request beyond is answered 429 with Retry-After, a queued job waits "
+        "for its turn. None (default): no quota.",
+    )
+    quota_queued_jobs: int | None = Field(
+        None,
+        ge=1,
+        description="Per client: jobs waiting in the durable queue; beyond: 429 with "
+        "Retry-After. None (default): no quota.",
+    )
+    quota_cost_per_minute: float | None = Field(
+        None,
+        gt=0,
+        description="Per client: summed estimated cost of the computations started in the "
+        "last 60 s, in units of each kind's cost bound (a request at its kind's bound costs "
+        "1; a kind without an estimate costs 1); beyond: 429 with Retry-After [s] until "
+        "enough of it leaves the window. None (default): no quota.",
+    )
     fast_lane_threads: int = Field(
         1,
         ge=0,

@@ -13,7 +13,14 @@ ends.
   pieces here, in order: no dispatch, no secession).
 - Stopping: closing the iteration (the computation's progress callback raised ``Cancelled``
   between pieces, for a cancel or the runtime limit, or a piece raised) cancels the pieces
-  not yet finished; a piece already running finishes its chunk and is dropped.
+  not yet finished; a piece already running finishes its chunk and is dropped.  The
+  parent does not wait for a slow piece past its job's limit: it waits ``tick_s`` at a
+  time and asks ``stop`` (the task's cancel flag and runtime limit) in between, raising
+  ``Cancelled`` with the reason.  So a job whose pieces overrun its limit ends at that
+  limit by itself, and the watchdog never has to kill the process the parent seceded in,
+  where another job's task may be running meanwhile (issue 22, defect 3).
+- Ownership: :attr:`DaskHost.keys` are the Dask keys of every piece submitted, so the
+  watchdog can tell this job's tasks in its process from other jobs'.
 - Faults: a piece whose worker dies is rerun by the scheduler (up to its
   ``allowed-failures``); an exception from a piece (a ``PipeflowError`` keeps its
   parameter through pickling) leaves the computation like one raised in-process.
@@ -30,6 +37,7 @@ from functools import partial
 from typing import Any
 
 from pipeflow import parallel
+from pipeflow.errors import Cancelled
 
 #: prefix of the Dask keys of pieces (tests find them in the scheduler by it)
 PIECE_PREFIX = "pipeflow-piece"
@@ -55,12 +63,18 @@ def in_worker() -> bool:
 
 class DaskHost:
     """A :class:`pipeflow.parallel.Host` submitting pieces to the cluster of the current
-    Dask worker (use it inside a task only)."""
+    Dask worker (use it inside a task only).
 
-    def __init__(self) -> None:
+    ``stop``: asked every ``tick_s`` [s] while waiting for pieces; a reason (not None)
+    ends the wait with ``Cancelled(reason)`` (the pieces not finished are cancelled)."""
+
+    def __init__(self, stop: Callable[[], str | None] | None = None, tick_s: float = 0.25) -> None:
         self._width: int | None = None
         self.pieces = 0  # pieces computed on the cluster, over all fan-outs
         self.workers: set[str] = set()
+        self.keys: set[str] = set()  # Dask keys of the pieces submitted, over all fan-outs
+        self.stop = stop
+        self.tick_s = tick_s
 
     @property
     def width(self) -> int:
@@ -77,23 +91,43 @@ class DaskHost:
         if self.width == 1:
             yield from parallel.SERIAL.map(fn, items)
             return
-        from distributed import as_completed, worker_client
+        from distributed import wait, worker_client
 
         name = getattr(fn, "__name__", "piece")
         token = uuid.uuid4().hex[:12]
         keys = [f"{PIECE_PREFIX}-{name}-{token}-{i}" for i in range(len(items))]
+        self.keys.update(keys)
         with worker_client() as client:  # secedes: this worker computes pieces too
             futures = client.map(partial(_run_piece, fn), items, key=keys, pure=False)
             index = {f.key: i for i, f in enumerate(futures)}
+            pending = set(futures)
             try:
-                for future, (address, result) in as_completed(futures, with_results=True):
-                    self.pieces += 1
-                    self.workers.add(address)
-                    yield index[future.key], result
+                while pending:
+                    self._check_stop()
+                    try:
+                        done = wait(pending, self.tick_s, return_when="FIRST_COMPLETED").done
+                    except TimeoutError:
+                        continue
+                    # a "lost" piece (its worker died with its result) is recomputed: not done
+                    done = {f for f in done if f.status in ("finished", "error", "cancelled")}
+                    pending -= done
+                    ordered = sorted(done, key=lambda f: index[f.key])
+                    # an erred piece raises its exception here, as in-process
+                    for future, (address, result) in zip(
+                        ordered, client.gather(ordered), strict=True
+                    ):
+                        self.pieces += 1
+                        self.workers.add(address)
+                        yield index[future.key], result
             finally:
                 # the unfinished ones stop; the finished (or erred) ones are released now,
                 # not when a traceback that refers to them is collected
                 client.cancel(futures)
+
+    def _check_stop(self) -> None:
+        reason = self.stop() if self.stop is not None else None
+        if reason is not None:
+            raise Cancelled(reason)
 
     def diagnostics(self) -> dict[str, int] | None:
         """``{"pieces": n, "workers": k}`` when pieces ran on the cluster, else None."""

@@ -18,9 +18,17 @@ the replica that submitted it may die.  Here, per replica:
   again, and resubmits any job whose heartbeat went stale (its worker, its replica or the
   scheduler died): nothing accepted is lost.
 
+- :meth:`Runner.enqueue` accepts an asynchronous job into the store's durable queue (a
+  record nobody drives yet) and wakes the dispatcher, a loop that takes the next waiting
+  jobs (:meth:`Store.claim_waiting`: in order, fairly between clients, never one job by
+  two replicas) whenever this replica has fewer computations in flight than workers, and
+  drives them as :meth:`submit` does.  A queued job survives any restart: it is a row.
+
 Limits: at most ``workers + queue_size`` distinct computations are in flight per replica
-(:class:`QueueFull` beyond, answered with 503); a job whose computation started
-:data:`MAX_ATTEMPTS` times without finishing is failed with the reason.
+(:class:`QueueFull` beyond, answered with 503 to a synchronous request); at most
+``max_queued_jobs`` jobs wait in the durable queue over all replicas (:class:`QueueFull`
+beyond); a job whose computation started :data:`MAX_ATTEMPTS` times without finishing is
+failed with the reason.
 """
 
 from __future__ import annotations
@@ -91,6 +99,9 @@ class Flight:
     cancelled: bool = False
     #: how long the last finished attempt computed [s] (for the computation metrics)
     seconds: float | None = None
+    #: who asked, and the estimated cost: written on the record this flight creates
+    principal: str | None = None
+    cost: float = 0.0
 
     @property
     def key(self) -> str:
@@ -128,6 +139,11 @@ class Runner:
             )
         self._lane_busy = 0
         self.lane_runs = 0  # computations the fast lane ran (tests, diagnostics)
+        #: this replica's id in the job records it drives (``dispatcher``)
+        self.replica = uuid.uuid4().hex
+        self._kick = asyncio.Event()  # wakes the dispatcher (a job queued, a flight ended)
+        self._dispatching = asyncio.Lock()
+        self.dispatched = 0  # jobs this replica took from the durable queue (tests)
 
     # -- lifecycle -----------------------------------------------------------------------
 
@@ -168,9 +184,11 @@ class Runner:
         # the disk bound's running total, recounted once (drift of writers of an older version)
         await asyncio.to_thread(self.store.recount_results)
         for job in await asyncio.to_thread(self.store.active_jobs):
-            await self._recover(job)
+            if not job.waiting:  # a waiting one is the dispatcher's, in its turn
+                await self._recover(job)
         self._spawn(self._warm_up())
         self._spawn(self._monitor())
+        self._spawn(self._dispatch())
 
     async def stop(self) -> None:
         for task in list(self._background):
@@ -261,12 +279,19 @@ class Runner:
     # -- submission ----------------------------------------------------------------------
 
     async def submit(
-        self, job: Keyed, *, force: bool = False, recover: bool = False
+        self,
+        job: Keyed,
+        *,
+        force: bool = False,
+        recover: bool = False,
+        principal: str | None = None,
+        cost: float = 0.0,
     ) -> asyncio.Task[bytes]:
         """The in-flight task for ``job.key``, started if needed, once its record is written.
 
         ``force`` recomputes even if a result is stored; ``recover`` drives a record that
-        is already active and bypasses the bound.  A run that a DELETE asked to stop
+        is already active and bypasses the bound; ``principal`` and ``cost`` (in units of
+        the kind's cost bound) go on a record this call writes.  A run that a DELETE asked to stop
         (:meth:`cancel`) is never shared: the resubmission waits until it has stopped (its
         task checks the flag at its next heartbeat), then starts a new run.
         Raises :class:`QueueFull`, or :class:`StorageError` when the store is failing.
@@ -287,7 +312,7 @@ class Runner:
         if flight is None:
             if not recover and self.saturated:
                 raise QueueFull(f"{self.in_flight} computations in flight")
-            flight = Flight(job)
+            flight = Flight(job, principal=principal, cost=cost)
             self._flights[key] = flight
             flight.task = asyncio.create_task(self._drive(flight, force, recover))
             flight.task.add_done_callback(functools.partial(self._done, flight))
@@ -297,12 +322,17 @@ class Runner:
             # before it was written: the flight answers it; resetting would compute twice)
             name = job.computation.name
             await asyncio.to_thread(
-                self.store.enqueue_job,
-                key,
-                name,
-                job.canonical,
-                refresh=force,
-                keep_stored=not force,
+                functools.partial(
+                    self.store.enqueue_job,
+                    key,
+                    name,
+                    job.canonical,
+                    refresh=force,
+                    keep_stored=not force,
+                    principal=principal,
+                    cost=cost,
+                    dispatcher=self.replica,
+                )
             )
             flight.changed.set()
         await flight.accepted.wait()
@@ -347,10 +377,88 @@ class Runner:
     def _done(self, flight: Flight, task: asyncio.Task[bytes]) -> None:
         if self._flights.get(flight.key) is flight:
             del self._flights[flight.key]
+            self._kick.set()  # a slot is free: the dispatcher may take a waiting job
         if not task.cancelled():
             task.exception()  # retrieved here so an unobserved job failure is not logged twice
 
-    async def _recover(self, job: Job) -> None:
+    # -- the durable queue ---------------------------------------------------------------
+
+    async def enqueue(
+        self, job: Keyed, *, force: bool = False, principal: str | None = None, cost: float = 0.0
+    ) -> Job:
+        """Accept ``job`` into the store's durable queue (or join its active record) and
+        wake the dispatcher; its record.  Raises :class:`QueueFull` when
+        ``max_queued_jobs`` jobs wait already, :class:`StorageError` when the store fails."""
+        if not self.store.healthy:
+            raise self.store.unavailable()
+        bound = self.settings.max_queued_jobs
+        record, accepted = await asyncio.to_thread(
+            functools.partial(
+                self.store.queue_job,
+                job.key,
+                job.computation.name,
+                job.canonical,
+                bound=bound,
+                refresh=force,
+                principal=principal,
+                cost=cost,
+            )
+        )
+        if not accepted or record is None:
+            raise QueueFull(f"{bound} jobs wait in the queue")
+        # a free worker takes the next job before the 202 is answered (not at the
+        # dispatcher's next wake-up): a request right after it finds the slot taken; the
+        # job is accepted whatever happens here (the dispatcher tries again)
+        try:
+            await self._dispatch_once()
+        except StorageError:
+            self._kick.set()
+        return record
+
+    @property
+    def free_slots(self) -> int:
+        """Computations the dispatcher may start now: a worker each, less those in flight
+        (synchronous requests' included; they may use ``queue_size`` more)."""
+        return max(self.workers, 1) - len(self._flights)
+
+    async def _dispatch(self) -> None:
+        """Take waiting jobs from the durable queue as workers free up (woken by
+        :meth:`enqueue` and by a flight that ends; every poll interval otherwise, for jobs
+        queued by other replicas)."""
+        await self._connected.wait()
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._kick.wait(), self.poll_s)
+            self._kick.clear()
+            try:
+                await self._dispatch_once()
+            except StorageError:
+                continue
+            except Exception:
+                log.exception("engine dispatcher")
+
+    async def _dispatch_once(self) -> None:
+        """Take as many waiting jobs as there are free slots and drive them (one round at
+        a time: two rounds would both count the same free slots)."""
+        async with self._dispatching:
+            free = self.free_slots
+            if free <= 0 or not self.store.healthy or not self._connected.is_set():
+                return
+            taken = await asyncio.to_thread(
+                self.store.claim_waiting,
+                self.replica,
+                free,
+                self.settings.quota_concurrent_jobs,
+            )
+            for job in taken:
+                self.dispatched += 1
+                await self._recover(job, "dispatching")
+        if len(taken) == free:
+            self._kick.set()  # there may be more, and room once these end
+
+    async def _recover(self, job: Job, why: str = "recovering") -> None:
+        """Drive the active record ``job`` (found at start, stale, or taken from the
+        queue): its request is validated again from the stored spec."""
         computation = COMPUTATIONS.get(job.kind)
         try:
             if computation is None:
@@ -360,7 +468,7 @@ class Runner:
         except (LookupError, ValidationError) as exc:
             await asyncio.to_thread(self.store.finish_job, job.key, "failed", _internal(str(exc)))
             return
-        log.info("recovering %s job %s (%s)", job.kind, job.key, job.status)
+        log.info("%s %s job %s (%s)", why, job.kind, job.key, job.status)
         await self.submit(Keyed(computation, request, job.spec, job.key), recover=True)
 
     def _config(self) -> TaskConfig:
@@ -434,7 +542,14 @@ class Runner:
             with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
                 loop.call_soon_threadsafe(settle, result)
 
-        accept = Accept(flight.job.canonical, force, on_claim)
+        accept = Accept(
+            flight.job.canonical,
+            force,
+            on_claim,
+            principal=flight.principal,
+            cost=flight.cost,
+            dispatcher=self.replica,
+        )
         try:
             run = self._in_lane(flight, flight.key, accept)
             waiter = asyncio.ensure_future(self._result_of(run))
@@ -568,11 +683,16 @@ class Runner:
                 known, waiter = await self._lane_first(flight, force)
                 if known is None and waiter is None:
                     known = await asyncio.to_thread(
-                        self.store.enqueue_job,
-                        key,
-                        job_in.computation.name,
-                        job_in.canonical,
-                        refresh=force,
+                        functools.partial(
+                            self.store.enqueue_job,
+                            key,
+                            job_in.computation.name,
+                            job_in.canonical,
+                            refresh=force,
+                            principal=flight.principal,
+                            cost=flight.cost,
+                            dispatcher=self.replica,
+                        )
                     )
         finally:
             flight.accepted.set()

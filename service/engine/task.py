@@ -4,11 +4,15 @@
 result and finishes the job record itself, so it does not depend on the replica that
 submitted it staying alive.  While it runs, the process's heartbeat thread (one for all
 its computations) renews the lease, records progress and reads the cancel flag every
-``progress_interval_s``; the kind's function
-stops at its next progress callback (cooperative cancel and runtime limit).  A function
-that stops reporting is still held to the runtime limit: past it plus a grace period the
-heartbeat thread fails the job with the reason and kills its own worker process (the
-nanny starts a fresh one).
+``progress_interval_s``; the kind's function stops at its next progress callback
+(cooperative cancel and runtime limit); a fan-out waiting for its pieces stops at the
+limit too (:class:`service.engine.fanout.DaskHost`).  A function that stops reporting is
+still held to the runtime limit: past it plus a grace period the heartbeat thread fails
+the job with the reason (the client is answered then) and kills its own worker process
+(the nanny starts a fresh one), but only once no other job's task runs in that process: a
+job that seceded for its fan-out frees its thread, so another job's task may have started
+there, and one job's limit must never cost another job anything (issue 22, defect 3).
+Until then the overdue thread holds the process's thread, so no new task starts there.
 
 The return value is small (the body goes to the store): an :class:`Outcome`, whose
 ``status`` is ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
@@ -27,6 +31,7 @@ computation (logger ``service.worker``) carry the id of the request that started
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import signal
@@ -97,6 +102,16 @@ def _store(cfg: TaskConfig) -> Store:
     return worker_store(cfg.db_url, cfg.cache_max_bytes)
 
 
+def _worker() -> Any:
+    """The Dask worker running this task (call from the task's thread), else None."""
+    try:
+        from distributed import get_worker
+
+        return get_worker()
+    except (ImportError, ValueError):
+        return None
+
+
 def _worker_address() -> str:
     try:
         from distributed import get_worker
@@ -113,7 +128,14 @@ class _Heartbeat:
     (on a worker) its process is killed."""
 
     def __init__(
-        self, store: Store, key: str, owner: str, cfg: TaskConfig, *, inline: bool = False
+        self,
+        store: Store,
+        key: str,
+        owner: str,
+        cfg: TaskConfig,
+        *,
+        inline: bool = False,
+        worker: Any = None,
     ) -> None:
         self.store, self.key, self.owner, self.cfg = store, key, owner, cfg
         self.inline = inline
@@ -122,6 +144,14 @@ class _Heartbeat:
         self.deadline = time.monotonic() + cfg.timeout_s
         self.due = time.monotonic() + cfg.progress_interval_s  # next renewal [monotonic s]
         self.done = False
+        #: the Dask worker running the task (None in the fast lane), and the task's own key
+        self.worker = worker
+        self.own: set[str] = set()
+        if worker is not None:
+            with contextlib.suppress(Exception):
+                self.own.add(str(worker.get_current_task()))
+        self.host: DaskHost | None = None  # the task's fan-out (its pieces are its own)
+        self.overdue = False  # the watchdog failed the job; the process dies when alone
 
     def start(self) -> None:
         """Renewed from now on, every ``progress_interval_s``."""
@@ -140,6 +170,7 @@ class _Heartbeat:
                 self._abandon_overdue()
                 return False
             self._kill_overdue()
+            return True  # the job is failed: no lease to renew; looked at again next interval
         try:
             state = self.store.heartbeat(self.key, self.owner, self.progress)
         except StorageError:
@@ -162,19 +193,42 @@ class _Heartbeat:
             owner=self.owner,
         )
 
+    def others(self) -> list[str]:
+        """Keys of the tasks executing in this worker process (seceded ones included) that
+        are not this job's: its own task and its pieces may die with the process."""
+        if self.worker is None:
+            return []
+        state = self.worker.state
+        running = state.executing | state.long_running  # set union: atomic under the GIL
+        mine = self.own | (self.host.keys if self.host is not None else set())
+        return sorted(str(ts.key) for ts in running if str(ts.key) not in mine)
+
     def _kill_overdue(self) -> None:
+        """Fail the job (once), stop it where it is cooperative, then kill this process if
+        no other job's task runs in it; else wait (called again every interval)."""
         if self.done:
             return  # the computation returned meanwhile
-        log.error("job %s overran the runtime limit without stopping: killing worker", self.key)
-        try:
-            self.store.finish_job(
+        if not self.overdue:
+            self.overdue = True
+            self.stop = "runtime limit"
+            with contextlib.suppress(StorageError):  # the lease goes stale: still failed
+                self.store.finish_job(
+                    self.key,
+                    "failed",
+                    ErrorRecord.runtime_limit(self.cfg.timeout_s, killed=True).to_dict(),
+                    owner=self.owner,
+                )
+        others = self.others()
+        if others:
+            log.warning(
+                "job %s overran the runtime limit without stopping: its worker is killed once "
+                "the other tasks in it end (%s)",
                 self.key,
-                "failed",
-                ErrorRecord.runtime_limit(self.cfg.timeout_s, killed=True).to_dict(),
-                owner=self.owner,
+                ", ".join(others),
             )
-        finally:
-            os.kill(os.getpid(), signal.SIGKILL)
+            return
+        log.error("job %s overran the runtime limit without stopping: killing worker", self.key)
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 class _Beats(threading.Thread):
@@ -252,6 +306,9 @@ class Accept:
     spec: dict[str, Any]  # the request's canonical JSON (the record's spec)
     refresh: bool  # recompute even if a result is stored
     claimed: Callable[[Claim | StorageError], None]
+    principal: str | None = None  # who asked (service.http.identity)
+    cost: float = 0.0  # the estimate the quotas count [s]
+    dispatcher: str | None = None  # the replica that drives the job
 
 
 def run_job(
@@ -294,7 +351,15 @@ def _run_job(
             claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
         else:
             claim = store.enqueue_and_claim(
-                key, computation.name, accept.spec, owner, _worker_address(), refresh=accept.refresh
+                key,
+                computation.name,
+                accept.spec,
+                owner,
+                _worker_address(),
+                refresh=accept.refresh,
+                principal=accept.principal,
+                cost=accept.cost,
+                dispatcher=accept.dispatcher,
             )
     except StorageError as exc:
         if accept is not None:
@@ -308,7 +373,7 @@ def _run_job(
         return Outcome(claim.outcome, note=claim.job.status if claim.job else None)
     assert claim.job is not None
     try:
-        beat = _Heartbeat(store, key, owner, cfg, inline=inline is not None)
+        beat = _Heartbeat(store, key, owner, cfg, inline=inline is not None, worker=_worker())
         beat.start()
         started = time.perf_counter()
         work_log.info("computation started", extra={"key": key, "computation": computation.name})
@@ -360,7 +425,13 @@ def _compute(
         if beat.stop is not None:
             raise Cancelled(beat.stop)
 
-    host = DaskHost() if in_worker() else None  # fan-outs spread over the cluster
+    def stop() -> str | None:
+        """Why a fan-out waiting for its pieces must stop now (None: it need not)."""
+        return "runtime limit" if time.monotonic() > beat.deadline else beat.stop
+
+    # fan-outs spread over the cluster, held to the limit and the cancel flag while waiting
+    host = DaskHost(stop, cfg.progress_interval_s) if in_worker() else None
+    beat.host = host
     try:
         beat.deadline = time.monotonic() + cfg.timeout_s  # the limit is on the computation
         # pieces computed before (a study's cases) come from the store, new ones go there

@@ -33,6 +33,7 @@ _TITLES = {
     413: "Request body too large",
     415: "Unsupported media type",
     422: "Invalid input",
+    429: "Too many requests",
     500: "Internal server error",
     503: "Service unavailable",
     507: "Insufficient storage",
@@ -216,6 +217,8 @@ def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
         "ranges increasing, table times strictly increasing, starting at t <= 0 and covering "
         "time.t_end, stations within [0, L], tracked_modes <= modes, max_points >= points, "
         "a common period of harmonic flow and spin, and the work budgets of maps and charts.",
+        429: "Over one of the client's quotas (concurrent jobs, queued jobs, cost per "
+        "minute); retry after the Retry-After header [s].",
         503: "Saturated or not ready; retry after the Retry-After header [s].",
     }
     out: dict[int | str, dict[str, Any]] = {}
@@ -223,7 +226,7 @@ def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
         entry: dict[str, Any] = {"description": descriptions.get(code, _TITLES.get(code, ""))}
         if code >= 400:
             entry["model"] = Problem
-        if code == 503:
+        if code in (429, 503):
             entry["headers"] = {
                 "Retry-After": {"description": "Seconds to wait", "schema": {"type": "integer"}}
             }

@@ -27,6 +27,7 @@ from pipeflow.schema.registry import (
     response_type,
 )
 from service.deps import HitDep, RunnerDep, StoreDep
+from service.http.identity import principal
 from service.http.negotiation import JSON, accepts, json_body
 from service.http.problems import responses
 from service.http.responses import CACHE_HEADERS, JOB_ACCEPTED
@@ -36,7 +37,9 @@ from service.routes.endpoints import Endpoint, computations_at
 from service.schemas import JobStatus
 
 #: problem documents every computing operation can answer
-PROBLEMS = (400, 406, 413, 415, 422, 503)
+PROBLEMS = (400, 406, 413, 415, 422, 429, 503)
+#: the client identity (quotas, fairness of the job queue)
+Principal = Annotated[str, Depends(principal)]
 NEGOTIATION = [Depends(json_body), Depends(accepts(JSON))]
 
 
@@ -74,17 +77,19 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         runner: RunnerDep,
         store: StoreDep,
         hit: HitDep,
+        who: Principal,
         refresh: Refresh = False,
     ) -> Response:
-        return await run_sync(runner, store, keyed(which(request), request), refresh, hit)
+        return await run_sync(runner, store, keyed(which(request), request), refresh, hit, who)
 
     async def submit(
         request: body,
         runner: RunnerDep,
         store: StoreDep,
+        who: Principal,
         refresh: Refresh = False,
     ) -> JSONResponse:
-        return await accept_job(runner, store, keyed(which(request), request), refresh)
+        return await accept_job(runner, store, keyed(which(request), request), refresh, who)
 
     costs = cost_note(endpoint)
     job_description = (

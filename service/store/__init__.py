@@ -18,12 +18,22 @@ from __future__ import annotations
 
 from service.store.connection import PROBE_BYTES, StoreConnection, sqlite_url
 from service.store.errors import StorageError, StoreRefused
-from service.store.jobs import ACTIVE, STATUSES, Claim, Job, JobState, JobStore
+from service.store.jobs import (
+    ACTIVE,
+    COST_WINDOW_S,
+    STATUSES,
+    Claim,
+    Job,
+    JobState,
+    JobStore,
+    Usage,
+)
 from service.store.memory import MemoryLRU
 from service.store.results import ZLIB_LEVEL, ResultStore, compress
 
 __all__ = [
     "ACTIVE",
+    "COST_WINDOW_S",
     "PROBE_BYTES",
     "STATUSES",
     "ZLIB_LEVEL",
@@ -35,6 +45,7 @@ __all__ = [
     "Store",
     "StoreConnection",
     "StoreRefused",
+    "Usage",
     "sqlite_url",
 ]
 

@@ -2,6 +2,14 @@
 accepted (replica side), whose lease (``owner`` + ``heartbeat``) the attempt computing it
 holds (task side), so a job whose heartbeat went stale can be taken over by any live
 replica, and two replicas never compute one job at once.
+
+The records are also the durable job queue (issue 22, defect 4): an asynchronous job is
+accepted as a ``queued`` record without a ``dispatcher`` (:meth:`JobStore.queue_job`, up to
+a bound), and a replica with a free worker takes the next ones
+(:meth:`JobStore.claim_waiting`: in order within a client, fairly between clients, one
+conditional UPDATE per job so two replicas never take the same one).  A record says who
+asked for it (``principal``) and its estimated cost, which the per-client quotas count
+(:meth:`JobStore.usage`).
 """
 
 from __future__ import annotations
@@ -21,6 +29,11 @@ from service.store.tables import jobs, results
 JobState = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 STATUSES: tuple[str, ...] = get_args(JobState)
 ACTIVE = ("queued", "running")  # not yet ended
+#: the ``dispatcher`` of a job driven at once by whoever wrote it (:meth:`JobStore.enqueue_job`
+#: without a replica id: tests, tools)
+DRIVEN = "direct"
+#: the window of the cost-per-minute quota [s]
+COST_WINDOW_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +58,10 @@ class Job:
     owner: str | None = None
     worker: str | None = None
     heartbeat: float | None = None
+    principal: str | None = None
+    dispatcher: str | None = None
+    dispatched: float | None = None
+    cost: float = 0.0
 
     @classmethod
     def from_row(cls, row: Row[Any]) -> Job:
@@ -68,11 +85,34 @@ class Job:
             owner=m["owner"],
             worker=m["worker"],
             heartbeat=m["heartbeat"],
+            principal=m["principal"],
+            dispatcher=m["dispatcher"],
+            dispatched=m["dispatched"],
+            cost=float(m["cost"]),
         )
 
     @property
     def active(self) -> bool:
         return self.status in ACTIVE
+
+    @property
+    def waiting(self) -> bool:
+        """Accepted into the durable queue, not yet taken by a replica."""
+        return self.status == "queued" and self.dispatcher is None
+
+
+@dataclass(frozen=True)
+class Usage:
+    """One client's jobs now (:meth:`JobStore.usage`): ``active`` (taken by a replica:
+    computing or about to), ``waiting`` (in the durable queue), ``cost`` (summed estimated
+    cost of the jobs it started in the last :data:`COST_WINDOW_S` [s], in units of each
+    kind's cost bound) and ``oldest`` (when the oldest of those started [Unix s], None
+    when none did)."""
+
+    active: int
+    waiting: int
+    cost: float
+    oldest: float | None
 
 
 @dataclass(frozen=True)
@@ -130,19 +170,39 @@ class JobStore(StoreConnection):
         *,
         refresh: bool = False,
         keep_stored: bool = False,
+        principal: str | None = None,
+        cost: float = 0.0,
+        dispatcher: str = DRIVEN,
     ) -> Job:
-        """Create the job record, or reset a finished one to queued (a new generation);
-        an active one is left as it is (identical requests share it), and with
-        ``keep_stored`` a succeeded one whose result is stored (a request joining a run
-        that has just ended: resetting it would compute the same key again)."""
+        """Create the job record, or reset a finished one to queued (a new generation),
+        driven at once by the replica ``dispatcher``; an active one is left as it is
+        (identical requests share it; one waiting in the durable queue is taken by
+        ``dispatcher``), and with ``keep_stored`` a succeeded one whose result is stored (a
+        request joining a run that has just ended: resetting it would compute the same key
+        again).  ``principal``: who asked; ``cost``: the estimate the quotas count."""
         with self._write() as conn:
-            self._create_or_reset(conn, key, *_queued(kind, spec, refresh), keep_stored=keep_stored)
+            self._queue(conn, key, kind, spec, refresh, principal, cost, dispatcher, keep_stored)
+            conn.execute(
+                update(jobs)
+                .where(jobs.c.key == key, jobs.c.status == "queued", jobs.c.dispatcher.is_(None))
+                .values(dispatcher=dispatcher)
+            )
             job = self._job(conn, key)
         assert job is not None  # written in this transaction
         return job
 
     def enqueue_and_claim(
-        self, key: str, kind: str, spec: dict[str, Any], owner: str, worker: str, *, refresh: bool
+        self,
+        key: str,
+        kind: str,
+        spec: dict[str, Any],
+        owner: str,
+        worker: str,
+        *,
+        refresh: bool,
+        principal: str | None = None,
+        cost: float = 0.0,
+        dispatcher: str | None = DRIVEN,
     ) -> Claim:
         """:meth:`enqueue_job` and :meth:`claim` in one transaction, for an attempt that
         starts computing right away in the process that accepts the job (the fast lane):
@@ -157,18 +217,173 @@ class JobStore(StoreConnection):
         and the caller goes the ordinary way (:meth:`claim` by the attempt it submits).
         """
         with self._write() as conn:
+            columns = _queued(kind, spec, refresh, principal, cost, dispatcher)
             if not refresh and self._stored(conn, key):
-                if self._create_or_reset(conn, key, *_queued(kind, spec, refresh)):
+                if self._create_or_reset(conn, key, *columns):
                     self._finish(conn, key, "succeeded", None, None)
                     return Claim("stored", self._job(conn, key))
                 return Claim("queued", self._job(conn, key))
-            created, reset = _queued(kind, spec, refresh)
+            created, reset = columns
             lease = dict(
                 status="running", started=created["created"], owner=owner, worker=worker, attempts=1
             )
             changed = self._create_or_reset(conn, key, created | lease, reset | lease)
             job = self._job(conn, key)
         return Claim("claimed" if changed else "queued", job)
+
+    def _queue(
+        self,
+        conn: Connection,
+        key: str,
+        kind: str,
+        spec: dict[str, Any],
+        refresh: bool,
+        principal: str | None,
+        cost: float,
+        dispatcher: str | None,
+        keep_stored: bool = False,
+    ) -> None:
+        """Create or reset the record of ``key`` as queued (see :meth:`_create_or_reset`)."""
+        self._create_or_reset(
+            conn,
+            key,
+            *_queued(kind, spec, refresh, principal, cost, dispatcher),
+            keep_stored=keep_stored,
+        )
+
+    # -- the durable queue -------------------------------------------------------------
+
+    @staticmethod
+    def _is_waiting() -> Any:
+        return (jobs.c.status == "queued") & jobs.c.dispatcher.is_(None)
+
+    def queue_job(
+        self,
+        key: str,
+        kind: str,
+        spec: dict[str, Any],
+        *,
+        bound: int,
+        refresh: bool = False,
+        principal: str | None = None,
+        cost: float = 0.0,
+    ) -> tuple[Job | None, bool]:
+        """Accept job ``key`` into the durable queue: ``(record, True)`` once it is there
+        (created, or a finished one reset to queued), ``(record, True)`` too for an active
+        one (shared as it is), ``(record or None, False)`` when ``bound`` jobs wait already
+        (the queue is full).  One transaction: the bound holds across replicas."""
+        with self._write() as conn:
+            job = self._job(conn, key)
+            if job is not None and job.active:
+                return job, True
+            waiting = conn.execute(
+                select(func.count()).select_from(jobs).where(self._is_waiting())
+            ).scalar_one()
+            if waiting >= bound:
+                return job, False
+            self._queue(conn, key, kind, spec, refresh, principal, cost, None)
+            job = self._job(conn, key)
+        return job, True
+
+    def waiting_jobs(self) -> int:
+        """Jobs in the durable queue (accepted, not yet taken by a replica)."""
+        with self._read() as conn:
+            return int(
+                conn.execute(
+                    select(func.count()).select_from(jobs).where(self._is_waiting())
+                ).scalar_one()
+            )
+
+    def claim_waiting(self, dispatcher: str, n: int, per_principal: int | None = None) -> list[Job]:
+        """Take up to ``n`` jobs from the durable queue for the replica ``dispatcher``.
+
+        Fair between clients: each next job is the oldest waiting one of the client with
+        the fewest active jobs (over every replica), ties to the client served longest ago
+        (its last job taken from the queue; never: first), then to the one whose oldest
+        job waits longest; within a client, oldest first.  So with one worker the clients
+        take turns, whatever the length of their backlogs.  ``per_principal``: a client with
+        that many active jobs gets none (its concurrency quota; its jobs wait).  Each job
+        is taken by one conditional UPDATE (still waiting?), so two replicas never both
+        take one (SQLite: one writer at a time; PostgreSQL: the second UPDATE re-reads
+        the row after the first commits and matches nothing)."""
+        taken: list[Job] = []
+        if n <= 0:
+            return taken
+        with self._write() as conn:
+            who = func.coalesce(jobs.c.principal, "")
+            active: dict[str, int] = dict(
+                conn.execute(
+                    select(who, func.count())
+                    .where(jobs.c.status.in_(ACTIVE), jobs.c.dispatcher.is_not(None))
+                    .group_by(who)
+                ).all()
+            )
+            heads: dict[str, float] = dict(
+                conn.execute(
+                    select(who, func.min(jobs.c.created)).where(self._is_waiting()).group_by(who)
+                ).all()
+            )
+            served: dict[str, float] = dict(
+                conn.execute(
+                    select(who, func.max(jobs.c.dispatched))
+                    .where(who.in_(list(heads)), jobs.c.dispatched.is_not(None))
+                    .group_by(who)
+                ).all()
+            )
+            while len(taken) < n and heads:
+                ready = [
+                    p for p in heads if per_principal is None or active.get(p, 0) < per_principal
+                ]
+                if not ready:
+                    break
+                p = min(ready, key=lambda q: (active.get(q, 0), served.get(q, 0.0), heads[q], q))
+                row = conn.execute(
+                    select(jobs.c.key)
+                    .where(self._is_waiting(), who == p)
+                    .order_by(jobs.c.created, jobs.c.key)
+                    .limit(1)
+                ).first()
+                if row is None:
+                    del heads[p]
+                    continue
+                now = time.time()
+                got = conn.execute(
+                    update(jobs)
+                    .where(jobs.c.key == row.key, self._is_waiting())
+                    .values(dispatcher=dispatcher, dispatched=now, heartbeat=now)
+                ).rowcount
+                if got:
+                    job = self._job(conn, row.key)
+                    assert job is not None
+                    taken.append(job)
+                    active[p] = active.get(p, 0) + 1
+                    served[p] = now
+                nxt = conn.execute(
+                    select(func.min(jobs.c.created)).where(self._is_waiting(), who == p)
+                ).scalar_one()
+                if nxt is None:
+                    del heads[p]
+                else:
+                    heads[p] = nxt
+        return taken
+
+    def usage(self, principal: str, window_s: float = COST_WINDOW_S) -> Usage:
+        """What the quotas count for ``principal`` (see :class:`Usage`), in one read."""
+        since = time.time() - window_s
+        mine = jobs.c.principal == principal
+        with self._read() as conn:
+            active, waiting = conn.execute(
+                select(
+                    func.count().filter(jobs.c.status.in_(ACTIVE), jobs.c.dispatcher.is_not(None)),
+                    func.count().filter(self._is_waiting()),
+                ).where(mine)
+            ).one()
+            cost, oldest = conn.execute(
+                select(func.coalesce(func.sum(jobs.c.cost), 0.0), func.min(jobs.c.created)).where(
+                    mine, jobs.c.created >= since
+                )
+            ).one()
+        return Usage(int(active), int(waiting), float(cost), oldest)
 
     def finish_job(
         self,
@@ -279,13 +494,15 @@ class JobStore(StoreConnection):
         return {job.key: job for job in map(Job.from_row, rows)}
 
     def stale_jobs(self, stale_after_s: float) -> list[Job]:
-        """Active jobs whose owner (or submitter) has not been heard of for ``stale_after_s``."""
+        """Active jobs whose owner (or submitter) has not been heard of for ``stale_after_s``
+        (not those waiting in the durable queue: nobody holds them)."""
         limit = time.time() - stale_after_s
         with self._read() as conn:
             rows = conn.execute(
                 select(jobs)
                 .where(
                     jobs.c.status.in_(ACTIVE),
+                    ~self._is_waiting(),
                     (jobs.c.heartbeat.is_(None)) | (jobs.c.heartbeat < limit),
                 )
                 .order_by(jobs.c.created)
@@ -416,7 +633,12 @@ class JobStore(StoreConnection):
 
 
 def _queued(
-    kind: str, spec: dict[str, Any], refresh: bool
+    kind: str,
+    spec: dict[str, Any],
+    refresh: bool,
+    principal: str | None = None,
+    cost: float = 0.0,
+    dispatcher: str | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The columns of a job record accepted now and queued: ``(created, reset)``, those of
     a new row and those that reset a finished row to a new generation
@@ -431,6 +653,9 @@ def _queued(
         updated=now,
         heartbeat=now,
         refresh=refresh,
+        principal=principal,
+        dispatcher=dispatcher,
+        cost=cost,
     )
     reset: dict[str, Any] = created | dict(
         error=None,

@@ -68,8 +68,17 @@ jobs = Table(
     Column("owner", String(64)),  # id of the attempt holding the lease, NULL when none
     Column("worker", String(256)),  # where that attempt runs (Dask worker address)
     Column("heartbeat", Float),  # last sign of life of the job's owner or submitter
+    # migration 0004: the client that asked (quotas, fairness), the replica driving the job
+    # (NULL: waiting in the durable queue), the estimated cost [fraction of its kind's bound]
+    Column("principal", String(256)),
+    Column("dispatcher", String(64)),
+    Column("dispatched", Float),  # when a replica took it from the queue
+    Column("cost", Float, nullable=False, server_default="0"),
 )
 Index("jobs_status", jobs.c.status)
+Index("jobs_principal", jobs.c.principal, jobs.c.created)
+Index("jobs_queue", jobs.c.status, jobs.c.dispatcher, jobs.c.principal, jobs.c.created)
+Index("jobs_served", jobs.c.principal, jobs.c.dispatched)
 
 #: a scratch row written by the storage probe (is there room for a write again?)
 probe = Table(

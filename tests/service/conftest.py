@@ -12,12 +12,13 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import pytest
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Depends, Query, Response
 from fastapi.responses import JSONResponse
 from fastapi.testclient import TestClient
 
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from service.deps import RunnerDep, StoreDep
+from service.http.identity import principal
 from service.http.responses import job_document
 from service.keys import keyed
 from service.launch import free_port
@@ -47,13 +48,19 @@ def test_router() -> APIRouter:
         spec: SleepSpec,
         runner: RunnerDep,
         store: StoreDep,
+        who: Annotated[str, Depends(principal)],
         refresh: Annotated[bool, Query()] = False,
     ) -> Response:
-        return await run_sync(runner, store, keyed(SLEEP, spec), refresh)
+        return await run_sync(runner, store, keyed(SLEEP, spec), refresh, principal=who)
 
     @router.post("/sleep-jobs", status_code=202)
-    async def sleep_job(spec: SleepSpec, runner: RunnerDep, store: StoreDep) -> JSONResponse:
-        job = await submit_job(runner, store, keyed(SLEEP, spec), False)
+    async def sleep_job(
+        spec: SleepSpec,
+        runner: RunnerDep,
+        store: StoreDep,
+        who: Annotated[str, Depends(principal)],
+    ) -> JSONResponse:
+        job = await submit_job(runner, store, keyed(SLEEP, spec), False, who)
         key = job.key
         doc = job_document(job)
         doc = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in doc.items()}
