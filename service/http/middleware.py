@@ -16,10 +16,11 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from service import observability
 from service.http import negotiation
 from service.http.negotiation import JSON, accepts_gzip
-from service.http.problems import problem, response
+from service.http.problems import internal_problem, problem, response
 from service.http.responses import result_response
 
 access_log = logging.getLogger("service.access")
+log = logging.getLogger("service")
 #: the key at the start of a result's ETag (``"<key>"``, ``"<key>-gzip"``, ``"<key>-t.csv"``)
 _TAGGED_KEY = re.compile(r'(?:W/)?"([0-9a-f]{64})')
 #: Content-Location of a result answer
@@ -85,7 +86,9 @@ class RequestContext:
     and timed under its route TEMPLATE (``/v1/results/{key}``, never the raw path, so the
     label set stays bounded; ``<unmatched>`` when no route matched), its ``X-Cache`` answer
     counted, and a ``request`` log line written with method, route, path, status,
-    duration_ms, cache, key and request_id.
+    duration_ms, cache, key, principal (the API key's id, when authentication is on) and
+    request_id.  An exception nothing handled is logged with its traceback and answered
+    500 with :func:`service.http.problems.internal_problem` (the request id, not the text).
     """
 
     def __init__(self, app: ASGIApp) -> None:
@@ -101,13 +104,14 @@ class RequestContext:
             incoming.decode("latin-1") if incoming is not None else None
         )
         token = observability.REQUEST_ID.set(rid)
-        seen: dict[str, Any] = {"status": 500, "cache": None, "etag": None}
+        seen: dict[str, Any] = {"status": 500, "cache": None, "etag": None, "started": False}
 
         async def send_with_id(message: Message) -> None:
             if message["type"] == "http.response.start":
                 headers = MutableHeaders(scope=message)
                 headers["X-Request-ID"] = rid
                 seen["status"] = message["status"]
+                seen["started"] = True
                 seen["cache"] = headers.get("x-cache")
                 seen["etag"] = headers.get("etag")
             await send(message)
@@ -122,6 +126,12 @@ class RequestContext:
             else:
                 with span:
                     await self.app(scope, receive, send_with_id)
+        except Exception:
+            # a bug: the text goes to the log (with the request id), the client gets the id
+            log.exception("unhandled error on %s %s", scope["method"], scope["path"])
+            if not seen["started"]:
+                doc = internal_problem(scope.get("path"))
+                await response(doc)(scope, receive, send_with_id)
         finally:
             seconds = time.perf_counter() - start
             route = scope.get("route")
@@ -142,6 +152,7 @@ class RequestContext:
                     "duration_ms": round(seconds * 1e3, 3),
                     "cache": seen["cache"],
                     "key": key,
+                    "principal": (scope.get("state") or {}).get("principal"),
                 },
             )
             observability.REQUEST_ID.reset(token)
