@@ -213,7 +213,8 @@ def document(doc: dict[str, Any], settings: Settings) -> dict[str, Any]:
         return doc
     schemes = doc.setdefault("components", {}).setdefault("securitySchemes", {})
     for scheme in (bearer, api_key_header):
-        schemes[scheme.scheme_name] = scheme.model.model_dump(by_alias=True, exclude_none=True)
+        dumped = scheme.model.model_dump(mode="json", by_alias=True, exclude_none=True)
+        schemes[scheme.scheme_name] = dumped
     ref = {"schema": {"$ref": "#/components/schemas/Problem"}}
     for path, operations in doc.get("paths", {}).items():
         if not protected(path, settings):
