@@ -191,3 +191,16 @@ def test_openapi_of_a_server_requiring_keys_declares_them(tc: TestClient) -> Non
     assert "401" in post["responses"]
     assert "403" in doc["paths"]["/metrics"]["get"]["responses"]
     assert "security" not in doc["paths"]["/healthz"]["get"]
+
+
+def test_the_compose_replicas_require_keys() -> None:
+    """On in the compose file: both API replicas require keys, whose entries the operator
+    must export (compose stops with the message of ``${PIPEFLOW_API_KEYS:?...}`` if not)."""
+    yaml = pytest.importorskip("yaml")
+    root = Path(__file__).resolve().parents[3]
+    services = yaml.safe_load((root / "docker-compose.yml").read_text())["services"]
+    for name in ("api1", "api2"):
+        env = services[name]["environment"]
+        assert Settings(data_dir=root, auth_required=env["PIPEFLOW_AUTH_REQUIRED"]).auth_required
+        assert env["PIPEFLOW_API_KEYS"].startswith("${PIPEFLOW_API_KEYS:?")
+        assert env["PIPEFLOW_DATABASE_URL"].startswith("postgresql")  # the shared entries kept
