@@ -41,10 +41,14 @@ def test_page_loads_without_violations_and_the_policy_is_enforced(
             page.wait_for_selector(".swagger-ui .opblock, .redoc-wrap", timeout=60_000)
         else:
             page.wait_for_selector("#run:not([disabled])", timeout=60_000)  # form built
-        assert page.evaluate("window.__violations") == []
+        violations = page.evaluate("window.__violations")
+        if path in ("/docs", "/redoc"):
+            # ReDoc asks for its logo at cdn.redoc.ly: refused, as the policy means to (no
+            # other origin); nothing of this server's is refused
+            assert all(v.split()[1].startswith("https://cdn.redoc.ly/") for v in violations)
+            return  # their policy allows inline script (their configuration)
+        assert violations == []
         assert not [c for c in console if "Content Security Policy" in c], console
-        if path in ("/docs", "/redoc"):  # their policy allows inline script (configuration)
-            return
         # an inline script (what an injected payload would be) is refused and reported
         ran = page.evaluate(
             """() => {
