@@ -41,6 +41,7 @@ from fastapi.security import APIKeyHeader, HTTPBearer
 from starlette.requests import HTTPConnection
 from starlette.types import ASGIApp, Receive, Scope, Send
 
+from service.http.middleware import HttpMiddleware
 from service.http.problems import problem, response
 from service.settings import Settings
 
@@ -141,20 +142,17 @@ def _metrics_ids(settings: Settings) -> frozenset[str]:
     return frozenset(i.strip() for i in settings.metrics_key_ids.split(",") if i.strip())
 
 
-class Authenticate:
+class Authenticate(HttpMiddleware):
     """The ASGI middleware: sets ``scope["state"]["principal"]`` (``request.state.principal``)
     to the key id, or answers 401/403 (see the module docstring)."""
 
     def __init__(self, app: ASGIApp, settings: Settings, ring: KeyRing) -> None:
-        self.app = app
+        super().__init__(app)
         self.settings = settings
         self.ring = ring
         self.metrics_ids = _metrics_ids(settings)
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         state = scope.setdefault("state", {})
         state["principal"] = None
         path = scope["path"]

@@ -27,7 +27,24 @@ _TAGGED_KEY = re.compile(r'(?:W/)?"([0-9a-f]{64})')
 _RESULT_LOCATION = re.compile(r"/v1/results/([0-9a-f]{64})")
 
 
-class BodyLimit:
+class HttpMiddleware:
+    """An ASGI middleware acting on HTTP requests (:meth:`http`); anything else (the
+    lifespan) passes through unchanged."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        await self.http(scope, receive, send)
+
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
+        raise NotImplementedError
+
+
+class BodyLimit(HttpMiddleware):
     """Answer 413 to request bodies larger than ``max_bytes``.
 
     A declared Content-Length is checked before anything is read; a chunked body is
@@ -35,13 +52,10 @@ class BodyLimit:
     """
 
     def __init__(self, app: ASGIApp, max_bytes: int) -> None:
-        self.app = app
+        super().__init__(app)
         self.max_bytes = max_bytes
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         headers = dict(scope.get("headers") or [])
         declared = headers.get(b"content-length")
         if declared is not None:
@@ -77,7 +91,7 @@ class BodyLimit:
         await self.app(scope, limited, send)
 
 
-class RequestContext:
+class RequestContext(HttpMiddleware):
     """Request id, one log line and the HTTP metrics per request (outermost middleware).
 
     ``X-Request-ID`` is taken from the request (a token of at most 128 characters) or
@@ -91,13 +105,7 @@ class RequestContext:
     500 with :func:`service.http.problems.internal_problem` (the request id, not the text).
     """
 
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         start = time.perf_counter()
         incoming = next((v for k, v in scope["headers"] if k == b"x-request-id"), None)
         rid = observability.accept_request_id(

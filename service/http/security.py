@@ -16,7 +16,9 @@ tables, PNG) gets :data:`API_CSP`, which allows nothing to load.
 from __future__ import annotations
 
 from starlette.datastructures import MutableHeaders
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from starlette.types import Message, Receive, Scope, Send
+
+from service.http.middleware import HttpMiddleware
 
 #: what every policy says besides its sources: no framing, no <base>, no plugins
 _ALWAYS = {"frame-ancestors": "'none'", "base-uri": "'none'", "object-src": "'none'"}
@@ -63,19 +65,12 @@ HEADERS = {
 }
 
 
-class SecurityHeaders:
+class SecurityHeaders(HttpMiddleware):
     """Add :data:`HEADERS` and, unless the response has one, ``Content-Security-Policy:
     API_CSP`` to every HTTP response (outermost middleware: answers of the other
     middleware, 413s, 401s and the fast path's hits included)."""
 
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         async def secured(message: Message) -> None:
             if message["type"] == "http.response.start":
                 headers = MutableHeaders(scope=message)
