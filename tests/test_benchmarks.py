@@ -174,3 +174,21 @@ def test_study_benchmark_smoke(tmp_path: Path) -> None:
     for row in ("batched numpy floor", "library study runner", "POST to result over HTTP"):
         assert row in section, row
     assert "'computed': 36" in section and "'failed': 0" in section
+
+
+@pytest.mark.slow
+def test_bench_http_smoke() -> None:
+    """benchmarks/bench_http.py --smoke (two real servers, a few rounds): every row answers
+    as it should (200s, 304s; the script asserts each status) and the ratios are printed."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, "benchmarks/bench_http.py", "--smoke"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "CSV written again / kept:" in done.stdout and "hit with key / without:" in done.stdout
