@@ -19,9 +19,10 @@ from fastapi.openapi.utils import get_openapi
 from pipeflow import __version__
 from service import observability
 from service.engine import Runner
-from service.http import problems
+from service.http import auth, problems
 from service.http.middleware import BodyLimit, HitFastPath, RequestContext
 from service.http.responses import HitCache
+from service.http.security import SecurityHeaders
 from service.routes import computations, docs, exports, health, jobs, metrics, results, viewer
 from service.routes.endpoints import endpoints
 from service.settings import Settings, get_settings
@@ -84,11 +85,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.hits = HitCache(settings.hit_cache_bytes)
+    app.state.tables = exports.TableCache(settings.table_cache_bytes)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     # repeated hits are answered here, before body parsing and dependency resolution
     result_paths = frozenset(f"/v1/{e.path}" for e in endpoints() if e.run_operation is not None)
     app.add_middleware(HitFastPath, hits=app.state.hits, paths=result_paths)
-    app.add_middleware(RequestContext)  # outermost: 413s get a request id and a log line too
+    # outside the fast path, so that a hit needs a key too (when keys are required)
+    ring = auth.KeyRing.from_settings(settings)  # refuses to start on a bad key ring
+    app.add_middleware(auth.Authenticate, settings=settings, ring=ring)
+    app.add_middleware(RequestContext)  # 413s and 401s get a request id and a log line too
+    app.add_middleware(SecurityHeaders)  # outermost: every answer carries the headers
     problems.install(app)
     for endpoint in endpoints():
         app.include_router(computations.router_for(endpoint))
@@ -97,13 +103,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
-            app.openapi_schema = _problem_media_types(
-                get_openapi(
-                    title=app.title,
-                    version=app.version,
-                    description=app.description,
-                    routes=app.routes,
-                )
+            app.openapi_schema = auth.document(
+                _problem_media_types(
+                    get_openapi(
+                        title=app.title,
+                        version=app.version,
+                        description=app.description,
+                        routes=app.routes,
+                    )
+                ),
+                settings,
             )
         return app.openapi_schema
 

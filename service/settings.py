@@ -113,6 +113,12 @@ class Settings(BaseSettings):
         ge=0,
         description="Bound on the pre-encoded (and gzipped) cache-hit answers in memory [bytes].",
     )
+    table_cache_bytes: int = Field(
+        32 << 20,
+        ge=0,
+        description="Bound on the encoded CSV/Parquet tables of results kept in memory "
+        "[bytes] (a repeated download is not rebuilt).",
+    )
     retry_after_s: int = Field(5, ge=1, description="Retry-After sent with 503 responses [s].")
     job_retention_s: float = Field(
         7 * 86400.0, gt=0, description="Finished job records older than this are pruned [s]."
@@ -129,6 +135,32 @@ class Settings(BaseSettings):
         gt=0,
         description="A job whose heartbeat is older than this is taken to be dead (its "
         "worker, replica or the scheduler died) and is submitted again [s].",
+    )
+
+    auth_required: bool = Field(
+        False,
+        description="Require an API key (Authorization: Bearer <key> or X-API-Key) on the "
+        "API (/v1/...) and /metrics: 401 without a known one. Off by default (the embedded "
+        "single-user set-up); the probes, pages and documentation stay open.",
+    )
+    api_keys: str = Field(
+        "",
+        description="The keys the server accepts, as entries <id>:sha256:<hex of the key's "
+        "SHA-256> separated by commas or new lines (python -m service.http.auth new <id> "
+        "makes a key and its entry); never the keys themselves.",
+    )
+    api_keys_file: Path | None = Field(
+        None, description="A file of more key entries, one per line (# comments)."
+    )
+    metrics_auth: bool = Field(
+        True,
+        description="With auth_required: whether /metrics needs a key too (false: open, "
+        "for a scraper on a private network).",
+    )
+    metrics_key_ids: str = Field(
+        "",
+        description="Comma-separated key ids that may read /metrics (others: 403); empty: "
+        "any known key.",
     )
 
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"] = Field(

@@ -199,3 +199,20 @@ def test_time_variant_study_benchmark_smoke(tmp_path: Path) -> None:
     for row in ("batched Magnus-4 floor", "stacked magnus (after)", "per case (before"):
         assert row in text, row
     assert "identical (every summary column, == on floats): 9 of 9" in text
+
+@pytest.mark.slow
+def test_bench_http_smoke() -> None:
+    """benchmarks/bench_http.py --smoke (two real servers, a few rounds): every row answers
+    as it should (200s, 304s; the script asserts each status) and the ratios are printed."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, "benchmarks/bench_http.py", "--smoke"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "CSV written again / kept:" in done.stdout and "hit with key / without:" in done.stdout

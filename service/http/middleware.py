@@ -16,17 +16,35 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from service import observability
 from service.http import negotiation
 from service.http.negotiation import JSON, accepts_gzip
-from service.http.problems import problem, response
+from service.http.problems import internal_problem, problem, response
 from service.http.responses import result_response
 
 access_log = logging.getLogger("service.access")
+log = logging.getLogger("service")
 #: the key at the start of a result's ETag (``"<key>"``, ``"<key>-gzip"``, ``"<key>-t.csv"``)
 _TAGGED_KEY = re.compile(r'(?:W/)?"([0-9a-f]{64})')
 #: Content-Location of a result answer
 _RESULT_LOCATION = re.compile(r"/v1/results/([0-9a-f]{64})")
 
 
-class BodyLimit:
+class HttpMiddleware:
+    """An ASGI middleware acting on HTTP requests (:meth:`http`); anything else (the
+    lifespan) passes through unchanged."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        await self.http(scope, receive, send)
+
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
+        raise NotImplementedError
+
+
+class BodyLimit(HttpMiddleware):
     """Answer 413 to request bodies larger than ``max_bytes``.
 
     A declared Content-Length is checked before anything is read; a chunked body is
@@ -34,13 +52,10 @@ class BodyLimit:
     """
 
     def __init__(self, app: ASGIApp, max_bytes: int) -> None:
-        self.app = app
+        super().__init__(app)
         self.max_bytes = max_bytes
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         headers = dict(scope.get("headers") or [])
         declared = headers.get(b"content-length")
         if declared is not None:
@@ -76,7 +91,7 @@ class BodyLimit:
         await self.app(scope, limited, send)
 
 
-class RequestContext:
+class RequestContext(HttpMiddleware):
     """Request id, one log line and the HTTP metrics per request (outermost middleware).
 
     ``X-Request-ID`` is taken from the request (a token of at most 128 characters) or
@@ -85,29 +100,26 @@ class RequestContext:
     and timed under its route TEMPLATE (``/v1/results/{key}``, never the raw path, so the
     label set stays bounded; ``<unmatched>`` when no route matched), its ``X-Cache`` answer
     counted, and a ``request`` log line written with method, route, path, status,
-    duration_ms, cache, key and request_id.
+    duration_ms, cache, key, principal (the API key's id, when authentication is on) and
+    request_id.  An exception nothing handled is logged with its traceback and answered
+    500 with :func:`service.http.problems.internal_problem` (the request id, not the text).
     """
 
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         start = time.perf_counter()
         incoming = next((v for k, v in scope["headers"] if k == b"x-request-id"), None)
         rid = observability.accept_request_id(
             incoming.decode("latin-1") if incoming is not None else None
         )
         token = observability.REQUEST_ID.set(rid)
-        seen: dict[str, Any] = {"status": 500, "cache": None, "etag": None}
+        seen: dict[str, Any] = {"status": 500, "cache": None, "etag": None, "started": False}
 
         async def send_with_id(message: Message) -> None:
             if message["type"] == "http.response.start":
                 headers = MutableHeaders(scope=message)
                 headers["X-Request-ID"] = rid
                 seen["status"] = message["status"]
+                seen["started"] = True
                 seen["cache"] = headers.get("x-cache")
                 seen["etag"] = headers.get("etag")
             await send(message)
@@ -122,6 +134,12 @@ class RequestContext:
             else:
                 with span:
                     await self.app(scope, receive, send_with_id)
+        except Exception:
+            # a bug: the text goes to the log (with the request id), the client gets the id
+            log.exception("unhandled error on %s %s", scope["method"], scope["path"])
+            if not seen["started"]:
+                doc = internal_problem(scope.get("path"))
+                await response(doc)(scope, receive, send_with_id)
         finally:
             seconds = time.perf_counter() - start
             route = scope.get("route")
@@ -142,6 +160,7 @@ class RequestContext:
                     "duration_ms": round(seconds * 1e3, 3),
                     "cache": seen["cache"],
                     "key": key,
+                    "principal": (scope.get("state") or {}).get("principal"),
                 },
             )
             observability.REQUEST_ID.reset(token)

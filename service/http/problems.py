@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from pipeflow.errors import ErrorRecord, PipeflowError, StorageError, classify
+from service import observability
 
 log = logging.getLogger("service")
 
@@ -26,6 +27,8 @@ TYPE_BASE = "https://pipeflow.dev/problems/"
 
 _TITLES = {
     400: "Bad request",
+    401: "Unauthorized",
+    403: "Forbidden",
     404: "Not found",
     405: "Method not allowed",
     406: "Not acceptable",
@@ -52,6 +55,11 @@ class FieldError(BaseModel):
     location: str = Field("body", description="Where the input is: body, query or path.")
     message: str = Field(description="What is wrong with it.")
     type: str = Field("value_error", description="Machine-readable error type.")
+    offset: int | None = Field(
+        None,
+        description="Byte offset into the request body where it stops being valid UTF-8 "
+        "or JSON (malformed bodies only) [bytes].",
+    )
 
 
 class Problem(BaseModel):
@@ -66,6 +74,11 @@ class Problem(BaseModel):
     instance: str | None = Field(None, description="The request path.")
     errors: list[FieldError] | None = Field(
         None, description="Offending inputs (validation errors)."
+    )
+    request_id: str | None = Field(
+        None,
+        description="A 500's request id (also the X-Request-ID header): the server's log has "
+        "the error's description under it; the body never carries internal exception text.",
     )
 
 
@@ -164,8 +177,18 @@ def record_problem(record: ErrorRecord) -> dict[str, Any]:
     status, slug, title = RECORD_PROBLEMS.get(record.kind, RECORD_PROBLEMS["internal"])
     slug = slug or record.type
     data = record.data
-    if record.kind == "storage" and data.get("full"):
-        status = 507
+    if record.kind == "storage":
+        log.warning("storage failure answered without its text: %s", record.message)
+        full = bool(data.get("full"))
+        return problem(
+            507 if full else 503,
+            _storage_detail("the result could not be stored: " + STORAGE_CAUSES[full]),
+            slug=slug,
+            title=title,
+        )
+    if status >= 500:  # a bug: its text goes to the log, never to the client
+        log.error("internal error answered without its text: %s", record.message)
+        return internal_problem()
     detail = record.message
     if record.kind == "numerical-range":
         detail = f"{detail}; {NUMERICAL_RANGE_ADVICE}"
@@ -210,6 +233,8 @@ def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
         404: "Unknown key.",
         406: "Not acceptable: the Accept header admits none of the operation's media types, "
         "or the requested format needs an optional extra the server lacks (e.g. pyarrow).",
+        401: "An API key is required (the server's auth_required) and none, or an unknown "
+        "one, was sent.",
         409: "The job is in a state that does not allow this.",
         413: "Request body larger than the configured limit.",
         422: "Invalid input; `errors` names each offending field.  Besides the schema, the "
@@ -290,8 +315,9 @@ def _named_field(body: Any, base: list[Any], err: dict[str, Any]) -> list[Any]:
 
 def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
     body = getattr(exc, "body", None)
-    out = []
+    out: list[dict[str, Any]] = []
     for err in exc.errors():
+        offset: int | None = None
         loc = tuple(err.get("loc", ()))
         where = str(loc[0]) if loc else "body"
         rest = loc[1:]
@@ -301,6 +327,7 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
                 path = _named_field(body, path, err)
             if err.get("type") == "json_invalid":
                 path = []
+                offset = _byte_offset(body, rest)
             if not path and err.get("type") in ("union_tag_invalid", "union_tag_not_found"):
                 # the body itself is a tagged union (/v1/sweeps): name its tag, e.g. 'kind'
                 tag = str((err.get("ctx") or {}).get("discriminator", "")).strip("'\"")
@@ -317,7 +344,19 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
                 "type": str(err.get("type", "value_error")),
             }
         )
+        if offset is not None:
+            message = f"{out[-1]['message']} at byte offset {offset}"
+            detail = (err.get("ctx") or {}).get("error")
+            out[-1].update(message=f"{message}: {detail}" if detail else message, offset=offset)
     return out
+
+
+def _byte_offset(doc: Any, loc: tuple[Any, ...]) -> int | None:
+    """The byte offset in the UTF-8 body of a JSON error at character ``loc[0]`` of the
+    decoded ``doc`` (FastAPI's json_invalid error carries the character position)."""
+    if not (isinstance(doc, str) and loc and isinstance(loc[0], int)):
+        return None
+    return len(doc[: loc[0]].encode("utf-8", "surrogatepass"))
 
 
 def allowed_methods(request: Request) -> list[str]:
@@ -341,15 +380,57 @@ def allowed_methods(request: Request) -> list[str]:
 # -- handlers ------------------------------------------------------------------------------
 
 
+#: what a 503/507 of the store says, by whether its disk is full (the driver's text is logged)
+STORAGE_CAUSES = {True: "the disk of the store is full", False: "the store could not be written"}
+
+
+def _storage_detail(cause: str) -> str:
+    return (
+        f"{cause}; the request was not done, and the service recovers by itself once the "
+        f"store is writable again: retry later (the cause is in the server's log under "
+        f"request id {observability.request_id()})"
+    )
+
+
 def storage_problem(exc: StorageError, instance: str | None = None) -> dict[str, Any]:
-    """507 when the store's disk is full, else 503: nothing was lost, retry later."""
+    """507 when the store's disk is full, else 503: nothing was lost, retry later.  The
+    driver's text (logged by the store) is not sent."""
     return problem(
         507 if exc.full else 503,
-        f"{exc}; the request was not done, and the service recovers by itself once the "
-        "store is writable again: retry later",
+        _storage_detail(STORAGE_CAUSES[exc.full]),
         slug="storage",
         instance=instance,
     )
+
+
+def internal_problem(instance: str | None = None) -> dict[str, Any]:
+    """The 500 of a bug: no exception text (that is in the log), the request id instead,
+    as ``request_id`` and in the detail, to find the log lines."""
+    rid = observability.request_id()
+    doc = problem(
+        500,
+        f"an internal error occurred; its description is in the server's log under "
+        f"request id {rid}",
+        slug="internal",
+        instance=instance,
+    )
+    doc["request_id"] = rid
+    return doc
+
+
+def undecodable_body(exc: UnicodeDecodeError, instance: str | None = None) -> dict[str, Any]:
+    """The 400 of a JSON body that is not UTF-8 (RFC 8259 section 8.1), naming the byte
+    offset where decoding failed."""
+    message = f"the body is not valid UTF-8 at byte offset {exc.start} ({exc.reason})"
+    err = {
+        "field": None,
+        "pointer": "#",
+        "location": "body",
+        "message": message,
+        "type": "utf8_invalid",
+        "offset": exc.start,
+    }
+    return problem(400, message, slug="malformed-json", errors=[err], instance=instance)
 
 
 def storage_headers(app: FastAPI) -> dict[str, str]:
@@ -389,6 +470,8 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        if isinstance(exc.__cause__, UnicodeDecodeError):  # FastAPI's "error parsing the body"
+            return response(undecodable_body(exc.__cause__, request.url.path))
         detail = exc.detail if isinstance(exc.detail, str) else None
         headers = dict(exc.headers) if exc.headers else {}
         if exc.status_code == 405:
@@ -401,7 +484,6 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(Exception)
     async def _internal(request: Request, exc: Exception) -> JSONResponse:
+        # reached only from outside the middleware (RequestContext answers the rest)
         log.exception("unhandled error on %s", request.url.path)
-        return response(
-            problem(500, "an internal error occurred; it is logged", instance=request.url.path)
-        )
+        return response(internal_problem(request.url.path))

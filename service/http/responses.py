@@ -13,7 +13,7 @@ import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, Generic, Protocol, TypeVar
 
 from fastapi import Response
 from fastapi.responses import JSONResponse
@@ -73,27 +73,35 @@ def encode(body: bytes) -> Encoded:
     return Encoded(body, gzip.compress(body, GZIP_LEVEL, mtime=0))
 
 
-class HitCache:
-    """The cache-hit answers (envelope bytes and their gzip) by key, least recently used
-    evicted beyond ``max_bytes`` in total: a hit is answered on the event loop, with no
-    store read, no thread hop, no parse and no re-encode.  Results are immutable per key
-    (the key hashes the normalised request and the version); a recomputation
-    (``refresh``) drops the entry."""
+class Sized(Protocol):
+    """A cached answer: its bytes held in memory."""
+
+    @property
+    def size(self) -> int: ...
+
+
+V = TypeVar("V", bound=Sized)
+
+
+class AnswerCache(Generic[V]):
+    """Encoded answers by name, least recently used evicted beyond ``max_bytes`` in total
+    (each value's ``size``); a value larger than the bound is not kept.  Thread-safe:
+    put() runs in worker threads too."""
 
     def __init__(self, max_bytes: int) -> None:
         self.max_bytes = max_bytes
-        self._items: OrderedDict[str, Encoded] = OrderedDict()
+        self._items: OrderedDict[str, V] = OrderedDict()
         self._size = 0
-        self._lock = threading.Lock()  # put() runs in worker threads too
+        self._lock = threading.Lock()
 
-    def get(self, key: str) -> Encoded | None:
+    def get(self, key: str) -> V | None:
         with self._lock:
             value = self._items.get(key)
             if value is not None:
                 self._items.move_to_end(key)
             return value
 
-    def put(self, key: str, value: Encoded) -> None:
+    def put(self, key: str, value: V) -> None:
         with self._lock:
             self._pop(key)
             if value.size > self.max_bytes:
@@ -115,6 +123,20 @@ class HitCache:
 
     def __len__(self) -> int:
         return len(self._items)
+
+
+class HitCache(AnswerCache[Encoded]):
+    """The cache-hit answers (envelope bytes and their gzip) by key: a hit is answered on
+    the event loop, with no store read, no thread hop, no parse and no re-encode.  Results
+    are immutable per key (the key hashes the normalised request and the version); a
+    recomputation (``refresh``) drops the entry."""
+
+
+def etag_matches(if_none_match: str, etag: str) -> bool:
+    """RFC 9110 If-None-Match: weak comparison of each listed tag (or ``*``) against
+    ``etag``, the entity tag of the representation the request selects."""
+    tags = [t.strip() for t in if_none_match.split(",")]
+    return any(t == "*" or t.removeprefix("W/") == etag for t in tags)
 
 
 @dataclass(frozen=True)

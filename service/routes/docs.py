@@ -17,6 +17,7 @@ import fastapi_offline
 from fastapi import APIRouter, Request, Response
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 
+from service.http.security import DOCS_CSP
 from service.routes.assets import AllowList
 
 ASSET_DIR = Path(fastapi_offline.__file__).resolve().parent / "static"
@@ -29,13 +30,6 @@ ASSETS: dict[str, str] = {
     "favicon.png": "image/png",
 }
 
-#: same origin only; inline script/style because both pages configure themselves inline,
-#: blob: workers for ReDoc's search
-CSP = (
-    "default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
-    "img-src 'self' data:; font-src 'self' data:; worker-src 'self' blob:; connect-src 'self'"
-)
-
 router = APIRouter(include_in_schema=False)
 
 
@@ -44,7 +38,7 @@ def _asset_url(request: Request, name: str) -> str:
 
 
 def _page(html: Response) -> Response:
-    html.headers["Content-Security-Policy"] = CSP
+    html.headers["Content-Security-Policy"] = DOCS_CSP
     html.headers["Cache-Control"] = "no-cache"
     return html
 

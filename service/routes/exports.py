@@ -5,7 +5,9 @@
 - CSV or Parquet of ``GET /v1/results/{key}`` (``Accept: text/csv`` /
   ``application/vnd.apache.parquet`` or ``?format=csv|parquet``): the route in
   :mod:`service.routes.results` calls :func:`table_response` from here, so one module owns
-  the content negotiation and the tables of :mod:`pipeflow.io.export`.
+  the content negotiation and the tables of :mod:`pipeflow.io.export`.  Each table is
+  encoded once and kept in the app's :class:`TableCache` (a bounded LRU); ``If-None-Match``
+  is answered 304.
 
 Drawing happens in a thread (not on the event loop) under a lock: matplotlib's figure
 objects are independent, but its rc settings used while saving are process-global.
@@ -16,9 +18,10 @@ from __future__ import annotations
 import asyncio
 import json
 import threading
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, Header, Path, Response
+from fastapi import APIRouter, Depends, Header, Path, Request, Response
 
 from pipeflow.io import plots
 from pipeflow.io.export import (
@@ -33,7 +36,10 @@ from pipeflow.io.export import (
 from service.deps import StoreDep
 from service.http.negotiation import accepts, media_ranges
 from service.http.problems import ProblemError, responses
+from service.http.responses import AnswerCache, etag_matches
+from service.http.security import SVG_CSP
 from service.schemas import KEY_PATTERN
+from service.store import Store
 
 router = APIRouter(prefix="/v1/results", tags=["results"])
 
@@ -85,7 +91,56 @@ def wanted_format(fmt: str | None, accept: str | None) -> str:
     return "json"
 
 
-def table_response(key: str, body: bytes, table: str | None, fmt: str) -> Response:
+@dataclass(frozen=True)
+class TableAnswer:
+    """One table of a stored result, encoded: what a CSV or Parquet answer sends."""
+
+    key: str
+    table: str
+    fmt: str
+    content: bytes
+
+    @property
+    def size(self) -> int:
+        return len(self.content)
+
+    @property
+    def etag(self) -> str:
+        """Strong validator: ``"<key>-<table>.<fmt>"`` (the result is immutable per key)."""
+        return f'"{self.key}-{self.table}.{self.fmt}"'
+
+    def headers(self) -> dict[str, str]:
+        return {"ETag": self.etag, "Cache-Control": IMMUTABLE, "Vary": "Accept"}
+
+    def response(self) -> Response:
+        media = TABLE_MEDIA_TYPES[self.fmt]
+        name = f"{self.key[:12]}-{self.table}.{self.fmt}"
+        return Response(
+            self.content,
+            media_type=f"{media}; charset=utf-8; header=present" if self.fmt == "csv" else media,
+            headers={
+                **self.headers(),
+                "Content-Disposition": f'inline; filename="{name}"',
+            },
+        )
+
+
+class TableCache(AnswerCache[TableAnswer]):
+    """The encoded tables by key, table asked for (empty: the default) and format: a
+    repeated download (or an ``If-None-Match`` check) neither reads the store nor parses
+    the result nor writes the table again."""
+
+
+async def get_tables(request: Request) -> TableCache | None:
+    """The app's :class:`TableCache` (``app.state.tables``; None: encode every time)."""
+    cache: TableCache | None = getattr(request.app.state, "tables", None)
+    return cache
+
+
+TablesDep = Annotated[TableCache | None, Depends(get_tables)]
+
+
+def encode_table(key: str, body: bytes, table: str | None, fmt: str) -> TableAnswer:
     """Table ``table`` (None: the result's first) of the stored result ``body`` (JSON bytes)
     as ``fmt`` (csv, parquet)."""
     result = json.loads(body)
@@ -108,17 +163,33 @@ def table_response(key: str, body: bytes, table: str | None, fmt: str) -> Respon
             slug="no-such-table",
             errors=[{"field": "table", "location": "query", "message": exc.message}],
         ) from None
-    media = TABLE_MEDIA_TYPES[fmt]
-    return Response(
-        content,
-        media_type=f"{media}; charset=utf-8; header=present" if fmt == "csv" else media,
-        headers={
-            "ETag": f'"{key}-{table}.{fmt}"',
-            "Content-Disposition": f'inline; filename="{key[:12]}-{table}.{fmt}"',
-            "Cache-Control": IMMUTABLE,
-            "Vary": "Accept",
-        },
-    )
+    data = content.encode() if isinstance(content, str) else content
+    return TableAnswer(key, table, fmt, data)
+
+
+async def table_response(
+    key: str,
+    table: str | None,
+    fmt: str,
+    store: Store,
+    cache: TableCache | None,
+    if_none_match: str | None,
+) -> Response:
+    """The CSV/Parquet answer of ``GET /v1/results/{key}``: from ``cache`` when it holds
+    the table, else read, parsed and written off the event loop (results can be MBs) and
+    kept; ``If-None-Match`` with the table's ETag is answered 304."""
+    slot = f"{key}/{table or ''}.{fmt}"
+    answer = cache.get(slot) if cache is not None else None
+    if answer is None:
+        body = await asyncio.to_thread(store.get_result, key)
+        if body is None:
+            raise ProblemError(404, f"no result {key}", slug="unknown-key")
+        answer = await asyncio.to_thread(encode_table, key, body, table, fmt)
+        if cache is not None:
+            cache.put(slot, answer)
+    if if_none_match is not None and etag_matches(if_none_match, answer.etag):
+        return Response(status_code=304, headers=answer.headers())
+    return answer.response()
 
 
 def _render(body: bytes, name: str, fmt: str) -> bytes:
@@ -168,7 +239,9 @@ async def get_result_plot(
     kinds of figure), eigenvalue paths (argand) and station displacements."""
     etag = f'"{key}-{name}.{fmt}"'
     headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
-    if if_none_match is not None and etag in (t.strip() for t in if_none_match.split(",")):
+    if fmt == "svg":  # opened on its own, an SVG is a document: its styles only, no script
+        headers["Content-Security-Policy"] = SVG_CSP
+    if if_none_match is not None and etag_matches(if_none_match, etag):
         if await asyncio.to_thread(store.has_result, key):
             return Response(status_code=304, headers=headers)
     body = await asyncio.to_thread(store.get_result, key)

@@ -14,6 +14,7 @@ from service.http.responses import (
     CACHE_HEADERS,
     encoded_hit,
     entity_tag,
+    etag_matches,
     result_response,
     sends_gzip,
 )
@@ -23,6 +24,7 @@ from service.routes.exports import (
     TABLE_DESCRIPTION,
     TABLE_MEDIA_TYPES,
     Table,
+    TablesDep,
     table_response,
     wanted_format,
 )
@@ -40,13 +42,6 @@ ResultDocument: Any = Union[  # noqa: UP007
 ]
 
 
-def _matches(if_none_match: str, etag: str) -> bool:
-    """RFC 9110 If-None-Match: weak comparison against ``etag``, the entity tag of the
-    representation this request selects."""
-    tags = [t.strip() for t in if_none_match.split(",")]
-    return any(t == "*" or t.removeprefix("W/") == etag for t in tags)
-
-
 @router.get(
     "/{key}",
     operation_id="getResult",
@@ -62,6 +57,7 @@ async def get_result(
     store: StoreDep,
     runner: RunnerDep,
     hit: HitDep,
+    tables: TablesDep,
     if_none_match: Annotated[str | None, Header()] = None,
     # content negotiation, not a parameter: the 200's media types document it
     accept: Annotated[str | None, Header(include_in_schema=False)] = None,
@@ -84,11 +80,7 @@ async def get_result(
     Parquet, float64 columns named without units and each unit in the field metadata."""
     fmt = wanted_format(format, accept)
     if fmt != "json":
-        body = await asyncio.to_thread(store.get_result, key)
-        if body is None:
-            raise ProblemError(404, f"no result {key}", slug="unknown-key")
-        # parse the stored JSON and write the table off the event loop: results can be MBs
-        return await asyncio.to_thread(table_response, key, body, table, fmt)
+        return await table_response(key, table, fmt, store, tables, if_none_match)
     encoded = hit.cache.get(key) if hit.cache is not None else None
     if encoded is None:
         body = await asyncio.to_thread(store.get_result, key)
@@ -97,6 +89,6 @@ async def get_result(
             raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
         encoded = await encoded_hit(key, body, hit)
     etag = entity_tag(key, sends_gzip(encoded, hit.gzip))
-    if if_none_match is not None and _matches(if_none_match, etag):
+    if if_none_match is not None and etag_matches(if_none_match, etag):
         return Response(status_code=304, headers={"ETag": etag, "Vary": "Accept-Encoding"})
     return result_response(key, True, encoded, hit.gzip)

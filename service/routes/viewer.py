@@ -27,6 +27,7 @@ from pathlib import Path
 
 from fastapi import APIRouter, Response
 
+from service.http.security import PAGE_CSP
 from service.routes.assets import AllowList
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
@@ -47,6 +48,9 @@ ASSETS: dict[str, str] = {
 
 router = APIRouter(include_in_schema=False)
 
+#: the headers of each page (its Content-Security-Policy: :mod:`service.http.security`)
+PAGE_HEADERS = {"Cache-Control": "no-cache", "Content-Security-Policy": PAGE_CSP}
+
 
 #: the assets, and the two pages (read through the same cache, served by their routes)
 _FILES = AllowList(STATIC_DIR, ASSETS, "static file")
@@ -58,7 +62,7 @@ async def viewer_page() -> Response:
     return Response(
         _FILES.read("index.html"),
         media_type="text/html; charset=utf-8",
-        headers={"Cache-Control": "no-cache"},
+        headers=PAGE_HEADERS,
     )
 
 
@@ -68,7 +72,7 @@ async def stability_page() -> Response:
     return Response(
         _FILES.read("stability.html"),
         media_type="text/html; charset=utf-8",
-        headers={"Cache-Control": "no-cache"},
+        headers=PAGE_HEADERS,
     )
 
 
@@ -78,7 +82,7 @@ async def frequency_page() -> Response:
     return Response(
         _FILES.read("frequency.html"),
         media_type="text/html; charset=utf-8",
-        headers={"Cache-Control": "no-cache"},
+        headers=PAGE_HEADERS,
     )
 
 
@@ -88,7 +92,7 @@ async def studies_page() -> Response:
     return Response(
         _FILES.read("studies.html"),
         media_type="text/html; charset=utf-8",
-        headers={"Cache-Control": "no-cache"},
+        headers=PAGE_HEADERS,
     )
 
 

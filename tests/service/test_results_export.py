@@ -11,7 +11,9 @@ from typing import Any, get_args
 import pytest
 
 from pipeflow.io.export import TABLES
-from service.routes.exports import Table, wanted_format
+from service.http.security import API_CSP, SVG_CSP
+from service.routes import exports
+from service.routes.exports import Table, TableAnswer, TableCache, wanted_format
 from tests.service.conftest import SMALL, make_client, wait_ready
 
 
@@ -116,6 +118,8 @@ def test_plot_endpoints(
     assert r.content.startswith(magic)
     etag = r.headers["etag"]
     assert tc.get(url, headers={"If-None-Match": etag}).status_code == 304
+    # an SVG opened on its own is a document: its inline styles may apply, no script runs
+    assert r.headers["content-security-policy"] == (SVG_CSP if fmt == "svg" else API_CSP)
 
 
 def test_plot_errors(tc: Any, stored: dict[str, Any]) -> None:
@@ -215,6 +219,8 @@ def test_parquet_without_pyarrow_on_the_server_is_406_naming_format(
     """pyarrow is an optional extra of the server too: without it the answer says so (and
     that CSV works) instead of failing with 500."""
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # the server's import now fails
+    # ... and such a server never encoded a Parquet table: none in its cache
+    monkeypatch.setattr(tc.app.state, "tables", exports.TableCache(1 << 20))
     r = tc.get(f"/v1/results/{stored['key']}", params={"format": "parquet"})
     assert r.status_code == 406
     assert r.headers["content-type"] == "application/problem+json"
@@ -238,3 +244,75 @@ def test_too_many_mode_shape_values_is_a_422_naming_the_field(tc: Any) -> None:
     assert r.headers["content-type"] == "application/problem+json"
     assert "output.mode_shapes.points" in [e["field"] for e in r.json()["errors"]]
     assert str(MAX_SHAPE_VALUES) in r.text
+
+
+# -- conditional requests and the encoded tables (issue 22, defect 6) --------------------------
+
+
+@pytest.mark.parametrize(
+    ("params", "tag"),
+    [
+        ({"format": "csv"}, "history.csv"),  # the default table: its name is in the tag
+        ({"format": "csv", "table": "eigenvalues"}, "eigenvalues.csv"),
+        ({"format": "parquet", "table": "history"}, "history.parquet"),
+    ],
+)
+def test_tables_answer_304_to_their_etag(
+    tc: Any, stored: dict[str, Any], params: dict[str, str], tag: str
+) -> None:
+    if params["format"] == "parquet":
+        pytest.importorskip("pyarrow")
+    url = f"/v1/results/{stored['key']}"
+    r = tc.get(url, params=params)
+    assert r.status_code == 200 and r.content
+    etag = r.headers["etag"]
+    assert etag == f'"{stored["key"]}-{tag}"'
+    for header in (etag, f"W/{etag}", f'"other", {etag}', "*"):
+        again = tc.get(url, params=params, headers={"If-None-Match": header})
+        assert again.status_code == 304, header
+        assert again.content == b"" and again.headers["etag"] == etag
+        assert again.headers["cache-control"] == r.headers["cache-control"]
+    # another representation's tag (the JSON's, another table's) does not match
+    for other in (f'"{stored["key"]}"', f'"{stored["key"]}-modes.csv"'):
+        assert tc.get(url, params=params, headers={"If-None-Match": other}).status_code == 200
+
+
+def test_a_table_is_encoded_once_then_served_from_memory(
+    tc: Any, stored: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Before, every CSV/Parquet GET read the store, parsed the result and wrote the table."""
+    monkeypatch.setattr(tc.app.state, "tables", TableCache(1 << 20))
+    encodes: list[tuple[str | None, str]] = []
+    real_encode = exports.encode_table
+
+    def counting(key: str, body: bytes, table: str | None, fmt: str) -> TableAnswer:
+        encodes.append((table, fmt))
+        return real_encode(key, body, table, fmt)
+
+    monkeypatch.setattr(exports, "encode_table", counting)
+    store = tc.app.state.store
+    reads: list[str] = []
+    real_get = store.get_result
+    monkeypatch.setattr(store, "get_result", lambda key: reads.append(key) or real_get(key))
+    url = f"/v1/results/{stored['key']}"
+    first = tc.get(url, headers={"Accept": "text/csv"})
+    etag = first.headers["etag"]
+    for _ in range(3):
+        again = tc.get(url, headers={"Accept": "text/csv"})
+        assert again.content == first.content and again.headers["etag"] == etag
+    assert tc.get(url, headers={"Accept": "text/csv", "If-None-Match": etag}).status_code == 304
+    assert encodes == [(None, "csv")] and reads == [stored["key"]]
+    # what is kept is what a fresh encoding writes (same process, same bytes)
+    fresh = real_encode(stored["key"], real_get(stored["key"]), None, "csv")
+    assert fresh.content == first.content and fresh.etag == etag
+
+
+def test_table_cache_keeps_the_recent_tables_within_its_bound() -> None:
+    cache = TableCache(max_bytes=250)
+    for i in range(4):
+        cache.put(f"k{i}", TableAnswer("0" * 64, "history", "csv", b"x" * 100))
+        cache.get("k0")  # k0 stays the most recently used
+    assert len(cache) == 2 and cache.get("k0") is not None and cache.get("k3") is not None
+    assert cache.get("k1") is None and cache.get("k2") is None
+    cache.put("huge", TableAnswer("0" * 64, "history", "csv", b"x" * 251))  # over the bound
+    assert cache.get("huge") is None and len(cache) == 2
