@@ -17,7 +17,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
-from service.engine import ComputationCancelled, ComputationFailed, QueueFull, Runner
+from service.engine import ComputationCancelled, ComputationFailed, NoWorker, QueueFull, Runner
 from service.http.problems import ProblemError, stored_problem
 from service.http.responses import Hit, hit_response, job_response, result_response
 from service.keys import Keyed
@@ -33,6 +33,15 @@ def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
         503,
         f"all {runner.capacity} computation slots are taken ({exc}); retry later",
         slug="saturated",
+        headers={"Retry-After": str(runner.settings.retry_after_s)},
+    )
+
+
+def _no_worker(runner: Runner, exc: NoWorker) -> ProblemError:
+    return ProblemError(
+        503,
+        f"no compute worker is available ({exc}); the request is not computed now, retry later",
+        slug="no-worker",
         headers={"Retry-After": str(runner.settings.retry_after_s)},
     )
 
@@ -74,8 +83,11 @@ async def run_sync(
     if not runner.is_active(key):
         await check_request(job)
     try:
+        await runner.admit()
         task = await runner.submit(job, force=refresh)
-        body = await asyncio.shield(task)
+        body = await runner.result(task)
+    except NoWorker as exc:
+        raise _no_worker(runner, exc) from None
     except QueueFull as exc:
         raise _saturated(runner, exc) from None
     except ComputationFailed as exc:

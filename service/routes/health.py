@@ -1,4 +1,9 @@
-"""Liveness and readiness probes."""
+"""Liveness and readiness probes.
+
+``/healthz`` (liveness) answers as soon as the process serves HTTP, the engine's start-up
+included; ``/readyz`` answers 200 once the workers are warm, the scheduler has a worker
+(followed from Dask's worker events), the store is writable and the queue has room.
+"""
 
 from __future__ import annotations
 
@@ -28,12 +33,20 @@ async def healthz() -> Health:
 @router.get(
     "/readyz",
     operation_id="getReadiness",
-    summary="Readiness: workers started and a free slot",
+    summary="Readiness: warm workers connected and a free slot",
     response_model=Readiness,
     responses=responses(406, 503),
 )
 async def readyz(runner: RunnerDep) -> Readiness:
-    """200 when the workers are up, the store is writable and the queue has room, else 503."""
+    """200 when the workers are warm, the scheduler has at least one worker, the store is
+    writable and the queue has room, else 503 with Retry-After [s]."""
+    if runner.no_worker:
+        raise ProblemError(
+            503,
+            "the Dask scheduler has no worker: no computation can run",
+            slug="no-worker",
+            headers={"Retry-After": str(runner.settings.retry_after_s)},
+        )
     if not runner.ready:
         raise ProblemError(
             503,
@@ -55,6 +68,4 @@ async def readyz(runner: RunnerDep) -> Readiness:
             slug="saturated",
             headers={"Retry-After": str(runner.settings.retry_after_s)},
         )
-    return Readiness(
-        workers=runner.settings.workers, in_flight=runner.in_flight, capacity=runner.capacity
-    )
+    return Readiness(workers=runner.workers, in_flight=runner.in_flight, capacity=runner.capacity)
