@@ -28,22 +28,20 @@ Refresh = Annotated[
 ]
 
 
+def _unavailable(runner: Runner, detail: str, slug: str) -> ProblemError:
+    """503 with Retry-After [s]: nothing was computed, retry later."""
+    headers = {"Retry-After": str(runner.settings.retry_after_s)}
+    return ProblemError(503, detail, slug=slug, headers=headers)
+
+
 def _saturated(runner: Runner, exc: QueueFull) -> ProblemError:
-    return ProblemError(
-        503,
-        f"all {runner.capacity} computation slots are taken ({exc}); retry later",
-        slug="saturated",
-        headers={"Retry-After": str(runner.settings.retry_after_s)},
-    )
+    detail = f"all {runner.capacity} computation slots are taken ({exc}); retry later"
+    return _unavailable(runner, detail, "saturated")
 
 
 def _no_worker(runner: Runner, exc: NoWorker) -> ProblemError:
-    return ProblemError(
-        503,
-        f"no compute worker is available ({exc}); the request is not computed now, retry later",
-        slug="no-worker",
-        headers={"Retry-After": str(runner.settings.retry_after_s)},
-    )
+    detail = f"no compute worker is available ({exc}); the request is not computed now, retry later"
+    return _unavailable(runner, detail, "no-worker")
 
 
 async def check_request(job: Keyed) -> None:

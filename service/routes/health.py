@@ -40,32 +40,23 @@ async def healthz() -> Health:
 async def readyz(runner: RunnerDep) -> Readiness:
     """200 when the workers are warm, the scheduler has at least one worker, the store is
     writable and the queue has room, else 503 with Retry-After [s]."""
-    if runner.no_worker:
-        raise ProblemError(
-            503,
+    retry = runner.settings.retry_after_s
+    for failing, detail, slug, retry_after in (
+        (
+            runner.no_worker,
             "the Dask scheduler has no worker: no computation can run",
-            slug="no-worker",
-            headers={"Retry-After": str(runner.settings.retry_after_s)},
-        )
-    if not runner.ready:
-        raise ProblemError(
-            503,
-            "worker processes are starting",
-            slug="not-ready",
-            headers={"Retry-After": "1"},
-        )
-    if not runner.store.healthy:
-        raise ProblemError(
-            503,
+            "no-worker",
+            retry,
+        ),
+        (not runner.ready, "worker processes are starting", "not-ready", 1),
+        (
+            not runner.store.healthy,
             f"the store is failing ({runner.store.last_error}); retrying by itself",
-            slug="storage",
-            headers={"Retry-After": str(runner.settings.retry_after_s)},
-        )
-    if runner.saturated:
-        raise ProblemError(
-            503,
-            "the computation queue is full",
-            slug="saturated",
-            headers={"Retry-After": str(runner.settings.retry_after_s)},
-        )
+            "storage",
+            retry,
+        ),
+        (runner.saturated, "the computation queue is full", "saturated", retry),
+    ):
+        if failing:
+            raise ProblemError(503, detail, slug=slug, headers={"Retry-After": str(retry_after)})
     return Readiness(workers=runner.workers, in_flight=runner.in_flight, capacity=runner.capacity)

@@ -179,3 +179,28 @@ def test_documented_worker_commands_get_the_preloads_environment(
     assert info["malloc_trim_threshold"] is None
     assert set(info["threads"].values()) == {"1"}
     assert info["warmed_up"] and info["numpy_loaded"]
+
+
+def test_restarted_server_is_ready_while_its_recovered_job_runs(tmp_path: Path) -> None:
+    """Issue 22, defect 8: a restarted server recovers the job it had running; its worker
+    then computes that job for long, and readiness must not wait for it (it did: the
+    warm-up task queued behind the recovered job, 19 s in the audit).  Here the job runs
+    100 s and readiness is waited for 50 s at most, and the job is still running then."""
+    from tests.service.conftest import make_client, wait_job, wait_ready
+
+    settings: dict[str, Any] = {"workers": 1, "progress_interval_s": 0.1, "stale_after_s": 1.0}
+    with make_client(tmp_path, **settings) as c:
+        wait_ready(c)
+        key = c.post("/test/sleep-jobs", json={"seconds": 100, "tag": "recovered"}).json()["key"]
+        wait_job(c, key, lambda j: j["status"] == "running" and j["progress"] > 0)
+    # the server stopped with its worker: the job's record stays running, its lease stale
+    time.sleep(1.5)
+    with make_client(tmp_path, **settings) as c:
+        try:
+            wait_ready(c, timeout=50)
+            job = c.get(f"/v1/jobs/{key}").json()
+            assert job["status"] in ("queued", "running"), job
+            # the recovered job does run on the worker (readiness did not skip recovery)
+            wait_job(c, key, lambda j: j["attempts"] == 2 and j["status"] == "running")
+        finally:
+            c.delete(f"/v1/jobs/{key}")
