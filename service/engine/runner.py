@@ -364,11 +364,14 @@ class Runner:
 
     async def admit(self) -> None:
         """Raise :class:`NoWorker` unless a worker can take a synchronous computation: the
-        engine's start is waited for (up to :data:`WARM_UP_TIMEOUT_S`), then the scheduler
-        must have a worker."""
+        engine's start is waited for (the embedded cluster's up to
+        :data:`WARM_UP_TIMEOUT_S`; a scheduler that cannot be reached yet, up to
+        :data:`NO_WORKER_GRACE_S`), then the scheduler must have a worker."""
         if not self._connected.is_set():
+            embedded = not self.settings.scheduler_address
+            limit = WARM_UP_TIMEOUT_S if embedded else NO_WORKER_GRACE_S
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._connected.wait(), WARM_UP_TIMEOUT_S)
+                await asyncio.wait_for(self._connected.wait(), limit)
             if not self._connected.is_set():
                 raise NoWorker("the engine is starting")
         if self.no_worker:
