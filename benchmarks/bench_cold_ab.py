@@ -76,10 +76,16 @@ def parse_sides(items: list[str]) -> list[tuple[str, Path, dict[str, str]]]:
     return sides
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def sides_parser(doc: str, rounds: int) -> argparse.ArgumentParser:
+    """The command line of an A/B of source trees: the sides and ``--rounds``."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("servers", nargs="+", metavar="NAME=TREE[:setting=value,...]")
-    ap.add_argument("--rounds", type=int, default=40)
+    ap.add_argument("--rounds", type=int, default=rounds)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = sides_parser(__doc__, 40)
     ap.add_argument("--paper-every", type=int, default=4, help="a paper round every N rounds")
     args = ap.parse_args(argv)
     sides = parse_sides(args.servers)

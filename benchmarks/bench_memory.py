@@ -16,7 +16,6 @@ are printed, with each side's ratio to the first.
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
 import tempfile
@@ -27,7 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
-from bench_cold_ab import parse_sides, start  # noqa: E402  (a source tree's server, ready)
+from bench_cold_ab import parse_sides, sides_parser, start  # noqa: E402  (a source tree's server, ready)
 
 from tests.service.processes import live_group_members  # noqa: E402
 
@@ -87,9 +86,7 @@ def start_server(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("servers", nargs="+", metavar="NAME=TREE[:setting=value,...]")
-    ap.add_argument("--rounds", type=int, default=3)
+    ap = sides_parser(__doc__, 3)
     ap.add_argument("--settle", type=float, default=3.0, help="idle time before measuring [s]")
     args = ap.parse_args(argv)
     sides = parse_sides(args.servers)
