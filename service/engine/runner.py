@@ -305,17 +305,10 @@ class Runner:
 
     @property
     def no_worker(self) -> bool:
-        """The engine is connected, its scheduler has no worker and none is coming: in the
-        embedded cluster a nanny that restarts its worker (after a crash or the watchdog's
-        kill) brings one back, so only nannies that are all gone count."""
-        if not self._tracking or self._worker_set:
-            return False
-        if self._cluster is not None:
-            from distributed.core import Status
-
-            nannies = getattr(self._cluster, "workers", {}).values()
-            return not any(getattr(n, "status", None) == Status.running for n in nannies)
-        return True
+        """The engine is connected to an external scheduler that has no worker.  Never for
+        the embedded cluster: its nannies restart a worker that died (a crash, the
+        watchdog's kill), which under load takes tens of seconds without any worker."""
+        return self._tracking and self._cluster is None and not self._worker_set
 
     async def _track_workers(self) -> None:
         """Follow the scheduler's workers: its ``add-worker`` / ``remove-worker`` events at
