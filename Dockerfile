@@ -10,7 +10,8 @@ ENV PIP_DISABLE_PIP_VERSION_CHECK=1 \
 RUN python -m venv /opt/venv
 WORKDIR /src
 # dependencies (with the parquet extra) in their own layer, pinned by constraints.txt (from
-# pyproject.toml by the command in its header): a source change does not reinstall them
+# pyproject.toml by the command in its header): a source change does not reinstall them;
+# psycopg-binary carries its own libpq (this slim image has none)
 COPY constraints.txt ./
 RUN /opt/venv/bin/pip install --no-cache-dir -r constraints.txt
 COPY pyproject.toml README.md ./
@@ -32,7 +33,9 @@ ENV PATH=/opt/venv/bin:$PATH \
     MPLCONFIGDIR=/tmp/matplotlib \
     PIPEFLOW_DATA_DIR=/data
 COPY --from=build /opt/venv /opt/venv
-RUN mkdir -p /data && chown 10001:10001 /data
+# /tls: the Dask TLS files of docker-compose.yml (python -m service.tls /tls), a named volume
+# that Docker initialises from this directory, so owned by the service's user
+RUN mkdir -p /data /tls && chown 10001:10001 /data /tls
 VOLUME ["/data"]
 WORKDIR /tmp
 USER 10001:10001

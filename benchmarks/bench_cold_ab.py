@@ -65,18 +65,30 @@ def start(tree: Path, settings: dict[str, str], work: Path, stack: ExitStack) ->
     return url
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("servers", nargs="+", metavar="NAME=TREE[:setting=value,...]")
-    ap.add_argument("--rounds", type=int, default=40)
-    ap.add_argument("--paper-every", type=int, default=4, help="a paper round every N rounds")
-    args = ap.parse_args(argv)
-    sides: list[tuple[str, Path, dict[str, str]]] = []
-    for item in args.servers:
+def parse_sides(items: list[str]) -> list[tuple[str, Path, dict[str, str]]]:
+    """``NAME=TREE[:setting=value,...]`` arguments as ``(name, tree, settings)``."""
+    sides = []
+    for item in items:
         name, _, rest = item.partition("=")
         tree, _, opts = rest.partition(":")
         settings = dict(o.split("=", 1) for o in opts.split(",") if o)
         sides.append((name, Path(tree).resolve(), settings))
+    return sides
+
+
+def sides_parser(doc: str, rounds: int) -> argparse.ArgumentParser:
+    """The command line of an A/B of source trees: the sides and ``--rounds``."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("servers", nargs="+", metavar="NAME=TREE[:setting=value,...]")
+    ap.add_argument("--rounds", type=int, default=rounds)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = sides_parser(__doc__, 40)
+    ap.add_argument("--paper-every", type=int, default=4, help="a paper round every N rounds")
+    args = ap.parse_args(argv)
+    sides = parse_sides(args.servers)
     lti_ref, doc_ref = BENCH.simulate_timer(BENCH.LTI), BENCH.simulate_timer(BENCH.PAPER, True)
     times: dict[str, dict[str, list[float]]] = {n: {"lti": [], "paper": []} for n, _, _ in sides}
     refs: dict[str, list[float]] = {"lti": [], "paper": []}

@@ -537,6 +537,7 @@ def main_time_variant(args: argparse.Namespace) -> int:
         print(f"\nwritten to {args.out}")
     return 0
 
+
 def shipped_cpu(side: int, modes: int) -> dict[str, float]:
     """CPU seconds of the floor and of the study on a width-2 host shipping its pieces
     through pickle (run here), cold then warm, with the store's memo on SQLite."""

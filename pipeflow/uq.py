@@ -29,8 +29,6 @@ from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
-from scipy import stats
-from scipy.stats import qmc
 
 from pipeflow._types import FloatArray
 from pipeflow.optional import require
@@ -59,6 +57,8 @@ def unit_design(method: str, count: int, dimension: int, seed: int) -> FloatArra
     the same points."""
     if dimension < 1 or count < 1:
         raise ValueError("a design needs at least one point and one dimension")
+    from scipy.stats import qmc  # here: scipy.stats is ~40 MB in every process importing uq
+
     with warnings.catch_warnings():
         # a count that is not a power of 2 loses the balance of Sobol' points (documented
         # on the request's field); the warning says nothing more to a caller of the service
@@ -92,6 +92,8 @@ def ppf(distribution: Mapping[str, Any], u: FloatArray) -> FloatArray:
     - ``uniform``: on [``low``, ``high``];
     - ``lognormal``: ``ln X`` normal with mean ``ln median`` and standard deviation
       ``sigma``."""
+    from scipy import stats  # here, as in unit_design
+
     d = distribution
     kind = d["distribution"]
     if kind == "normal":

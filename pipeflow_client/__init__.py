@@ -25,7 +25,13 @@ Both retry ``503`` answers (all computation slots busy), waiting what ``Retry-Af
 (:class:`RetryPolicy`).
 """
 
-from pipeflow_client.client import (
+from pipeflow.optional import require
+
+# its own extra: `pip install -e '.[service]'` alone has neither (an ImportError saying so)
+for _module in ("httpx", "tenacity"):
+    require(_module, "client", "pipeflow_client (and `pipeflow ... --server URL`)")
+
+from pipeflow_client.client import (  # noqa: E402
     AsyncClient,
     Client,
     JobFailed,

@@ -27,7 +27,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
-from service.engine import ComputationCancelled, ComputationFailed, QueueFull, Runner
+from service.engine import ComputationCancelled, ComputationFailed, NoWorker, QueueFull, Runner
 from service.http.identity import ANONYMOUS
 from service.http.problems import ProblemError, stored_problem
 from service.http.responses import Hit, hit_response, job_response, result_response
@@ -41,15 +41,21 @@ Refresh = Annotated[
 ]
 
 
+def _unavailable(runner: Runner, detail: str, slug: str) -> ProblemError:
+    """503 with Retry-After [s]: nothing was computed, retry later."""
+    headers = {"Retry-After": str(runner.settings.retry_after_s)}
+    return ProblemError(503, detail, slug=slug, headers=headers)
+
+
 def _saturated(runner: Runner, exc: QueueFull, what: str | None = None) -> ProblemError:
     """503 with Retry-After: ``what`` is full (default: the computation slots)."""
     what = what or f"all {runner.capacity} computation slots are taken"
-    return ProblemError(
-        503,
-        f"{what} ({exc}); retry later",
-        slug="saturated",
-        headers={"Retry-After": str(runner.settings.retry_after_s)},
-    )
+    return _unavailable(runner, f"{what} ({exc}); retry later", "saturated")
+
+
+def _no_worker(runner: Runner, exc: NoWorker) -> ProblemError:
+    detail = f"no compute worker is available ({exc}); the request is not computed now, retry later"
+    return _unavailable(runner, detail, "no-worker")
 
 
 def job_cost(job: Keyed) -> float:
@@ -166,8 +172,11 @@ async def run_sync(
         cost = job_cost(job)
         await check_quotas(runner, store, principal, cost, queued=False)
     try:
+        await runner.admit()
         task = await runner.submit(job, force=refresh, principal=principal, cost=cost)
-        body = await asyncio.shield(task)
+        body = await runner.result(task)
+    except NoWorker as exc:
+        raise _no_worker(runner, exc) from None
     except QueueFull as exc:
         raise _saturated(runner, exc) from None
     except ComputationFailed as exc:

@@ -52,6 +52,6 @@ class Health(BaseModel):
 
 class Readiness(BaseModel):
     status: Literal["ready"] = "ready"
-    workers: int = Field(description="Worker processes.")
+    workers: int = Field(description="Worker processes connected to the Dask scheduler now.")
     in_flight: int = Field(description="Computations queued or running.")
     capacity: int = Field(description="Computations accepted before answering 503.")

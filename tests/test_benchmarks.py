@@ -200,6 +200,7 @@ def test_time_variant_study_benchmark_smoke(tmp_path: Path) -> None:
         assert row in text, row
     assert "identical (every summary column, == on floats): 9 of 9" in text
 
+
 @pytest.mark.slow
 def test_bench_http_smoke() -> None:
     """benchmarks/bench_http.py --smoke (two real servers, a few rounds): every row answers

@@ -60,3 +60,27 @@ def test_every_runtime_dependency_is_pinned_within_its_range() -> None:
         )
     # the package itself is installed from the source tree, never from the pins
     assert canonicalize_name(project["name"]) not in pins
+
+
+def test_extras_of_image_dependencies_are_pinned() -> None:
+    """A dependency asked for with an extra (``psycopg[binary]``: libpq inside the wheel,
+    which the slim image lacks) has that extra's own requirements pinned as well, read
+    from the installed distribution's metadata (``Requires-Dist: ...; extra == "binary"``)."""
+    from importlib.metadata import requires
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    pins = _pins()
+    checked = 0
+    for spec in project["dependencies"] + _extra_requirements(project, IMAGE_EXTRAS):
+        req = Requirement(spec)
+        for extra in sorted(req.extras):
+            for dep in map(Requirement, requires(req.name) or []):
+                if dep.marker is None or not dep.marker.evaluate({"extra": extra}):
+                    continue
+                if dep.marker.evaluate({"extra": ""}):
+                    continue  # not specific to the extra
+                checked += 1
+                assert canonicalize_name(dep.name) in pins, (
+                    f"{req.name}[{extra}] needs {dep.name}, not in constraints.txt"
+                )
+    assert checked  # psycopg[binary] at least: the check ran

@@ -69,7 +69,12 @@ def blocks(text: str) -> list[Block]:
 RUNNABLE = [b for b in blocks(README.read_text(encoding="utf-8")) if b.lang in ("bash", "python")]
 
 #: makes an HTTP error answer of any curl call fail the block (BASH_ENV of the shells)
-CURL_FAILS = 'curl() { command curl --fail-with-body "$@"; }\n'
+#: curl fails on HTTP errors unless the block already says how (-f: curl refuses both)
+CURL_FAILS = (
+    'curl() { local a; for a in "$@"; do case "$a" in --fail|--fail-with-body) '
+    'command curl "$@"; return;; --*) ;; -*f*) command curl "$@"; return;; esac; done; '
+    'command curl --fail-with-body "$@"; }\n'
+)
 
 
 def test_the_readme_has_runnable_examples_and_marks_every_skip() -> None:

@@ -129,6 +129,68 @@ class ModeShapesBlock(BaseModel):
     modes: list[ShapeTrace]
 
 
+class SimulationDiagnostics(BaseModel):
+    """How a simulation was computed and how far to trust it (the ``diagnostics`` of a
+    simulation and of each method of a comparison).  Every field is optional (a method
+    reports what applies to it: steps for stepping methods, the integrator's tolerances
+    for the reference...); further method-specific entries are kept as extra fields."""
+
+    model_config = ConfigDict(extra="allow")
+
+    method: str | None = Field(None, description="The requested method.")
+    method_used: str | None = Field(None, description="The solver that ran.")
+    modes: int | None = Field(None, description="Galerkin modes [-].")
+    state_size: int | None = Field(None, description="Size of the state vector (2 x modes) [-].")
+    samples: int | None = Field(None, description="Output times [-].")
+    steps: int | None = Field(None, description="Time steps taken [-].")
+    step_min: float | None = Field(None, description="Smallest time step [s].")
+    step_max: float | None = Field(None, description="Largest time step [s].")
+    step_source: str | None = Field(
+        None, description="What chose the step: 'step', 'tolerance' or 'samples'."
+    )
+    tolerance: float | None = Field(None, description="Requested local error tolerance [-].")
+    rtol: float | None = Field(None, description="Reference integrator's relative tolerance [-].")
+    atol: float | None = Field(None, description="Reference integrator's absolute tolerance [-].")
+    integrator: str | None = Field(None, description="Reference integrator (scipy solve_ivp).")
+    rhs_evaluations: int | None = Field(None, description="State-matrix products [-].")
+    matrix_exponentials: int | None = Field(None, description="Matrix exponentials [-].")
+    eigendecompositions: int | None = Field(None, description="Eigendecompositions [-].")
+    quadrature_order: int | None = Field(None, description="Gauss points of the mode integrals.")
+    attempts: int | None = Field(None, description="Solver attempts (refinements) [-].")
+    time_invariant: bool | None = Field(None, description="Constant flow and spin.")
+    max_growth_rate: float | None = Field(
+        None, description="Largest real part of the frozen eigenvalues over the run [1/s]."
+    )
+    largest_stable_step: float | None = Field(None, description="RK4's stability bound [s].")
+    stability_margin: float | None = Field(
+        None, description="largest_stable_step / step_max (RK4; below 1: unstable) [-]."
+    )
+    expm_fallbacks: int | None = Field(
+        None, description="CMA steps that fell back to a dense matrix exponential [-]."
+    )
+    steps_order_6: int | None = Field(None, description="Magnus steps of order 6 [-].")
+    load_quadrature_nodes: int | None = Field(
+        None, description="Quadrature nodes of the load convolution (CMA) [-]."
+    )
+    load_convolution: str | None = Field(None, description="How the CMA convolved the loads.")
+    eigenvector_condition_max: float | None = Field(
+        None, description="Largest condition number of the CMA eigenvector matrices [-]."
+    )
+    estimated_relative_error: float | None = Field(
+        None, description="Estimated max relative error of the modal state [-]."
+    )
+    estimated_tip_relative_error: float | None = Field(
+        None, description="The same on the tip displacement u(L, t) [-]."
+    )
+    error_estimate_method: str | None = Field(None, description="How the estimate was obtained.")
+    error_estimate_resolution: float | None = Field(
+        None, description="Estimated error of the yardstick run itself [-]."
+    )
+    error_estimate_seconds: float | None = Field(None, description="Cost of the estimate [s].")
+    solve_seconds: float | None = Field(None, description="Time inside the solver [s].")
+    wall_seconds: float | None = Field(None, description="Whole run [s].")
+
+
 class SimulationResponse(BaseModel):
     """A simulation result with its parameter hash."""
 
@@ -165,7 +227,9 @@ class SimulationResponse(BaseModel):
         description="Paidoussis' groups: beta, flow number u, spin number gamma, time scale "
         f"[s]; the extended model's {GROUP_NAMES} [-]."
     )
-    diagnostics: dict[str, Any] = Field(description="Solver diagnostics (costs, conditioning).")
+    diagnostics: SimulationDiagnostics = Field(
+        description="Solver diagnostics (costs, conditioning, error estimate)."
+    )
     warnings: list[str] = Field(description="What the caller should know about this result.")
     modal: Modal | None = Field(None, description="Present when output.modal is true.")
     mode_shapes: ModeShapesBlock | None = Field(
@@ -203,7 +267,7 @@ class MethodComparison(BaseModel):
     )
     compared_samples: int = Field(description="Output times compared (finite in both).")
     warnings: list[str] = Field(description="The run's warnings (e.g. error above 1e-4).")
-    diagnostics: dict[str, Any] = Field(description="Key solver diagnostics.")
+    diagnostics: SimulationDiagnostics = Field(description="Key solver diagnostics.")
 
 
 class CompareResponse(BaseModel):

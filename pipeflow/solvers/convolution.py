@@ -32,7 +32,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import expm
-from scipy.signal import lfilter
 
 from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded
@@ -136,6 +135,10 @@ def modal_particular(
         # a_{k+1} = e^{xi dt_k} a_k + I_k, a_0 = 0: a first-order filter per mode
         a = np.empty_like(inc)
         if np.allclose(dt, dt[0], rtol=1e-12, atol=0.0):
+            # imported here: scipy.signal (and the scipy.stats it loads) is ~45 MB in every
+            # process that imports the solvers, and only forced runs on a uniform grid use it
+            from scipy.signal import lfilter
+
             for i, r in enumerate(np.exp(lam * dt[0])):
                 a[:, i] = lfilter([1.0], [1.0, -r], inc[:, i])
         else:

@@ -2,7 +2,7 @@
 
 The replica's side is :class:`Runner` (:mod:`service.engine.runner`); the Dask task of one
 computation is :func:`service.engine.task.run_job`; what a worker process loads at start
-is :mod:`service.engine.preload` (``dask worker --preload service.engine.preload``); a
+is :mod:`service.engine.preload` (``dask worker --preload-nanny service.engine.preload``); a
 computation's fan-out over the cluster is :mod:`service.engine.fanout`.
 
 The engine speaks no HTTP: a failed computation is a neutral
@@ -12,15 +12,19 @@ turns into a problem document.
 
 from __future__ import annotations
 
-from service.engine.runner import (
-    MAX_ATTEMPTS,
-    WATCHDOG_GRACE_S,
-    ComputationCancelled,
-    ComputationFailed,
-    Flight,
-    QueueFull,
-    Runner,
-)
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from service.engine.runner import (
+        MAX_ATTEMPTS,
+        WATCHDOG_GRACE_S,
+        ComputationCancelled,
+        ComputationFailed,
+        Flight,
+        NoWorker,
+        QueueFull,
+        Runner,
+    )
 
 __all__ = [
     "MAX_ATTEMPTS",
@@ -28,6 +32,19 @@ __all__ = [
     "ComputationCancelled",
     "ComputationFailed",
     "Flight",
+    "NoWorker",
     "QueueFull",
     "Runner",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """The runner's names, imported on first use: a ``dask worker``'s nanny loads
+    :mod:`service.engine.preload` (a small module) without the runner and the numerical
+    stack behind it (13 s of imports on a loaded machine, and their memory, in a process
+    that never computes)."""
+    if name in __all__:
+        from service.engine import runner
+
+        return getattr(runner, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

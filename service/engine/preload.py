@@ -1,12 +1,25 @@
-"""What a Dask worker process of the service looks like from inside.
+"""What a Dask worker process of the service looks like from inside: one preload for every
+way of starting workers.
 
-The service's workers run with one thread and one BLAS thread each
-(:data:`THREAD_VARIABLES` set to 1 in the worker's environment before numpy loads): two
-computations on two cores must not fight over BLAS threads.  ``dask worker --preload
-service.engine.preload`` (and the embedded cluster) import the numerical stack at start,
-and warm up (:func:`warm_up`: a tiny run of each solver through the task's compute path
-and the encoder), so the first request does not pay for them.  The worker's log lines go
-to stdout in the service's format (``PIPEFLOW_LOG_LEVEL``, ``PIPEFLOW_LOG_FORMAT``).
+``dask worker ADDRESS --nthreads 1 --preload-nanny service.engine.preload`` (the README's and
+docker-compose.yml's command) and the embedded cluster (:mod:`service.engine.runner`) load
+this module in the nanny, before it spawns its worker process; :func:`dask_setup` there sets
+the worker's environment (:func:`nanny_setup`) and loads the module again in the worker
+(:func:`worker_setup`).  The worker's environment:
+
+- one BLAS/OpenMP thread (:data:`WORKER_ENV`, set before numpy loads): two computations on
+  two cores must not fight over BLAS threads;
+- glibc's default, adaptive allocator: Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` by
+  default (to hand freed memory back to the OS); glibc then trims after every large free and
+  the paper example's many temporaries ran 1.3-1.7x slower in a worker (pipeflow's own
+  measurement), so the nanny drops it (unless the operator's own environment sets it);
+- the numerical stack imported and warmed up (:func:`warm_up`: a tiny run of each solver
+  through the task's compute path and the encoder), so the first request does not pay;
+- the worker's log lines on stdout in the service's format (``PIPEFLOW_LOG_LEVEL``,
+  ``PIPEFLOW_LOG_FORMAT``).
+
+``--preload service.engine.preload`` alone (worker side only, e.g. ``--no-nanny``) still
+pins the threads and warms up, and warns when the nanny's allocator setting is in force.
 """
 
 from __future__ import annotations
@@ -24,10 +37,40 @@ log = logging.getLogger("service.worker")
 
 #: the environment of a worker process: one BLAS thread
 WORKER_ENV = dict.fromkeys(THREAD_VARIABLES, "1")
+#: the allocator setting Dask's nanny gives its workers by default, which the service drops
+ALLOCATOR_VARIABLE = "MALLOC_TRIM_THRESHOLD_"
+#: this module, as the nanny passes it on to its worker
+MODULE = __name__
 
 
-def dask_setup(worker: Any) -> None:
-    """Dask preload hook: pin BLAS threads (if the launcher did not), the service's log
+def dask_setup(target: Any) -> None:
+    """Dask preload hook, in a nanny (``--preload-nanny``: :func:`nanny_setup`) or in a
+    worker (``--preload``: :func:`worker_setup`)."""
+    from distributed import Nanny
+
+    if isinstance(target, Nanny):
+        nanny_setup(target)
+    else:
+        worker_setup(target)
+
+
+def nanny_setup(nanny: Any) -> None:
+    """Before the nanny spawns (and respawns) its worker: the worker's environment
+    (:data:`WORKER_ENV` unless the operator's environment sets a variable; the allocator
+    setting dropped unless the operator set it), and this module as the worker's preload."""
+    for env in (nanny.pre_spawn_env, nanny.env):
+        for name, value in WORKER_ENV.items():
+            if name not in os.environ:
+                env[name] = value
+        if ALLOCATOR_VARIABLE not in os.environ:
+            env.pop(ALLOCATOR_VARIABLE, None)
+    preloads = list(nanny.preload or [])
+    if MODULE not in preloads:
+        nanny.preload = [*preloads, MODULE]
+
+
+def worker_setup(worker: Any) -> None:
+    """In the worker process: pin BLAS threads (if the launcher did not), the service's log
     settings, then warm up."""
     for name in THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
@@ -36,6 +79,14 @@ def dask_setup(worker: Any) -> None:
     observability.configure_logging(
         os.environ.get("PIPEFLOW_LOG_LEVEL", "INFO"), os.environ.get("PIPEFLOW_LOG_FORMAT", "json")
     )
+    if os.environ.get(ALLOCATOR_VARIABLE) is not None:
+        log.warning(
+            "%s=%s is set in this worker (Dask's nanny default): computations run 1.3-1.7x "
+            "slower; start workers with --preload-nanny %s",
+            ALLOCATOR_VARIABLE,
+            os.environ[ALLOCATOR_VARIABLE],
+            MODULE,
+        )
     import pipeflow.simulation  # noqa: F401  (numpy/scipy with the pinned environment)
     import service.engine.task  # noqa: F401
 
@@ -78,10 +129,29 @@ def warm_up() -> None:
         log.exception("worker warm-up failed")
         return
     _warmed_up[0] = True
+    release_memory()
     log.info(
         "worker warmed up",
         extra={"duration_ms": round((time.perf_counter() - started) * 1e3, 3)},
     )
+
+
+def release_memory() -> None:
+    """Hand the heap the warm-up freed back to the OS (glibc's ``malloc_trim``; nothing
+    elsewhere): the idle process is 15-20 MB smaller.  Once, at start: after each job it
+    would cost what Dask's trim threshold cost (see the module docstring)."""
+    import ctypes
+    import ctypes.util
+    import gc
+
+    gc.collect()
+    name = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(name) if name else None
+        if libc is not None and hasattr(libc, "malloc_trim"):
+            libc.malloc_trim(0)
+    except OSError:
+        pass
 
 
 def warm_task(cfg: Any) -> int:
@@ -110,6 +180,6 @@ def ping() -> dict[str, Any]:
         "registry_loaded": "pipeflow.schema.registry" in sys.modules,
         "warmed_up": _warmed_up[0],
         "stores": sorted(_open_stores()),
-        "malloc_trim_threshold": os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+        "malloc_trim_threshold": os.environ.get(ALLOCATOR_VARIABLE),
         "modules": sorted(sys.modules),
     }

@@ -3,8 +3,14 @@
 Embedded mode (default): the app's lifespan starts a ``distributed.LocalCluster`` of
 ``PIPEFLOW_WORKERS`` worker processes (one thread and one BLAS thread each).  Distributed
 mode: ``PIPEFLOW_SCHEDULER_ADDRESS=tcp://host:8786`` makes the service a client of an
-existing cluster (``dask scheduler`` + ``dask worker --nthreads 1 --preload
-service.engine.preload``).
+existing cluster (``dask scheduler`` + ``dask worker --nthreads 1 --preload-nanny
+service.engine.preload``), ``tls://`` with Dask's TLS configuration (:mod:`service.tls`).
+
+Start-up runs in the background (:meth:`Runner.start` returns at once, so liveness answers
+while the cluster starts); :attr:`Runner.ready` turns true once the workers are warm, and
+readiness also follows the workers the scheduler has (:attr:`Runner.no_worker`): Dask's own
+worker events (``remove-worker``) update it at once, and end the lease of the jobs that
+worker ran, so they are taken over without waiting for ``stale_after_s``.
 
 One computation is one Dask task (:func:`service.engine.task.run_job`) keyed by the
 parameter hash (plus the job's generation and attempt): identical requests from any
@@ -27,8 +33,9 @@ the replica that submitted it may die.  Here, per replica:
 Limits: at most ``workers + queue_size`` distinct computations are in flight per replica
 (:class:`QueueFull` beyond, answered with 503 to a synchronous request); at most
 ``max_queued_jobs`` jobs wait in the durable queue over all replicas (:class:`QueueFull`
-beyond); a job whose computation started :data:`MAX_ATTEMPTS` times without finishing is
-failed with the reason.
+beyond); with no worker connected a synchronous request is answered 503 too
+(:class:`NoWorker`), not left waiting; a job whose computation started
+:data:`MAX_ATTEMPTS` times without finishing is failed with the reason.
 """
 
 from __future__ import annotations
@@ -49,7 +56,7 @@ from pydantic import BaseModel, ValidationError
 from pipeflow.errors import ErrorRecord, StorageError
 from pipeflow.schema.registry import COMPUTATIONS
 from service import observability
-from service.engine.preload import WORKER_ENV
+from service.engine.preload import MODULE as PRELOAD
 from service.engine.task import Accept, Outcome, TaskConfig, run_job
 from service.keys import Keyed
 from service.settings import Settings
@@ -61,13 +68,19 @@ log = logging.getLogger("service.engine")
 WATCHDOG_GRACE_S = 5.0
 #: starts of one computation (worker deaths under it) before its job is failed
 MAX_ATTEMPTS = 3
-#: Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in the workers' environment by default
-#: (to hand freed memory back to the OS); glibc then trims after every large free and the
-#: paper example's many temporaries ran 1.3-1.7x slower (pipeflow's own measurement): the
-#: embedded workers keep glibc's default, adaptive threshold
-NANNY_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 #: bound on the warm-up tasks of the workers at start [s]
 WARM_UP_TIMEOUT_S = 60.0
+#: how often the warm-up looks whether each worker is warm or busy [s]
+WARM_UP_POLL_S = 0.1
+#: how often the workers the scheduler has are read again (besides its events) [s]
+WORKERS_RESYNC_S = 2.0
+#: a synchronous request waits at most this long for a worker to join the scheduler [s]
+NO_WORKER_GRACE_S = 5.0
+
+
+class NoWorker(Exception):
+    """No worker can take a computation now (the engine is starting, or the scheduler has
+    none); answered 503 with Retry-After to a synchronous request."""
 
 
 class QueueFull(Exception):
@@ -126,6 +139,9 @@ class Runner:
         self.client: Any = None
         self._cluster: Any = None
         self._connected = asyncio.Event()
+        # the scheduler's workers (addresses), followed once connected (_track_workers)
+        self._worker_set: set[str] = set()
+        self._tracking = False
         self._flights: dict[str, Flight] = {}
         self._background: set[asyncio.Task[Any]] = set()
         # jobs to fail with their storage error once the store takes writes again
@@ -148,34 +164,33 @@ class Runner:
     # -- lifecycle -----------------------------------------------------------------------
 
     async def start(self) -> None:
-        """Start (or connect to) the cluster, then recover jobs left active."""
-        import dask
-        from distributed import Client, LocalCluster
+        """Start the engine in the background and return at once (liveness answers during
+        start-up): the cluster (started, or connected to), then the recovery of jobs left
+        active, the monitor, the warm-up (:attr:`ready`) and the worker tracking."""
+        self._spawn(self._start())
 
-        address = self.settings.scheduler_address
-        if address:
-            self.client = await Client(address, asynchronous=True, timeout="60s")
-        else:
-            with dask.config.set(NANNY_ENVIRON):  # read by each nanny when it is created
-                self._cluster = await LocalCluster(
-                    n_workers=self.settings.workers,
-                    threads_per_worker=1,
-                    processes=True,
-                    # the scheduler always serves HTTP (health, metrics); no dashboard, and a free
-                    # localhost port instead of 8787, which a second server on the host would hold
-                    dashboard_address="127.0.0.1:0",
-                    scheduler_kwargs={"dashboard": False},
-                    asynchronous=True,
-                    env=dict(
-                        WORKER_ENV,
-                        PIPEFLOW_LOG_LEVEL=self.settings.log_level,
-                        PIPEFLOW_LOG_FORMAT=self.settings.log_format,
-                    ),
-                    preload=["service.engine.preload"],
-                    silence_logs=logging.WARNING,
+    async def _start(self) -> None:
+        while True:
+            try:
+                await self._connect()
+                break
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:
+                log.error(
+                    "could not start the engine (%s: %s); again in %d s",
+                    type(exc).__name__,
+                    exc,
+                    self.settings.retry_after_s,
                 )
-            self.client = await Client(self._cluster, asynchronous=True)
+                await self._close_cluster()
+                await asyncio.sleep(self.settings.retry_after_s)
+        self.client.subscribe_topic("all", self._on_cluster_event)
+        await self._read_workers()
+        self._tracking = True
+        self._spawn(self._track_workers())
         self._connected.set()
+        self._spawn(self._warm_up())
         pruned = await asyncio.to_thread(
             self.store.prune_jobs, time.time() - self.settings.job_retention_s
         )
@@ -186,9 +201,44 @@ class Runner:
         for job in await asyncio.to_thread(self.store.active_jobs):
             if not job.waiting:  # a waiting one is the dispatcher's, in its turn
                 await self._recover(job)
-        self._spawn(self._warm_up())
         self._spawn(self._monitor())
         self._spawn(self._dispatch())
+
+    async def _connect(self) -> None:
+        """Start the embedded cluster, or connect to the scheduler; then the client."""
+        from distributed import Client, LocalCluster
+
+        address = self.settings.scheduler_address
+        if address:
+            # Dask's configuration gives the TLS files of a tls:// address (service.tls)
+            self.client = await Client(address, asynchronous=True, timeout="60s")
+            return
+        self._cluster = LocalCluster(
+            n_workers=self.settings.workers,
+            threads_per_worker=1,
+            processes=True,
+            # the scheduler always serves HTTP (health, metrics); no dashboard, and a free
+            # localhost port instead of 8787, which a second server on the host would hold
+            dashboard_address="127.0.0.1:0",
+            scheduler_kwargs={"dashboard": False},
+            asynchronous=True,
+            env={
+                "PIPEFLOW_LOG_LEVEL": self.settings.log_level,
+                "PIPEFLOW_LOG_FORMAT": self.settings.log_format,
+            },
+            # the one preload of every worker (its nanny sets the worker's environment)
+            preload_nanny=[PRELOAD],
+            silence_logs=logging.WARNING,
+        )
+        await self._cluster
+        self.client = await Client(self._cluster, asynchronous=True)
+
+    async def _close_cluster(self) -> None:
+        for closing in (self.client, self._cluster):
+            if closing is not None:
+                with contextlib.suppress(Exception):
+                    await asyncio.wait_for(closing.close(), 10)
+        self.client = self._cluster = None
 
     async def stop(self) -> None:
         for task in list(self._background):
@@ -201,12 +251,7 @@ class Runner:
             # a running lane computation is left to its thread (a daemon's fate at exit):
             # its record stays active with its lease, which goes stale, and is recovered
             self._lane.shutdown(wait=False, cancel_futures=True)
-        if self.client is not None:
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(self.client.close(), 10)
-        if self._cluster is not None:
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(self._cluster.close(), 10)
+        await self._close_cluster()
 
     def _spawn(self, coro: Any) -> None:
         task = asyncio.create_task(coro)
@@ -215,8 +260,9 @@ class Runner:
 
     async def _warm_up(self) -> None:
         """Ready once a worker is connected (the embedded cluster: all of them) and each
-        connected worker ran :func:`service.engine.preload.warm_task` (a failure there is
-        logged: the first job then pays for it)."""
+        connected worker ran :func:`service.engine.preload.warm_task` or is busy with a
+        computation (a recovered job: readiness does not wait for it).  A failure there is
+        logged: the first job then pays for it."""
         wanted = 1 if self.settings.scheduler_address else self.settings.workers
         await self.client.wait_for_workers(wanted)
         try:
@@ -231,33 +277,135 @@ class Runner:
         self.ready = True
 
     async def _warm_workers(self) -> None:
+        """Send each worker its warm-up task (ahead of queued computations: high
+        priority) and wait until each worker ran it or is computing something else."""
         from service.engine.preload import warm_task
 
         cfg = self._config()
-        identity = await self.client.scheduler.identity()  # not the client's cached copy
-        workers = list(identity.get("workers", {}))
-        futures = [
-            self.client.submit(
+        identity = await self.client.scheduler.identity(n_workers=-1)
+        self._worker_set |= set(identity.get("workers", {}))
+        warm: dict[str, Any] = {
+            address: self.client.submit(
                 warm_task,
                 cfg,
                 workers=[address],
                 allow_other_workers=False,
                 pure=False,
+                priority=1_000_000,
                 key=f"warm-up-{uuid.uuid4().hex}",
             )
-            for address in workers
-        ]
-        await self.client.gather(futures)
+            for address in identity.get("workers", {})
+        }
+        while True:
+            pending = {a: f for a, f in warm.items() if not f.done()}
+            for future in warm.values():
+                if future.status == "error":
+                    await future  # raises the worker's error
+            if not pending:
+                return
+            processing = await self.client.processing(workers=list(pending))
+            busy = {
+                address
+                for address, keys in processing.items()
+                if any(not str(key).startswith("warm-up-") for key in keys)
+            }
+            if all(address in busy or address not in self._worker_set for address in pending):
+                log.info("warm-up left to %d busy worker(s)", len(pending))
+                return
+            await asyncio.sleep(WARM_UP_POLL_S)
+
+    # -- the workers the scheduler has ------------------------------------------------------
 
     @property
     def workers(self) -> int:
-        """Workers connected to the scheduler now."""
-        if self.client is None:
-            return 0
+        """Workers connected to the scheduler now (0 before the cluster is connected)."""
+        return len(self._worker_set)
+
+    @property
+    def no_worker(self) -> bool:
+        """The engine is connected to an external scheduler that has no worker.  Never for
+        the embedded cluster: its nannies restart a worker that died (a crash, the
+        watchdog's kill), which under load takes tens of seconds without any worker."""
+        return self._tracking and self._cluster is None and not self._worker_set
+
+    async def _track_workers(self) -> None:
+        """Follow the scheduler's workers: its ``add-worker`` / ``remove-worker`` events at
+        once, and a full read every :data:`WORKERS_RESYNC_S` (events missed across a
+        scheduler restart; an unreachable scheduler counts as no worker)."""
+        while True:
+            await asyncio.sleep(WORKERS_RESYNC_S)
+            await self._read_workers()
+
+    async def _read_workers(self) -> None:
         try:
-            return len(self.client.scheduler_info().get("workers", {}))
+            identity = await asyncio.wait_for(self.client.scheduler.identity(n_workers=-1), 10)
+            self._worker_set = set(identity.get("workers", {}))
+        except asyncio.CancelledError:
+            raise
         except Exception:
-            return 0
+            self._worker_set = set()
+
+    def _on_cluster_event(self, event: tuple[float, Any]) -> None:
+        msg = event[1]
+        if not isinstance(msg, dict) or "worker" not in msg:
+            return
+        address = str(msg["worker"])
+        if msg.get("action") == "add-worker":
+            self._worker_set.add(address)
+        elif msg.get("action") == "remove-worker":
+            self._worker_set.discard(address)
+            self._spawn(self._worker_lost(address))
+
+    async def _worker_lost(self, address: str) -> None:
+        """Dask's worker-loss signal: the leases of the jobs that worker was running end
+        now (their computation is taken over at once, by Dask's rescheduled task or a
+        replica's recovery) instead of after ``stale_after_s`` without heartbeat."""
+        try:
+            keys = await asyncio.to_thread(
+                self.store.expire_leases, address, time.time() - self.settings.stale_after_s
+            )
+        except StorageError:
+            return  # the stale timeout recovers them
+        if keys:
+            log.warning("worker %s left: %d job lease(s) ended", address, len(keys))
+            for key in keys:
+                flight = self._flights.get(key)
+                if flight is not None:
+                    flight.changed.set()
+
+    async def admit(self) -> None:
+        """Raise :class:`NoWorker` unless a worker can take a synchronous computation: the
+        engine's start is waited for (the embedded cluster's up to
+        :data:`WARM_UP_TIMEOUT_S`; a scheduler that cannot be reached yet, up to
+        :data:`NO_WORKER_GRACE_S`), then the scheduler must have a worker."""
+        if not self._connected.is_set():
+            embedded = not self.settings.scheduler_address
+            limit = WARM_UP_TIMEOUT_S if embedded else NO_WORKER_GRACE_S
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._connected.wait(), limit)
+            if not self._connected.is_set():
+                raise NoWorker("the engine is starting")
+        if self.no_worker:
+            raise NoWorker("the scheduler has no worker")
+
+    async def result(self, task: asyncio.Task[bytes]) -> bytes:
+        """The body ``task`` ends with, for a synchronous request: :class:`NoWorker` once
+        the scheduler has had no worker for :data:`NO_WORKER_GRACE_S` (the job stays
+        accepted and runs when a worker joins; the task is never cancelled here)."""
+        shielded = asyncio.shield(task)
+        since: float | None = None
+        while True:
+            done, _ = await asyncio.wait({shielded}, timeout=0.25)
+            if done:
+                return shielded.result()
+            if not self.no_worker:
+                since = None
+            elif since is None:
+                since = time.monotonic()
+            elif time.monotonic() - since >= NO_WORKER_GRACE_S:
+                # the flight goes on; its outcome is read by whoever waits for it next
+                shielded.add_done_callback(lambda f: f.cancelled() or f.exception())
+                raise NoWorker("the scheduler lost its workers during the computation")
 
     async def call(self, fn: Any, *args: Any) -> Any:
         """Run a picklable function on a worker (tests and diagnostics)."""

@@ -2,8 +2,12 @@
 
 - ``GET /v1/results/{key}/plots/{name}.{fmt}``: a figure of the stored result, drawn by
   :mod:`pipeflow.io.plots` (the names a result supports are listed in its ``plots`` field).
+- ``GET /v1/results/{key}/tables/{table}.{fmt}``: a table of the stored result as CSV or
+  Parquet, the operation that declares those media types (a generated OpenAPI client reads
+  them as bytes; one operation answering both JSON and tables made it parse CSV as JSON).
 - CSV or Parquet of ``GET /v1/results/{key}`` (``Accept: text/csv`` /
-  ``application/vnd.apache.parquet`` or ``?format=csv|parquet``): the route in
+  ``application/vnd.apache.parquet`` or ``?format=csv|parquet``, kept for curl and the
+  Python client, not in that operation's OpenAPI): the route in
   :mod:`service.routes.results` calls :func:`table_response` from here, so one module owns
   the content negotiation and the tables of :mod:`pipeflow.io.export`.  Each table is
   encoded once and kept in the app's :class:`TableCache` (a bounded LRU); ``If-None-Match``
@@ -62,11 +66,8 @@ TABLE_DESCRIPTION = (
 )
 #: format name -> media type of the tables (JSON is the result document itself)
 TABLE_MEDIA_TYPES = {"csv": CSV_MEDIA_TYPE, "parquet": PARQUET_MEDIA_TYPE}
-#: OpenAPI content of a 200 that may be a table (binary Parquet, CSV text)
-TABLE_CONTENT: dict[str, Any] = {
-    CSV_MEDIA_TYPE: {"schema": {"type": "string"}},
-    PARQUET_MEDIA_TYPE: {"schema": BINARY},
-}
+#: OpenAPI content of a 200 that is a table: bytes (CSV text in UTF-8, binary Parquet)
+TABLE_CONTENT: dict[str, Any] = {media: {"schema": BINARY} for media in TABLE_MEDIA_TYPES.values()}
 
 
 def wants_csv(fmt: str | None, accept: str | None) -> bool:
@@ -249,3 +250,34 @@ async def get_result_plot(
         raise ProblemError(404, f"no result {key}", slug="unknown-key")
     image = await asyncio.to_thread(_render, body, name, fmt)
     return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)
+
+
+@router.get(
+    "/{key}/tables/{table}.{fmt}",
+    operation_id="getResultTable",
+    summary="A table of a stored result (CSV or Parquet)",
+    response_class=Response,
+    dependencies=[Depends(accepts(*TABLE_MEDIA_TYPES.values()))],
+    responses={
+        200: {
+            "content": TABLE_CONTENT,
+            "description": "The table: CSV with a header row naming each column with its SI "
+            "unit (`t [s],tip_displacement [m]`), or Parquet with float64 columns named "
+            "without units and each unit in the field metadata (`unit`).",
+        },
+        **responses(404, 406, 422),
+    },
+)
+async def get_result_table(
+    key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
+    table: Annotated[Table, Path(description=TABLE_DESCRIPTION)],
+    fmt: Annotated[Literal["csv", "parquet"], Path(description="Table format.")],
+    store: StoreDep,
+    tables: TablesDep,
+    if_none_match: Annotated[str | None, Header()] = None,
+) -> Response:
+    """Table ``table`` of the result stored under ``key`` as CSV (``text/csv``) or Parquet
+    (``application/vnd.apache.parquet``; the server needs pyarrow, else 406 naming the
+    extra): the same tables as ``GET /v1/results/{key}?format=...&table=...``, with the
+    same ETag (``If-None-Match`` answers 304)."""
+    return await table_response(key, table, fmt, store, tables, if_none_match)

@@ -1,4 +1,9 @@
-"""Liveness and readiness probes."""
+"""Liveness and readiness probes.
+
+``/healthz`` (liveness) answers as soon as the process serves HTTP, the engine's start-up
+included; ``/readyz`` answers 200 once the workers are warm, the scheduler has a worker
+(followed from Dask's worker events), the store is writable and the queue has room.
+"""
 
 from __future__ import annotations
 
@@ -28,33 +33,30 @@ async def healthz() -> Health:
 @router.get(
     "/readyz",
     operation_id="getReadiness",
-    summary="Readiness: workers started and a free slot",
+    summary="Readiness: warm workers connected and a free slot",
     response_model=Readiness,
     responses=responses(406, 503),
 )
 async def readyz(runner: RunnerDep) -> Readiness:
-    """200 when the workers are up, the store is writable and the queue has room, else 503."""
-    if not runner.ready:
-        raise ProblemError(
-            503,
-            "worker processes are starting",
-            slug="not-ready",
-            headers={"Retry-After": "1"},
-        )
-    if not runner.store.healthy:
-        raise ProblemError(
-            503,
+    """200 when the workers are warm, the scheduler has at least one worker, the store is
+    writable and the queue has room, else 503 with Retry-After [s]."""
+    retry = runner.settings.retry_after_s
+    for failing, detail, slug, retry_after in (
+        (
+            runner.no_worker,
+            "the Dask scheduler has no worker: no computation can run",
+            "no-worker",
+            retry,
+        ),
+        (not runner.ready, "worker processes are starting", "not-ready", 1),
+        (
+            not runner.store.healthy,
             f"the store is failing ({runner.store.last_error}); retrying by itself",
-            slug="storage",
-            headers={"Retry-After": str(runner.settings.retry_after_s)},
-        )
-    if runner.saturated:
-        raise ProblemError(
-            503,
-            "the computation queue is full",
-            slug="saturated",
-            headers={"Retry-After": str(runner.settings.retry_after_s)},
-        )
-    return Readiness(
-        workers=runner.settings.workers, in_flight=runner.in_flight, capacity=runner.capacity
-    )
+            "storage",
+            retry,
+        ),
+        (runner.saturated, "the computation queue is full", "saturated", retry),
+    ):
+        if failing:
+            raise ProblemError(503, detail, slug=slug, headers={"Retry-After": str(retry_after)})
+    return Readiness(workers=runner.workers, in_flight=runner.in_flight, capacity=runner.capacity)

@@ -20,7 +20,6 @@ from service.http.responses import (
 )
 from service.routes.endpoints import served
 from service.routes.exports import (
-    TABLE_CONTENT,
     TABLE_DESCRIPTION,
     TABLE_MEDIA_TYPES,
     Table,
@@ -47,10 +46,7 @@ ResultDocument: Any = Union[  # noqa: UP007
     operation_id="getResult",
     summary="A stored result",
     response_model=ResultDocument,
-    responses={
-        200: {"headers": CACHE_HEADERS, "content": TABLE_CONTENT},
-        **responses(304, 404, 406, 422),
-    },
+    responses={200: {"headers": CACHE_HEADERS}, **responses(304, 404, 406, 422)},
 )
 async def get_result(
     key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
@@ -61,13 +57,18 @@ async def get_result(
     if_none_match: Annotated[str | None, Header()] = None,
     # content negotiation, not a parameter: the 200's media types document it
     accept: Annotated[str | None, Header(include_in_schema=False)] = None,
+    # CSV and Parquet: getResultTable declares them (kept here for curl and pipeflow_client,
+    # out of this JSON operation's schema, whose generated client parses every 200 as JSON)
     format: Annotated[
         Literal["json", "csv", "parquet"] | None,
         Query(
-            description="json, csv or parquet; overrides Accept (for clients that cannot set it)."
+            description="json, csv or parquet; overrides Accept (for clients that cannot set it).",
+            include_in_schema=False,
         ),
     ] = None,
-    table: Annotated[Table | None, Query(description=TABLE_DESCRIPTION)] = None,
+    table: Annotated[
+        Table | None, Query(description=TABLE_DESCRIPTION, include_in_schema=False)
+    ] = None,
 ) -> Response:
     """The result stored under ``key`` (as POST /v1/simulations or /v1/stability returned
     it, or the result of a job), with
@@ -77,7 +78,9 @@ async def get_result(
     ``Accept: text/csv`` or ``?format=csv``: one CSV ``table`` whose header row names each
     column with its unit, e.g. ``t [s],tip_displacement [m]``.  With
     ``Accept: application/vnd.apache.parquet`` or ``?format=parquet``: the same table as
-    Parquet, float64 columns named without units and each unit in the field metadata."""
+    Parquet, float64 columns named without units and each unit in the field metadata
+    (the operation ``getResultTable``, ``/v1/results/{key}/tables/{table}.{fmt}``, is the
+    one that declares those media types)."""
     fmt = wanted_format(format, accept)
     if fmt != "json":
         return await table_response(key, table, fmt, store, tables, if_none_match)

@@ -631,6 +631,24 @@ class JobStore(StoreConnection):
                 update(jobs).where(jobs.c.key == key, jobs.c.owner == owner).values(**values)
             )
 
+    def expire_leases(self, worker: str, heartbeat: float) -> list[str]:
+        """The worker ``worker`` left the cluster (Dask's own signal): the leases of the
+        active jobs it held are dated back to ``heartbeat`` [Unix s] (the caller passes
+        now - stale_after_s), so the next attempt takes them over at once; an attempt
+        that is in fact alive finds its lease taken at its next heartbeat (``"lost"``).
+        Returns the keys of those jobs."""
+        cond = [
+            jobs.c.worker == worker,
+            jobs.c.owner.is_not(None),
+            jobs.c.status.in_(ACTIVE),
+            jobs.c.heartbeat > heartbeat,
+        ]
+        with self._write() as conn:
+            keys = [r.key for r in conn.execute(select(jobs.c.key).where(*cond))]
+            if keys:
+                conn.execute(update(jobs).where(*cond).values(heartbeat=heartbeat))
+            return keys
+
 
 def _queued(
     kind: str,

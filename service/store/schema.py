@@ -16,8 +16,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from alembic import command
-from alembic.config import Config
 from sqlalchemy import Engine, create_engine, event, inspect, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import DBAPIError
@@ -119,6 +117,11 @@ def upgrade(engine: Engine, url: str) -> None:
     A database written by the pre-alembic store (tables but no ``alembic_version``) is
     stamped as revision 0001 first, so its data is kept and migrated.
     """
+    # imported here: alembic is ~10 MB in every process, and only the API process migrates
+    # (the workers open the store without migrations)
+    from alembic import command
+    from alembic.config import Config
+
     try:
         with _migration_lock(engine, url) as conn:
             cfg = Config()

@@ -264,3 +264,16 @@ def test_study_runs_a_sampled_study_and_prints_its_statistics(
     assert main(["study", str(path), "--format", "csv", "-o", str(tmp_path / "t.csv")]) == 0
     header = (tmp_path / "t.csv").read_text().splitlines()[0]
     assert header.startswith("index [-],key,status,cached,pipe.E [Pa],pipe.M2 [kg/m]")
+
+
+def test_server_without_the_client_extra_says_what_to_install(
+    small_spec: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After the README's first command alone (the service extra, no httpx), `--server`
+    names the extra to install instead of a bare "No module named 'httpx'"."""
+    monkeypatch.setitem(sys.modules, "httpx", None)  # import httpx now fails
+    for name in [m for m in sys.modules if m.split(".")[0] == "pipeflow_client"]:
+        monkeypatch.delitem(sys.modules, name)
+    assert main(["run", str(small_spec), "--server", "http://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'pipeflow[client]'" in err and "httpx" in err, err

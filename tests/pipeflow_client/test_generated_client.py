@@ -99,3 +99,52 @@ def test_simulation_and_plots_through_the_generated_client(generated: Any, serve
         missing = get_result_plot.sync_detailed(key, "nope", models.GetResultPlotFmt.PNG, client=c)
         assert missing.status_code == 404
         assert isinstance(missing.parsed, models.Problem)
+
+
+def test_tables_and_typed_diagnostics_through_the_generated_client(
+    generated: Any, server: str
+) -> None:
+    """CSV and Parquet come from their own operation (getResultTable), which declares both
+    media types: the generated client returns their bytes (it used to parse a CSV answer
+    of getResult as JSON and crash); the result's diagnostics are a typed model."""
+    run_simulation = importlib.import_module(f"{PACKAGE}.api.simulations.run_simulation")
+    get_result = importlib.import_module(f"{PACKAGE}.api.results.get_result")
+    get_result_table = importlib.import_module(f"{PACKAGE}.api.results.get_result_table")
+    models = importlib.import_module(f"{PACKAGE}.models")
+    types = importlib.import_module(f"{PACKAGE}.types")
+
+    with generated.Client(base_url=server, raise_on_unexpected_status=True, timeout=60) as c:
+        body = models.SimulationSpec.from_dict({**SMALL, "initial": {"u0": 0.0017}})
+        run = run_simulation.sync_detailed(client=c, body=body)
+        assert run.status_code == 200, run.content
+        key = run.parsed.key
+        diagnostics = run.parsed.diagnostics
+        assert isinstance(diagnostics, models.SimulationDiagnostics)
+        assert diagnostics.modes == SMALL["modes"] and diagnostics.samples == 101
+        assert diagnostics.method_used in ("cma", "magnus")
+
+        stored = get_result.sync_detailed(key, client=c)
+        assert stored.status_code == 200
+        assert isinstance(stored.parsed, models.SimulationResponse)
+
+        history = models.GetResultTableTable("history")
+        csv = get_result_table.sync_detailed(key, history, models.GetResultTableFmt.CSV, client=c)
+        assert csv.status_code == 200 and csv.headers["content-type"].startswith("text/csv")
+        assert isinstance(csv.parsed, types.File)
+        lines = csv.parsed.payload.read().decode().splitlines()
+        assert lines[0].startswith("t [s],tip_displacement [m]") and len(lines) == 1 + 101
+        tip = np.array([float(line.split(",")[1]) for line in lines[1:]])
+        # the CSV's numbers are the JSON result's (both written from one stored result)
+        np.testing.assert_allclose(tip, run.parsed.tip_displacement, rtol=1e-12, atol=0)
+
+        parquet = get_result_table.sync_detailed(
+            key, history, models.GetResultTableFmt.PARQUET, client=c
+        )
+        assert parquet.status_code == 200
+        assert isinstance(parquet.parsed, types.File)
+        assert parquet.parsed.payload.read()[:4] == b"PAR1"
+
+        unknown = get_result_table.sync_detailed(
+            "0" * 64, history, models.GetResultTableFmt.CSV, client=c
+        )
+        assert unknown.status_code == 404 and isinstance(unknown.parsed, models.Problem)

@@ -38,6 +38,7 @@ def test_operations_errors_and_example() -> None:
         "cancelJob",
         "getResult",
         "getResultPlot",
+        "getResultTable",
         "getHealth",
         "getReadiness",
         "getMetrics",

@@ -200,17 +200,36 @@ def test_mode_shape_times_outside_the_run_name_the_field(tc: Any) -> None:
 
 
 def test_openapi_declares_the_table_formats(tc: Any) -> None:
-    op = tc.get("/openapi.json").json()["paths"]["/v1/results/{key}"]["get"]
+    """Each operation declares the media types it answers: the tables have their own
+    operation (CSV and Parquet, as bytes), the stored result's is JSON (a generated client
+    parses every 200 of an operation one way: getResult with ?format=csv crashed it)."""
+    paths = tc.get("/openapi.json").json()["paths"]
+    op = paths["/v1/results/{key}/tables/{table}.{fmt}"]["get"]
     content = op["responses"]["200"]["content"]
-    assert content["application/vnd.apache.parquet"]["schema"] == {
-        "type": "string",
-        "format": "binary",
-    }
-    assert "text/csv" in content and "application/json" in content
-    fmt = next(p for p in op["parameters"] if p["name"] == "format")
-    assert "parquet" in fmt["schema"]["anyOf"][0]["enum"]
-    tables = next(p for p in op["parameters"] if p["name"] == "table")
-    assert tables["schema"]["anyOf"][0]["enum"] == list(TABLES)  # null: the first table
+    binary = {"type": "string", "format": "binary"}
+    media = ("text/csv", "application/vnd.apache.parquet")
+    assert content == {m: {"schema": binary} for m in media}
+    params = {p["name"]: p for p in op["parameters"]}
+    assert params["table"]["schema"]["enum"] == list(TABLES)
+    assert params["fmt"]["schema"]["enum"] == ["csv", "parquet"]
+    result = paths["/v1/results/{key}"]["get"]
+    assert list(result["responses"]["200"]["content"]) == ["application/json"]
+    assert {p["name"] for p in result["parameters"]} == {"key", "if-none-match"}
+
+
+def test_table_operation_answers_what_format_answers(tc: Any, stored: dict[str, Any]) -> None:
+    key = stored["key"]
+    for fmt in ("csv", "parquet"):
+        path = tc.get(f"/v1/results/{key}/tables/eigenvalues.{fmt}")
+        query = tc.get(f"/v1/results/{key}", params={"format": fmt, "table": "eigenvalues"})
+        assert path.status_code == 200 and query.status_code == 200
+        assert path.content == query.content  # one writer (table_response)
+        assert path.headers["content-type"] == query.headers["content-type"]
+    assert tc.get(f"/v1/results/{'0' * 64}/tables/history.csv").status_code == 404
+    bad = tc.get(f"/v1/results/{key}/tables/nope.csv")
+    assert bad.status_code == 422 and bad.headers["content-type"] == "application/problem+json"
+    wrong = tc.get(f"/v1/results/{key}/tables/history.csv", headers={"Accept": "image/png"})
+    assert wrong.status_code == 406
 
 
 def test_parquet_without_pyarrow_on_the_server_is_406_naming_format(

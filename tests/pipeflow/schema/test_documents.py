@@ -64,6 +64,8 @@ REQUESTS: list[tuple[str, dict[str, Any]]] = [
             ],
         },
     ),
+    # each method's own diagnostics (pipeflow.schema.results.SimulationDiagnostics)
+    *(("simulation", {**SIM, "method": m}) for m in ("rk4", "magnus", "reference")),
     ("stability", {**TINY["stability"], "velocity_range": [-10.0, 40.0]}),
     (  # a sampled study with Sobol' indices (2 x (2 x 1 + 2) = 8 cases)
         "study",

@@ -1,7 +1,9 @@
 """Distributed mode as local processes: the docker-compose topology without Docker.
 
 A throwaway PostgreSQL cluster (initdb in a temp dir, run as ``postgres``), ``dask
-scheduler``, 2 ``dask worker`` processes and 2 uvicorn replicas sharing both.  Checked:
+scheduler``, 2 ``dask worker`` processes and 2 uvicorn replicas sharing both; Dask speaks
+TLS only, as in docker-compose.yml (files of ``python -m service.tls``, ``DASK_CONFIG`` for
+every peer, ``tls://`` addresses, ``--preload-nanny``).  Checked:
 
 - 200 jobs submitted across both replicas all finish, none computed twice (each job
   record's ``attempts`` is 1: counted from the store, not from a replica);
@@ -28,6 +30,7 @@ import pytest
 from sqlalchemy import create_engine, text
 
 from service.launch import free_port
+from service.tls import main as tls_main
 from tests.service.conftest import SMALL
 from tests.service.processes import kill_group, server, spawn, wait_http, wait_job
 
@@ -49,16 +52,25 @@ class Topology:
     logs: Path
     stopping: threading.Event = field(default_factory=threading.Event)
 
+    @property
+    def address(self) -> str:
+        return f"tls://127.0.0.1:{self.scheduler_port}"
+
+    @property
+    def dask_env(self) -> dict[str, str]:
+        """The Dask configuration of every peer: the TLS files (docker-compose.yml's way)."""
+        return {"DASK_CONFIG": str(self.logs / "tls")}
+
     def start_worker(self, i: int) -> subprocess.Popen[bytes]:
-        address = f"tcp://127.0.0.1:{self.scheduler_port}"
         return spawn(
             [
-                *(sys.executable, "-m", "distributed.cli.dask_worker", address),
-                *("--nthreads", "1", "--preload", "service.engine.preload"),
+                *(sys.executable, "-m", "distributed.cli.dask_worker", self.address),
+                *("--nthreads", "1", "--preload-nanny", "service.engine.preload"),
                 *("--no-dashboard", "--name", f"w{i}"),
             ],
             self.logs / f"worker{i}.log",
             **WORKER_ENV,
+            **self.dask_env,
         )
 
     def supervise(self) -> None:
@@ -77,6 +89,7 @@ class Topology:
                 *("--port", str(self.scheduler_port), "--no-dashboard"),
             ],
             self.logs / "scheduler.log",
+            **self.dask_env,
         )
 
     def query(self, sql: str) -> Any:
@@ -93,8 +106,9 @@ def topology(postgres: str, tmp_path_factory: pytest.TempPathFactory) -> Iterato
     logs = tmp_path_factory.mktemp("topology")
     port = free_port()
     topo = Topology(postgres, None, port, [], [], logs)  # type: ignore[arg-type]
+    tls_main([str(logs / "tls")])  # the README's and compose's command
     topo.start_scheduler()
-    address = f"tcp://127.0.0.1:{port}"
+    address = topo.address
     topo.workers = [topo.start_worker(i) for i in range(2)]
     supervisor = threading.Thread(target=topo.supervise, daemon=True)
     supervisor.start()
@@ -106,6 +120,7 @@ def topology(postgres: str, tmp_path_factory: pytest.TempPathFactory) -> Iterato
         "PIPEFLOW_PROGRESS_INTERVAL_S": "0.2",
         "PIPEFLOW_STALE_AFTER_S": "3",
         "PIPEFLOW_DATA_DIR": str(logs),
+        **topo.dask_env,
     }
     contexts = [server(logs / f"replica{i}.log", **settings) for i in range(2)]
     try:
@@ -186,7 +201,9 @@ def test_scheduler_restart_mid_job(topology: Topology) -> None:
     topology.start_scheduler()
     job = wait_job(url, key, timeout=150)
     assert job["status"] == "succeeded", job
-    # a fresh job after the restart runs as well (workers and replicas reconnected)
+    # a fresh job after the restart runs as well, once the replica is ready again (its
+    # workers reconnected: until then a synchronous request answers 503 no-worker)
+    wait_http(f"{url}/readyz", timeout=150)
     fresh = _post(url, "/v1/simulations", {**SMALL, "initial": {"u0": 0.0031}})
     assert fresh.status_code == 200, fresh.text
 
@@ -201,3 +218,13 @@ def test_sigkill_replica_mid_job(topology: Topology) -> None:
     assert job["attempts"] == 1  # the task outlived its replica: nothing recomputed
     assert httpx.get(f"{url_b}/v1/results/{key}", timeout=30).status_code == 200
     wait_http(f"{url_b}/readyz")
+
+
+def test_scheduler_speaks_tls_only(topology: Topology) -> None:
+    """A peer without the set-up's certificate cannot reach the scheduler: plain TCP to its
+    port is refused (the replicas and workers above all connected over TLS)."""
+    from distributed import Client
+
+    assert topology.address.startswith("tls://")
+    with pytest.raises(OSError):
+        Client(topology.address.replace("tls://", "tcp://"), timeout="3s")

@@ -181,6 +181,25 @@ def test_lease_claim_heartbeat_takeover(tmp_path: Path) -> None:
     assert (job.status, job.generation, job.attempts, job.refresh) == ("queued", 2, 0, True)
 
 
+def test_expired_leases_of_a_lost_worker_are_taken_over_at_once(tmp_path: Path) -> None:
+    """Dask's worker-loss signal (the runner's ``remove-worker`` event) ends the leases of
+    that worker's jobs: another attempt claims them at once, with a stale_after_s of an
+    hour; the jobs of other workers keep theirs."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=1000, memory_cache_bytes=0)
+    for key in ("lost", "alive"):
+        store.enqueue_job(key, "simulation", {})
+    assert store.claim("lost", "a1", "tcp://w1:1", stale_after_s=3600).outcome == "claimed"
+    assert store.claim("alive", "b1", "tcp://w2:1", stale_after_s=3600).outcome == "claimed"
+    assert store.claim("lost", "a2", "tcp://w2:1", stale_after_s=3600).outcome == "elsewhere"
+    expired = store.expire_leases("tcp://w1:1", time.time() - 3600)
+    assert expired == ["lost"]
+    claim = store.claim("lost", "a2", "tcp://w2:1", stale_after_s=3600)
+    assert claim.outcome == "claimed" and claim.job is not None and claim.job.attempts == 2
+    assert "attempt 1 on tcp://w1:1 stopped heartbeating" in (claim.job.last_retry_reason or "")
+    assert store.claim("alive", "b2", "tcp://w3:1", stale_after_s=3600).outcome == "elsewhere"
+    assert store.expire_leases("tcp://w1:1", time.time() - 3600) == []  # idempotent
+
+
 def test_full_database_raises_storage_error_and_probe_recovers(tmp_path: Path) -> None:
     """SQLITE_FULL (a page limit here, a full disk in tests/service/engine/test_faults.py) is a
     StorageError with ``full``; the store is unhealthy until a probe write succeeds."""
