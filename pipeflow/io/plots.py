@@ -74,19 +74,52 @@ def _branches(r: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def _draw_tip(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    ax.plot(r["t"], r["tip_displacement"], lw=1.0, label=label)
+    (line,) = ax.plot(r["t"], r["tip_displacement"], lw=1.0, label=label)
+    if r.get("status") == "diverged" and r.get("divergence_bound") is not None:
+        # the linear model's range, and where the run was stopped (pipeflow.divergence)
+        b, t = r["divergence_bound"], r["divergence_time"]
+        for sign in (1.0, -1.0):
+            ax.axhline(sign * b, color="0.5", lw=0.8, ls=":", zorder=0)
+        ax.plot([t], [r["tip_displacement"][-1]], "x", ms=8, color=line.get_color(),
+                label=f"diverged: |u| > {b:.3g} m at t = {t:.4g} s")  # fmt: skip
+        ax.legend(fontsize=8)
 
 
 def _fundamental(r: dict[str, Any]) -> dict[str, Any]:
     return r["eigenvalues"]["modes"][0]
 
 
-def _draw_damping(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    ax.plot(r["eigenvalues"]["t"], _fundamental(r)["sigma"], lw=1.2, label=label)
+def _least_stable(r: dict[str, Any]) -> dict[str, Any] | None:
+    """The least stable branch of an unstable run (growth somewhere in the frozen
+    spectrum, or stopped or overflowed), when it is not the fundamental: the branch that
+    decides the run (at v = 40 m/s on the paper's pipe, mode 5, while mode 1 decays)."""
+    unstable = r.get("first_unstable_time") is not None or r.get("status") in (
+        "diverging",
+        "diverged",
+        "overflow",
+    )
+    modes = r["eigenvalues"]["modes"]
+    least = next((m for m in modes if m.get("least_stable")), None)
+    return least if unstable and least is not None and least is not modes[0] else None
 
 
-def _draw_frequency(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    ax.plot(r["eigenvalues"]["t"], _fundamental(r)["omega"], lw=1.2, label=label)
+def _draw_branches(part: str) -> Callable[[Axes, dict[str, Any], str | None], None]:
+    """The fundamental's ``part`` ("sigma" or "omega") against time; an unstable run's
+    least stable branch dashed in the same colour."""
+
+    def draw(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+        t = r["eigenvalues"]["t"]
+        (line,) = ax.plot(t, _fundamental(r)[part], lw=1.2, label=label)
+        least = _least_stable(r)
+        if least is not None:
+            name = f"mode {least['mode']}, least stable"
+            ax.plot(t, least[part], lw=1.4, ls="--", color=line.get_color(),
+                    label=name if label is None else f"{label}, {name}")  # fmt: skip
+            if part == "sigma":
+                ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
+            ax.legend(fontsize=8)
+
+    return draw
 
 
 def _draw_argand(ax: Axes, r: dict[str, Any], label: str | None) -> None:
@@ -373,18 +406,18 @@ PLOTS: dict[str, PlotKind] = {
         ),
         PlotKind(
             "damping",
-            "Damping of the fundamental mode",
+            "Damping of the fundamental mode (dashed: least stable branch, unstable runs)",
             "time t [s]",
             "damping σ [1/s]",
-            _draw_damping,
+            _draw_branches("sigma"),
             _has_eigen,
         ),
         PlotKind(
             "frequency",
-            "Fundamental frequency",
+            "Fundamental frequency (dashed: least stable branch, unstable runs)",
             "time t [s]",
             "frequency ω [rad/s]",
-            _draw_frequency,
+            _draw_branches("omega"),
             _has_eigen,
         ),
         PlotKind(

@@ -556,7 +556,12 @@ class OutputSpec(StrictModel):
     )
     modal: bool = Field(False, description="Also return modal coordinates d [m], d' [m/s].")
     divergence_bound: float | None = Field(
-        None, gt=0, description="Tip amplitude [m] flagged as divergence; null means L."
+        None,
+        gt=0,
+        description="The linear model's range: a bound on |u| [m] at the tip and at every "
+        "output position. The run stops at the first output time past it (status "
+        "'diverged', with divergence_time [s] and divergence_growth_rate [1/s]). null "
+        "(default): 0.1 L, or twice the initial deflection when that is larger.",
     )
     mode_shapes: ModeShapesSpec | None = Field(
         None,
