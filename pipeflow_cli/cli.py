@@ -290,7 +290,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
             f"this result has no {name!r} plot; it has: {', '.join(names) or 'none'}",
             field="--name",
         )
-    _write(args.out, render(result, name, fmt, title=args.title))
+    units = {"spin": args.spin_unit, "frequency": args.frequency_unit}
+    _write(args.out, render(result, name, fmt, title=args.title, units=units))
     if args.out not in (None, "-"):
         print(f"wrote {args.out}", file=sys.stderr)
     return 0
@@ -406,7 +407,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from pipeflow import __version__
     from pipeflow.io.export import TABLES
-    from pipeflow.io.plots import PLOTS
+    from pipeflow.io.plots import DISPLAY_UNITS, PLOTS
 
     p = argparse.ArgumentParser(
         prog="pipeflow",
@@ -433,6 +434,16 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
         sp.add_argument("--compact", action="store_true", help="JSON on one line")
         progress_flags(sp)
+
+    def units_flags(sp: argparse.ArgumentParser) -> None:
+        """Display units of the figures' spin and frequency axes (the data stay SI)."""
+        for quantity in DISPLAY_UNITS:
+            sp.add_argument(
+                f"--{quantity}-unit",
+                choices=tuple(DISPLAY_UNITS[quantity]),
+                default="rad/s",
+                help=f"unit of the {quantity} axes of the figures (default rad/s)",
+            )
 
     def kind_flag(sp: argparse.ArgumentParser, default: str, names: Sequence[str] = ()) -> None:
         sp.add_argument(
@@ -495,6 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", required=True, help="output file, .png or .svg ('-': stdout)")
     sp.add_argument("--format", choices=("png", "svg"), help="image format (default: from --out)")
     sp.add_argument("--title", help="figure title (default: the plot's name)")
+    units_flags(sp)
     sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
     kind_flag(sp, "simulation")
     progress_flags(sp)

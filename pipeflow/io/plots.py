@@ -17,7 +17,8 @@ which is how ``examples/paper_figures.py`` draws the paper's families of curves.
 from __future__ import annotations
 
 import io
-from collections.abc import Callable, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -54,6 +55,60 @@ class PlotKind:
     panels: int = 1
     #: the y axis is logarithmic (no scientific tick format)
     log_y: bool = False
+    #: what the x and y axes show, where a display unit applies (:data:`DISPLAY_UNITS`):
+    #: "spin" [rad/s] or "frequency" [rad/s]; None: the axis stays as drawn
+    x_quantity: str | None = None
+    y_quantity: str | None = None
+
+
+#: display units of the axes (the data stay SI): quantity -> {unit: factor from rad/s};
+#: rpm is revolutions per minute (60 / 2 pi per rad/s), Hz cycles per second (1 / 2 pi)
+DISPLAY_UNITS: dict[str, dict[str, float]] = {
+    "spin": {"rad/s": 1.0, "rpm": 60.0 / (2.0 * math.pi), "Hz": 1.0 / (2.0 * math.pi)},
+    "frequency": {"rad/s": 1.0, "Hz": 1.0 / (2.0 * math.pi), "rpm": 60.0 / (2.0 * math.pi)},
+}
+
+
+def _check_units(units: Mapping[str, str] | None) -> dict[str, str]:
+    """``units`` (quantity -> display unit) checked against :data:`DISPLAY_UNITS`."""
+    out = dict(units or {})
+    for quantity, unit in out.items():
+        if quantity not in DISPLAY_UNITS:
+            raise PlotError(
+                f"no display unit for {quantity!r}; choose among {', '.join(DISPLAY_UNITS)}",
+                field="units",
+            )
+        if unit not in DISPLAY_UNITS[quantity]:
+            raise PlotError(
+                f"{quantity} in {unit!r}? choose one of {', '.join(DISPLAY_UNITS[quantity])}",
+                field="units",
+            )
+    return out
+
+
+def _display(axis: Any, factor: float, unit: str) -> None:
+    """Show ``axis`` (data in rad/s) in ``unit``: ticks at round values of the display
+    unit (the locator works on the scaled range), labels scaled, "[rad/s]" in the label
+    replaced.  The data are not touched."""
+    import numpy as np
+    from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator
+
+    log = axis.get_scale() == "log"
+    inner = LogLocator() if log else MaxNLocator(nbins="auto", steps=[1, 2, 2.5, 5, 10])
+
+    class Scaled(type(inner)):  # type: ignore[misc]
+        def tick_values(self, vmin: float, vmax: float) -> Any:
+            return np.asarray(inner.tick_values(vmin * factor, vmax * factor)) / factor
+
+        def __call__(self) -> Any:
+            lo, hi = self.axis.get_view_interval()
+            return self.tick_values(lo, hi)
+
+    locator = Scaled()
+    axis.set_major_locator(locator)
+    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v * factor:.6g}"))
+    label = axis.get_label_text()
+    axis.set_label_text(label.replace("[rad/s]", f"[{unit}]").replace("rad/s", unit))
 
 
 def _has_history(r: dict[str, Any]) -> bool:
@@ -419,6 +474,7 @@ PLOTS: dict[str, PlotKind] = {
             "frequency ω [rad/s]",
             _draw_branches("omega"),
             _has_eigen,
+            y_quantity="frequency",
         ),
         PlotKind(
             "argand",
@@ -427,6 +483,7 @@ PLOTS: dict[str, PlotKind] = {
             "frequency ω [rad/s]",
             _draw_argand,
             lambda r: _has_eigen(r) or _is_sweep(r),
+            y_quantity="frequency",
         ),
         PlotKind(
             "campbell",
@@ -435,6 +492,8 @@ PLOTS: dict[str, PlotKind] = {
             "frequency |ω| [rad/s]",
             _draw_campbell,
             lambda r: r.get("kind") == "campbell" and bool(r.get("modes")),
+            x_quantity="spin",
+            y_quantity="frequency",
         ),
         PlotKind(
             "sweep_frequency",
@@ -443,6 +502,7 @@ PLOTS: dict[str, PlotKind] = {
             "frequency ω [rad/s]",
             _draw_sweep("omega"),
             _is_sweep,
+            y_quantity="frequency",
         ),
         PlotKind(
             "sweep_damping",
@@ -459,6 +519,7 @@ PLOTS: dict[str, PlotKind] = {
             "spin ω0 [rad/s]",
             _draw_spin_map,
             lambda r: r.get("kind") == "spin_map" and bool(r.get("growth_rate")),
+            y_quantity="spin",
         ),
         PlotKind(
             "beta_map",
@@ -475,6 +536,7 @@ PLOTS: dict[str, PlotKind] = {
             "pulsation amplitude a [m/s]",
             _draw_resonance_chart,
             lambda r: r.get("kind") == "resonance_chart" and bool(r.get("growth_rate")),
+            x_quantity="frequency",
         ),
         PlotKind(
             "floquet_multipliers",
@@ -509,6 +571,7 @@ PLOTS: dict[str, PlotKind] = {
             _is_frf,
             panels=2,
             log_y=True,
+            x_quantity="frequency",
         ),
         PlotKind(
             "nyquist",
@@ -526,6 +589,7 @@ PLOTS: dict[str, PlotKind] = {
             _draw_waterfall,
             lambda r: _is_frf(r) and len(r["operating_points"]) > 1,
             log_y=True,
+            x_quantity="frequency",
         ),
         PlotKind(
             "deflection_shape",
@@ -552,13 +616,17 @@ def figure(
     *,
     title: str | None = None,
     size: tuple[float, float] = (6.4, 4.0),
+    units: Mapping[str, str] | None = None,
 ) -> Figure:
     """A figure of kind ``name`` with one curve (family) per ``(label, result)`` in ``series``.
 
     ``title`` overrides the kind's default title; labels of ``None`` draw no legend entry.
+    ``units`` shows spin and frequency axes in another unit (``{"spin": "rpm",
+    "frequency": "Hz"}``, :data:`DISPLAY_UNITS`); the data stay in rad/s.
     """
     if name not in PLOTS:
         raise PlotError(f"unknown plot {name!r}; choose one of {', '.join(PLOTS)}")
+    shown = _check_units(units)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -582,6 +650,15 @@ def figure(
     multi = ("argand", "displacements", "sweep_frequency", "sweep_damping", "mode_shapes")
     if any(label is not None for label, _ in series) or name in multi:
         ax.legend(fontsize=8)
+    # display units last: the drawing has set the scales and the labels
+    axes = fig.axes[: kind.panels]
+    for quantity, which in ((kind.x_quantity, "x"), (kind.y_quantity, "y")):
+        unit = shown.get(quantity or "")
+        if quantity is None or unit is None or unit == "rad/s":
+            continue
+        factor = DISPLAY_UNITS[quantity][unit]
+        for a in axes if which == "x" else axes[:1]:
+            _display(a.xaxis if which == "x" else a.yaxis, factor, unit)
     return fig
 
 
@@ -599,9 +676,14 @@ def to_bytes(fig: Figure, fmt: str = "png", dpi: int = 100) -> bytes:
 
 
 def render(
-    result: dict[str, Any], name: str, fmt: str = "png", *, title: str | None = None
+    result: dict[str, Any],
+    name: str,
+    fmt: str = "png",
+    *,
+    title: str | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> bytes:
-    """PNG or SVG bytes of plot ``name`` of one JSON result."""
+    """PNG or SVG bytes of plot ``name`` of one JSON result (``units``: see :func:`figure`)."""
     if fmt not in MEDIA_TYPES:
         raise PlotError(f"unknown image format {fmt!r}; choose png or svg", field="format")
-    return to_bytes(figure(name, [(None, result)], title=title), fmt)
+    return to_bytes(figure(name, [(None, result)], title=title, units=units), fmt)

@@ -18,7 +18,7 @@ import json
 import threading
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, Header, Path, Response
+from fastapi import APIRouter, Depends, Header, Path, Query, Response
 
 from pipeflow.io import plots
 from pipeflow.io.export import (
@@ -121,7 +121,7 @@ def table_response(key: str, body: bytes, table: str | None, fmt: str) -> Respon
     )
 
 
-def _render(body: bytes, name: str, fmt: str) -> bytes:
+def _render(body: bytes, name: str, fmt: str, units: dict[str, str] | None = None) -> bytes:
     result = json.loads(body)
     names = plots.available_plots(result)
     if name not in names:
@@ -132,7 +132,7 @@ def _render(body: bytes, name: str, fmt: str) -> bytes:
             errors=[{"field": "name", "location": "path", "message": f"unknown plot {name!r}"}],
         )
     with _draw_lock:
-        return plots.render(result, name, fmt)
+        return plots.render(result, name, fmt, units=units)
 
 
 @router.get(
@@ -162,11 +162,21 @@ async def get_result_plot(
     fmt: Annotated[Literal["png", "svg"], Path(description="Image format.")],
     store: StoreDep,
     if_none_match: Annotated[str | None, Header()] = None,
+    spin_unit: Annotated[
+        Literal[tuple(plots.DISPLAY_UNITS["spin"])],  # type: ignore[valid-type]
+        Query(description="Unit of the spin axes (Campbell, spin map); the data stay rad/s."),
+    ] = "rad/s",
+    frequency_unit: Annotated[
+        Literal[tuple(plots.DISPLAY_UNITS["frequency"])],  # type: ignore[valid-type]
+        Query(description="Unit of the frequency axes (Hz: cycles per second)."),
+    ] = "rad/s",
 ) -> Response:
     """The figure ``name`` of the result stored under ``key``: tip displacement u(L, t) [m],
     damping sigma [1/s] and fundamental frequency omega [rad/s] over t [s] (the paper's three
     kinds of figure), eigenvalue paths (argand) and station displacements."""
-    etag = f'"{key}-{name}.{fmt}"'
+    units = {"spin": spin_unit, "frequency": frequency_unit}
+    shown = "".join(f"-{u.replace('/', '_')}" for u in units.values() if u != "rad/s")
+    etag = f'"{key}-{name}{shown}.{fmt}"'
     headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
     if if_none_match is not None and etag in (t.strip() for t in if_none_match.split(",")):
         if await asyncio.to_thread(store.has_result, key):
@@ -174,5 +184,5 @@ async def get_result_plot(
     body = await asyncio.to_thread(store.get_result, key)
     if body is None:
         raise ProblemError(404, f"no result {key}", slug="unknown-key")
-    image = await asyncio.to_thread(_render, body, name, fmt)
+    image = await asyncio.to_thread(_render, body, name, fmt, units)
     return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)

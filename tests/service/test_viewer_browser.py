@@ -160,10 +160,11 @@ def test_unstable_run_shows_the_banner_and_a_readable_log_axis(
     server: str, page: Page, screenshot: Any
 ) -> None:
     """v = 40 m/s on the paper pipe at w0 = 100 rad/s is past the critical velocity (27.69
-    m/s): the run stops where the deflection leaves the linear range.  The banner says unstable (with the first
-    unstable time and growth rate when the result carries them), the tip axis switches to
-    symmetric log with decade labels up to the largest value, and the damping chart is
-    drawn.  Every assertion is unconditional (the result's keys are all present)."""
+    m/s): the run stops where the deflection leaves the linear range.  The banner says
+    unstable (with the first unstable time and growth rate when the result carries them),
+    the tip axis switches to symmetric log with decade labels up to the largest value, and
+    the damping chart is drawn.  Every assertion is unconditional (the result's keys are
+    all present)."""
     open_page(page, server + "/")
     page.select_option("select[name='flow.velocity.kind']", "constant")
     page.fill("input[name='flow.velocity.value']", "40")
