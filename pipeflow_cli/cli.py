@@ -297,6 +297,25 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    from pipeflow.io import report
+
+    fmt = args.format or Path(args.out).suffix.lstrip(".").lower()
+    if fmt not in report.MEDIA_TYPES:
+        raise ValueError("give --out a .html or .pdf file name, or --format")
+    data = _unwrap(_read_json(args.input))
+    # a spec is run first and is then the report's inputs; a result has none to show
+    inputs = None if _is_result(data) else data
+    result = _result_for(args, data)
+    if fmt == "pdf":
+        _write(args.out, report.to_pdf(result, inputs))
+    else:
+        _write(args.out, report.to_html(result, inputs))
+    if args.out not in (None, "-"):
+        print(f"wrote {args.out}", file=sys.stderr)
+    return 0
+
+
 def cmd_stability(args: argparse.Namespace) -> int:
     data = _unwrap(_read_json(args.spec))
     result = _result_for(args, data, "stability", ("stability", *_sweep_kinds()))
@@ -511,6 +530,23 @@ def build_parser() -> argparse.ArgumentParser:
     kind_flag(sp, "simulation")
     progress_flags(sp)
     sp.set_defaults(func=cmd_plot)
+
+    sp = sub.add_parser(
+        "report",
+        help="write a report (HTML or PDF) of a result, or of a spec after running it",
+        description=(
+            "Write the report of INPUT, a result JSON or a spec JSON (run first, locally or "
+            "with --server; its inputs are then in the report): the inputs, key numbers, "
+            "figures, method and diagnostics, warnings and the version."
+        ),
+    )
+    sp.add_argument("input", help="result or spec JSON file ('-': stdin)")
+    sp.add_argument("--out", required=True, help="output file, .html or .pdf ('-': stdout)")
+    sp.add_argument("--format", choices=("html", "pdf"), help="format (default: from --out)")
+    sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
+    kind_flag(sp, "simulation")
+    progress_flags(sp)
+    sp.set_defaults(func=cmd_report)
 
     sp = sub.add_parser(
         "stability",
