@@ -273,7 +273,8 @@ def _text_lines(rep: Report) -> list[tuple[str, str, str]]:
 def _wrap(text: str, width: int) -> str:
     import textwrap
 
-    return "\n".join(textwrap.wrap(text, width)) or text
+    # a key (64 hex digits) or a number stays whole on its line
+    return "\n".join(textwrap.wrap(text, width, break_long_words=False)) or text
 
 
 def to_pdf(
@@ -297,8 +298,8 @@ def to_pdf(
                 texts = [(0.07, _wrap(left, 110), {"color": "#8a4b00", "fontsize": 7.5})]
             elif style == "row":
                 texts = [
-                    (0.07, _wrap(left, 50), {"fontsize": 8}),
-                    (0.52, _wrap(right, 58), {"fontsize": 8, "family": "monospace"}),
+                    (0.07, _wrap(left, 48), {"fontsize": 8}),
+                    (0.45, _wrap(right, 66), {"fontsize": 7.5, "family": "monospace"}),
                 ]
             else:
                 size = 15 if style == "title" else 11.5

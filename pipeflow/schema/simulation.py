@@ -167,12 +167,13 @@ class StrictModel(BaseModel):
         cls, core_schema: CoreSchema, handler: GetJsonSchemaHandler
     ) -> JsonSchemaValue:
         schema = super().__get_pydantic_json_schema__(core_schema, handler)
-        if handler.mode == "validation":  # answers carry plain SI numbers
-            # the generator itself (not this model's handler) files Quantity under $defs
-            # and answers a reference to it: one schema for every field taking a unit
-            generator = handler.generate_json_schema  # type: ignore[attr-defined]
-            quantity = generator.generate_inner(units.Quantity.__pydantic_core_schema__)
-            units.quantity_json_schema(handler.resolve_ref_schema(schema), cls, quantity)
+        # the generator itself (not this model's handler) files Quantity under $defs and
+        # answers a reference to it: one schema for every field taking a unit.  In both
+        # modes: a request model echoed in an answer (a simulation's loads) keeps one
+        # schema (and one model in generated clients); its numbers are SI numbers there
+        generator = handler.generate_json_schema  # type: ignore[attr-defined]
+        quantity = generator.generate_inner(units.Quantity.__pydantic_core_schema__)
+        units.quantity_json_schema(handler.resolve_ref_schema(schema), cls, quantity)
         return schema
 
     def canonical(self) -> dict[str, Any]:

@@ -1,4 +1,5 @@
-"""``GET /v1/results/{key}/report.html`` and ``.pdf``: a stored result's report.
+"""``GET /v1/results/{key}/report.html`` and ``.pdf``: a stored result's report;
+``GET /v1/results/{key}/animations/mode_shapes.gif``: a mode shape in motion.
 
 The document an engineer attaches to a design review (:mod:`pipeflow.io.report`): the
 inputs (the request, when the service still holds its job record), the key numbers, the
@@ -13,9 +14,10 @@ import asyncio
 import json
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Header, Path, Response
+from fastapi import APIRouter, Header, Path, Query, Response
 
-from pipeflow.io import report
+from pipeflow.io import animation, report
+from pipeflow.io.plots import PlotError
 from service.deps import StoreDep
 from service.http.problems import ProblemError, responses
 from service.routes.exports import BINARY, IMMUTABLE, _draw_lock
@@ -69,3 +71,66 @@ async def get_result_report(
     spec = job.spec if job is not None else None
     data = await asyncio.to_thread(_render, body, spec, key, fmt)
     return Response(data, media_type=report.MEDIA_TYPES[fmt], headers=headers)
+
+
+def _animate(body: bytes, mode: int | None, time_index: int, frames: int) -> bytes:
+    result = json.loads(body)
+    if not (result.get("mode_shapes") or {}).get("modes"):
+        raise ProblemError(
+            404,
+            "this result has no mode shapes; ask output.mode_shapes in the simulation",
+            slug="no-such-plot",
+        )
+    try:
+        with _draw_lock:
+            return animation.mode_shape_gif(result, mode, time_index, frames)
+    except PlotError as exc:
+        raise ProblemError(
+            422,
+            exc.message,
+            slug="validation",
+            errors=[{"field": exc.field, "location": "query", "message": exc.message}],
+        ) from None
+
+
+@router.get(
+    "/{key}/animations/mode_shapes.gif",
+    operation_id="getResultModeShapeAnimation",
+    summary="A complex mode shape of a stored simulation in motion (GIF)",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {"image/gif": {"schema": BINARY}},
+            "description": "Re(Phi(x) e^(i theta)) [-] against x [m] over one period.",
+        },
+        **responses(304, 404, 422),
+    },
+)
+async def get_mode_shape_animation(
+    key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
+    store: StoreDep,
+    mode: Annotated[
+        int | None, Query(ge=1, description="Branch number (default: the first traced).")
+    ] = None,
+    time_index: Annotated[
+        int, Query(ge=0, description="Index into the mode shapes' times t [s].")
+    ] = 0,
+    frames: Annotated[
+        int,
+        Query(ge=2, le=animation.MAX_FRAMES, description="Frames of one period [-]."),
+    ] = animation.DEFAULT_FRAMES,
+    if_none_match: Annotated[str | None, Header()] = None,
+) -> Response:
+    """The mode shape of branch ``mode`` at mode-shape time ``time_index`` of the stored
+    simulation ``key`` moving over one period (a looping GIF; the result must have asked
+    ``output.mode_shapes``)."""
+    etag = f'"{key}-modes-{mode}-{time_index}-{frames}.gif"'
+    headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
+    if if_none_match is not None and etag in (t.strip() for t in if_none_match.split(",")):
+        if await asyncio.to_thread(store.has_result, key):
+            return Response(status_code=304, headers=headers)
+    body = await asyncio.to_thread(store.get_result, key)
+    if body is None:
+        raise ProblemError(404, f"no result {key}", slug="unknown-key")
+    data = await asyncio.to_thread(_animate, body, mode, time_index, frames)
+    return Response(data, media_type="image/gif", headers=headers)

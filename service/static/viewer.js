@@ -262,7 +262,41 @@
     SF.showWarnings(document.getElementById("warnings"), result.warnings);
   }
 
+  // ---- the mode shapes, animated (a GIF drawn by the API: pipeflow.io.animation) -------
+
+  function modeShapes(key) {
+    const box = document.getElementById("mode-shapes");
+    const block = state.result && state.result.mode_shapes;
+    box.hidden = !(block && block.modes && block.modes.length);
+    if (box.hidden) return;
+    const modeSel = document.getElementById("shape-mode");
+    const timeSel = document.getElementById("shape-time");
+    modeSel.textContent = "";
+    for (const m of block.modes) {
+      modeSel.append(el("option", { value: String(m.mode) }, "mode " + m.mode));
+    }
+    timeSel.textContent = "";
+    block.t.forEach((t, i) => timeSel.append(el("option", { value: String(i) }, "t = " + tick(t) + " s")));
+    const show = () => {
+      const img = document.getElementById("shape-gif");
+      img.src = API.result(key) + "/animations/mode_shapes.gif?mode=" + modeSel.value
+        + "&time_index=" + timeSel.value;
+      img.alt = "mode " + modeSel.value + " in motion";
+    };
+    modeSel.onchange = show;
+    timeSel.onchange = show;
+    show();
+  }
+
+  function el(tag, attrs, text) {
+    const node = document.createElement(tag);
+    for (const [k, v] of Object.entries(attrs || {})) node.setAttribute(k, v);
+    if (text !== undefined) node.textContent = text;
+    return node;
+  }
+
   function share(key, spec) {
+    modeShapes(key);
     SF.shareLink(document.getElementById("share-link"), { key, spec });
     document.getElementById("csv-history").href = API.result(key) + "?format=csv";
     document.getElementById("csv-eigen").href = API.result(key) + "?format=csv&table=eigenvalues";
