@@ -155,22 +155,35 @@ def convert_fields(model: type[Any], data: Any) -> Any:
     the holder's unit (coefficients[k] per s^k).  Other input is returned unchanged."""
     if not isinstance(data, dict):
         return data
-    out = dict(data)
-    for name, field in model.model_fields.items():
-        value = out.get(name)
+    out: dict[str, Any] | None = None
+    for name, description in _candidates(model):  # type: ignore[arg-type]
+        value = data.get(name)
         # only an object can be a quantity: plain numbers never reach pint
         if not (isinstance(value, dict) or (isinstance(value, list) and _objects(value))):
             continue
-        unit = si_unit(field.description)
+        unit = si_unit(description)
         if unit is None:
             continue
+        if out is None:
+            out = dict(data)
         if isinstance(value, list):
             out[name] = [to_si(v, unit, f"{name}.{i}") for i, v in enumerate(value)]
         elif isinstance(value, dict) and _is_profile(value):
             out[name] = convert_profile(value, unit, name)
         else:
             out[name] = to_si(value, unit, name)
-    return out
+    return data if out is None else out
+
+
+@functools.cache
+def _candidates(model: type[Any]) -> tuple[tuple[str, str], ...]:
+    """The fields of ``model`` whose description has a bracket (a unit, perhaps), with
+    it: the only ones :func:`convert_fields` looks at (read once per model)."""
+    return tuple(
+        (name, field.description)
+        for name, field in model.model_fields.items()
+        if field.description and "[" in field.description
+    )
 
 
 def _is_profile(value: dict[str, Any]) -> bool:

@@ -176,13 +176,25 @@ async def get_result_plot(
     kinds of figure), eigenvalue paths (argand) and station displacements."""
     units = {"spin": spin_unit, "frequency": frequency_unit}
     shown = "".join(f"-{u.replace('/', '_')}" for u in units.values() if u != "rad/s")
-    etag = f'"{key}-{name}{shown}.{fmt}"'
+    headers, body = await stored(store, key, f'"{key}-{name}{shown}.{fmt}"', if_none_match)
+    if body is None:
+        return Response(status_code=304, headers=headers)
+    image = await asyncio.to_thread(_render, body, name, fmt, units)
+    return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)
+
+
+async def stored(
+    store: Any, key: str, etag: str, if_none_match: str | None
+) -> tuple[dict[str, str], bytes | None]:
+    """The caching headers of a drawing of the stored result ``key`` (``etag``: what is
+    drawn) and the result's bytes, or None when ``If-None-Match`` holds ``etag`` and the
+    result is stored (answer 304); a 404 problem when there is no such result.  One
+    rule for every picture and document drawn from a stored result."""
     headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
     if if_none_match is not None and etag in (t.strip() for t in if_none_match.split(",")):
         if await asyncio.to_thread(store.has_result, key):
-            return Response(status_code=304, headers=headers)
+            return headers, None
     body = await asyncio.to_thread(store.get_result, key)
     if body is None:
         raise ProblemError(404, f"no result {key}", slug="unknown-key")
-    image = await asyncio.to_thread(_render, body, name, fmt, units)
-    return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)
+    return headers, body

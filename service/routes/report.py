@@ -20,7 +20,7 @@ from pipeflow.io import animation, report
 from pipeflow.io.plots import PlotError
 from service.deps import StoreDep
 from service.http.problems import ProblemError, responses
-from service.routes.exports import BINARY, IMMUTABLE, _draw_lock
+from service.routes.exports import BINARY, _draw_lock, stored
 from service.schemas import KEY_PATTERN
 
 router = APIRouter(prefix="/v1/results", tags=["results"])
@@ -59,14 +59,9 @@ async def get_result_report(
 ) -> Response:
     """The report of the result stored under ``key``: a self-contained HTML page (figures
     embedded as PNG) or a PDF (matplotlib's PdfPages: the text, then one figure a page)."""
-    etag = f'"{key}-report.{fmt}"'
-    headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
-    if if_none_match is not None and etag in (t.strip() for t in if_none_match.split(",")):
-        if await asyncio.to_thread(store.has_result, key):
-            return Response(status_code=304, headers=headers)
-    body = await asyncio.to_thread(store.get_result, key)
+    headers, body = await stored(store, key, f'"{key}-report.{fmt}"', if_none_match)
     if body is None:
-        raise ProblemError(404, f"no result {key}", slug="unknown-key")
+        return Response(status_code=304, headers=headers)
     job = await asyncio.to_thread(store.get_job, key)
     spec = job.spec if job is not None else None
     data = await asyncio.to_thread(_render, body, spec, key, fmt)
@@ -125,12 +120,8 @@ async def get_mode_shape_animation(
     simulation ``key`` moving over one period (a looping GIF; the result must have asked
     ``output.mode_shapes``)."""
     etag = f'"{key}-modes-{mode}-{time_index}-{frames}.gif"'
-    headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
-    if if_none_match is not None and etag in (t.strip() for t in if_none_match.split(",")):
-        if await asyncio.to_thread(store.has_result, key):
-            return Response(status_code=304, headers=headers)
-    body = await asyncio.to_thread(store.get_result, key)
+    headers, body = await stored(store, key, etag, if_none_match)
     if body is None:
-        raise ProblemError(404, f"no result {key}", slug="unknown-key")
+        return Response(status_code=304, headers=headers)
     data = await asyncio.to_thread(_animate, body, mode, time_index, frames)
     return Response(data, media_type="image/gif", headers=headers)
