@@ -12,9 +12,10 @@ loads; below) and :func:`time_variant_summaries` for flow or spin varying in tim
   the single run numbers it, :func:`pipeflow.spectra.order_lowest`; at constant
   coefficients the frozen spectrum is the same at every time, with varying ones the
   branch of mode 1 at t = 0 followed to t_end as the single run follows it);
-- ``method_used`` (``cma`` or ``magnus``: what ``auto`` runs) and ``result_status`` (``ok`` or
-  ``diverging``: the tip past the divergence bound, or a growth rate of the frozen
-  spectrum above rounding, :func:`pipeflow.spectra.max_growth_rates`).
+- ``method_used`` (``cma`` or ``magnus``: what ``auto`` runs) and ``result_status`` (``ok``,
+  ``diverged``: the tip past the divergence bound, :mod:`pipeflow.divergence`, the peak
+  then taken up to that sample as the single run stops there, or ``diverging``: a growth
+  rate of the frozen spectrum above rounding, :func:`pipeflow.spectra.max_growth_rates`).
 
 Constant coefficients.  Cases sharing the number of modes and the time grid are one
 computation: their state
@@ -43,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow._types import FloatArray
+from pipeflow.divergence import default_bound
 from pipeflow.model import Loading, PipeModel, build_model
 from pipeflow.simulation import Simulation, SimulationStatus, validate
 from pipeflow.solvers import Problem, SolverOutput
@@ -82,11 +84,12 @@ class CaseSummary:
 
 def eligible(sim: Simulation) -> bool:
     """Whether :func:`lti_summaries` computes ``sim`` itself: constant flow and spin, method
-    ``cma`` or ``auto``, no external loads and no mode shapes asked for."""
+    ``cma`` or ``auto``, no external loads, no mode shapes and no output stations."""
     return (
         sim.method in BATCHED_METHODS
         and not sim.loads
         and not sim.mode_shape_times
+        and not sim.positions  # a station may pass the divergence bound before the tip
         and sim.flow.is_constant
         and sim.spin.is_constant
     )
@@ -113,7 +116,9 @@ def _prepare(sim: Simulation) -> _Case | None:
     loading = Loading(sim.flow, sim.spin)
     S = model.state_matrix(loading.coefficients(np.zeros(1)))[0]
     d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
-    bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
+    bound = sim.divergence_bound
+    if bound is None:  # as simulate: no stations here (eligible), the tip's start
+        bound = default_bound(sim.pipe.L, abs(float(d0 @ model.tip)))
     return _Case(
         S, model.to_balanced(d0, v0), model.tip, float(bound), sim.options.condition_limit,
         sim.pipe.damped,
@@ -195,15 +200,19 @@ def _stack(cases: list[_Case], t: FloatArray) -> list[CaseSummary | None]:
     wk = np.where(growth_bad[:, None], 0.0, wk)  # those rows are left to the single run
     with np.errstate(all="ignore"):
         tip = _tip_history(wk, ak, t)
-    peak = np.max(np.abs(tip), axis=1)
-
-    # the status as simulate decides it: growth above rounding, or the tip past the bound
-    level = MARGINAL_RTOL * np.abs(w).max(axis=1)
-    growing = (np.abs(sigma_max) > level) & (sigma_max > 0)
     bound = np.array([c.bound for c in cases])
-    diverging = growing | (peak > bound)
-    near = (np.abs(np.abs(sigma_max) - level) <= THRESHOLD_RTOL * level) | (
-        np.abs(peak - bound) <= THRESHOLD_RTOL * bound
+    # simulate stops the history at the first sample past the bound (pipeflow.divergence):
+    # the peak is then that sample's |u|, every earlier one being within the bound
+    over = np.abs(tip) > bound[:, None]
+    diverged = np.asarray(over.any(axis=1))
+    first = np.argmax(over, axis=1)
+    peak = np.where(diverged, np.abs(tip[np.arange(len(cases)), first]), np.abs(tip).max(axis=1))
+
+    # the status as simulate decides it: the tip past the bound, or growth above rounding
+    level = MARGINAL_RTOL * np.abs(w).max(axis=1)
+    growing = np.asarray((np.abs(sigma_max) > level) & (sigma_max > 0))
+    near = (np.abs(np.abs(sigma_max) - level) <= THRESHOLD_RTOL * level) | np.any(
+        np.abs(np.abs(tip) - bound[:, None]) <= THRESHOLD_RTOL * bound[:, None], axis=1
     )
     limit = np.array([c.limit for c in cases])
     fine = (
@@ -222,7 +231,13 @@ def _stack(cases: list[_Case], t: FloatArray) -> list[CaseSummary | None]:
             out.append(None)
             continue
         j = int(order_lowest(w[b], 1, True)[0]) if damped[b] else int(mode1[b])
-        status = SimulationStatus.DIVERGING if diverging[b] else SimulationStatus.OK
+        status = (
+            SimulationStatus.DIVERGED
+            if diverged[b]
+            else SimulationStatus.DIVERGING
+            if growing[b]
+            else SimulationStatus.OK
+        )
         xi = complex(w[b, j])
         out.append(CaseSummary(float(peak[b]), xi.real, xi.imag, "cma", str(status)))
     return out

@@ -21,6 +21,8 @@ from numpy.typing import NDArray
 from pipeflow._types import FloatArray, Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.diagnostics import add_error_estimate
+from pipeflow.divergence import default_bound, divergence
+from pipeflow.divergence import message as divergence_message
 from pipeflow.errors import InvalidInput
 from pipeflow.loads import (
     BASE_ACCELERATION_NOTE,
@@ -47,8 +49,11 @@ class SimulationStatus(enum.StrEnum):
     """How a run ended (the ``status`` of a result; JSON carries the value)."""
 
     OK = "ok"
-    #: the tip passed the divergence bound, or a frozen growth rate is positive at the end
+    #: a frozen growth rate is positive at the end, the deflection still within the bound
     DIVERGING = "diverging"
+    #: the deflection passed the divergence bound (the linear model's range): the history
+    #: stops at that sample (:mod:`pipeflow.divergence`)
+    DIVERGED = "diverged"
     #: the response overflowed double precision (the samples after it are omitted)
     OVERFLOW = "overflow"
 
@@ -72,8 +77,10 @@ class Simulation:
         the least stable branch of the whole frozen spectrum is traced too, and flagged.
     eigen_samples : number of times at which frozen eigenvalues are computed.
     include_modal : also return the modal coordinates d [m] and d' [m/s].
-    divergence_bound : tip amplitude [m] beyond which the run is flagged as diverging
-        (default: the pipe length, where the linear model has long stopped meaning anything).
+    divergence_bound : the linear model's range, a bound [m] on |u| at the tip and at every
+        output station: the run stops at the first output time past it, status "diverged"
+        (:mod:`pipeflow.divergence`; None, the default: 0.1 L, or twice the initial
+        deflection when that is larger).
     quadrature_order : Gauss-Legendre points for the Galerkin integrals (None: automatic).
     mode_shape_times : times [s] (0..t_end) at which the complex mode shapes of the frozen
         spectrum are returned (:mod:`pipeflow.modeshapes`); empty: none.
@@ -131,7 +138,9 @@ class Result:
     warnings: list[str]
     status: SimulationStatus
     initial_tip_displacement: float  # [m]
-    divergence_time: float | None  # [s]
+    divergence_time: float | None  # [s] when the deflection passed divergence_bound (stopped)
+    divergence_bound: float  # [m] the bound on |u| that applied (pipeflow.divergence)
+    divergence_growth_rate: float | None  # [1/s] largest frozen sigma at divergence_time
     method_used: str = ""  # the solver that ran ("auto" resolves to "cma" or "magnus")
     method_reason: str = ""  # one line: why that solver
     first_unstable_time: float | None = None  # [s] first output time with a frozen sigma > 0
@@ -165,6 +174,10 @@ def validate(sim: Simulation) -> None:
         raise InvalidInput("t_end must be finite and > 0 s", parameter="t_end")
     if sim.samples < 2:
         raise InvalidInput("samples must be >= 2", parameter="samples")
+    if sim.divergence_bound is not None and not (
+        math.isfinite(sim.divergence_bound) and sim.divergence_bound > 0
+    ):
+        raise InvalidInput("divergence_bound must be finite and > 0 m", "divergence_bound")
     if not 1 <= sim.modes <= MAX_MODES:
         raise InvalidInput(f"modes must be between 1 and {MAX_MODES}", parameter="modes")
     if sim.initial_shape not in ("paper", "tip"):
@@ -227,19 +240,33 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     status = SimulationStatus.OK
     warnings = list(out.warnings)
     finite = np.all(np.isfinite(Z), axis=1)
-    if not finite.all():
+    overflowed = not finite.all()
+    if overflowed:
         # keep the finite prefix: JSON has no Inf or NaN, and nothing after overflow is data
         last = int(np.argmin(finite))
         t, Z = t[:last], Z[:last]
+    d, ddot = model.from_balanced(Z)
+    tip = d @ model.tip
+    xs = np.asarray(sim.positions, dtype=float) / sim.pipe.L
+    displacements = model.displacement(d, xs).T if xs.size else np.zeros((0, t.size))
+    # the linear model's range (pipeflow.divergence): the history stops at the first
+    # sample past the bound, before any overflow
+    bound = sim.divergence_bound
+    if bound is None:
+        start = max(abs(float(tip[0])), float(np.max(np.abs(displacements[:, 0]), initial=0.0)))
+        bound = default_bound(sim.pipe.L, start)
+    stop = divergence(t, tip, displacements, np.asarray(sim.positions), bound, model, loading)
+    if stop is not None:
+        k = stop.index + 1
+        t, d, ddot, tip, displacements = t[:k], d[:k], ddot[:k], tip[:k], displacements[:, :k]
+        status = SimulationStatus.DIVERGED
+        warnings.append(divergence_message(stop))
+    elif overflowed:
         status = SimulationStatus.OVERFLOW
         warnings.append(
             f"the response overflowed double precision after t = {t[-1]:.6g} s; "
             "samples after that are omitted"
         )
-    d, ddot = model.from_balanced(Z)
-    tip = d @ model.tip
-    xs = np.asarray(sim.positions, dtype=float) / sim.pipe.L
-    displacements = model.displacement(d, xs).T if xs.size else np.zeros((0, t.size))
 
     eigen_t = np.linspace(0.0, sim.t_end, max(2, min(sim.eigen_samples, sim.samples)))
     n_eig = min(sim.eigen_modes, sim.modes)  # more branches than modes do not exist
@@ -274,18 +301,10 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
         shapes = dataclasses.replace(shapes, mode=frozen.mode)
 
     initial_tip = float(d0 @ model.tip)
-    bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
-    over = np.flatnonzero(np.abs(tip) > bound)
-    divergence_time = float(t[over[0]]) if over.size else None
     # a growth rate above rounding of the spectrum at the end means a growing mode
     growing = bool(unstable.size and unstable[-1] == eigen_t.size - 1)
-    if status == SimulationStatus.OK and (divergence_time is not None or growing):
+    if status == SimulationStatus.OK and growing:
         status = SimulationStatus.DIVERGING
-    if divergence_time is not None:
-        warnings.append(
-            f"tip amplitude passed the divergence bound {bound:.3g} m at t = "
-            f"{divergence_time:.6g} s: the linear model no longer describes the pipe"
-        )
     if np.any(sim.flow.value(eigen_t) < 0):
         warnings.append(REVERSE_FLOW_CAVEAT)
     warnings.extend(basis_caveats(sim.pipe))
@@ -316,7 +335,9 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
         warnings=warnings,
         status=status,
         initial_tip_displacement=initial_tip,
-        divergence_time=divergence_time,
+        divergence_time=stop.time if stop is not None else None,
+        divergence_bound=float(bound),
+        divergence_growth_rate=stop.growth_rate if stop is not None else None,
         method_used=solver.name,
         method_reason=reason,
         first_unstable_time=first_unstable,

@@ -290,7 +290,27 @@ def cmd_plot(args: argparse.Namespace) -> int:
             f"this result has no {name!r} plot; it has: {', '.join(names) or 'none'}",
             field="--name",
         )
-    _write(args.out, render(result, name, fmt, title=args.title))
+    units = {"spin": args.spin_unit, "frequency": args.frequency_unit}
+    _write(args.out, render(result, name, fmt, title=args.title, units=units))
+    if args.out not in (None, "-"):
+        print(f"wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from pipeflow.io import report
+
+    fmt = args.format or Path(args.out).suffix.lstrip(".").lower()
+    if fmt not in report.MEDIA_TYPES:
+        raise ValueError("give --out a .html or .pdf file name, or --format")
+    data = _unwrap(_read_json(args.input))
+    # a spec is run first and is then the report's inputs; a result has none to show
+    inputs = None if _is_result(data) else data
+    result = _result_for(args, data)
+    if fmt == "pdf":
+        _write(args.out, report.to_pdf(result, inputs))
+    else:
+        _write(args.out, report.to_html(result, inputs))
     if args.out not in (None, "-"):
         print(f"wrote {args.out}", file=sys.stderr)
     return 0
@@ -406,7 +426,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from pipeflow import __version__
     from pipeflow.io.export import TABLES
-    from pipeflow.io.plots import PLOTS
+    from pipeflow.io.plots import DISPLAY_UNITS, PLOTS
 
     p = argparse.ArgumentParser(
         prog="pipeflow",
@@ -433,6 +453,16 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
         sp.add_argument("--compact", action="store_true", help="JSON on one line")
         progress_flags(sp)
+
+    def units_flags(sp: argparse.ArgumentParser) -> None:
+        """Display units of the figures' spin and frequency axes (the data stay SI)."""
+        for quantity in DISPLAY_UNITS:
+            sp.add_argument(
+                f"--{quantity}-unit",
+                choices=tuple(DISPLAY_UNITS[quantity]),
+                default="rad/s",
+                help=f"unit of the {quantity} axes of the figures (default rad/s)",
+            )
 
     def kind_flag(sp: argparse.ArgumentParser, default: str, names: Sequence[str] = ()) -> None:
         sp.add_argument(
@@ -495,10 +525,28 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", required=True, help="output file, .png or .svg ('-': stdout)")
     sp.add_argument("--format", choices=("png", "svg"), help="image format (default: from --out)")
     sp.add_argument("--title", help="figure title (default: the plot's name)")
+    units_flags(sp)
     sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
     kind_flag(sp, "simulation")
     progress_flags(sp)
     sp.set_defaults(func=cmd_plot)
+
+    sp = sub.add_parser(
+        "report",
+        help="write a report (HTML or PDF) of a result, or of a spec after running it",
+        description=(
+            "Write the report of INPUT, a result JSON or a spec JSON (run first, locally or "
+            "with --server; its inputs are then in the report): the inputs, key numbers, "
+            "figures, method and diagnostics, warnings and the version."
+        ),
+    )
+    sp.add_argument("input", help="result or spec JSON file ('-': stdin)")
+    sp.add_argument("--out", required=True, help="output file, .html or .pdf ('-': stdout)")
+    sp.add_argument("--format", choices=("html", "pdf"), help="format (default: from --out)")
+    sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
+    kind_flag(sp, "simulation")
+    progress_flags(sp)
+    sp.set_defaults(func=cmd_report)
 
     sp = sub.add_parser(
         "stability",

@@ -82,7 +82,7 @@ class SimulationResult(NotebookViews):
 
     key : parameter hash of the result (share it: ``GET /v1/results/{key}``).
     cached : True when the service answered from its cache.
-    status : "ok", "diverging" or "overflow".
+    status : "ok", "diverging", "diverged" (stopped at the divergence bound) or "overflow".
     t : output times [s]; tip_displacement : u(L, t) [m].
     eigen_t : times of the eigenvalues [s].
     sigma, omega : tracked frozen eigenvalues xi = sigma + i omega of S(t), shape

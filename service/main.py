@@ -23,7 +23,17 @@ from service.http import auth, problems
 from service.http.middleware import BodyLimit, HitFastPath, RequestContext
 from service.http.responses import HitCache
 from service.http.security import SecurityHeaders
-from service.routes import computations, docs, exports, health, jobs, metrics, results, viewer
+from service.routes import (
+    computations,
+    docs,
+    exports,
+    health,
+    jobs,
+    metrics,
+    report,
+    results,
+    viewer,
+)
 from service.routes.endpoints import endpoints
 from service.settings import Settings, get_settings
 from service.store import Store, StoreRefused
@@ -98,7 +108,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     problems.install(app)
     for endpoint in endpoints():
         app.include_router(computations.router_for(endpoint))
-    for module in (jobs, results, exports, health, metrics, docs, viewer):
+    for module in (jobs, results, exports, report, health, metrics, docs, viewer):
         app.include_router(module.router)
 
     def openapi() -> dict[str, Any]:

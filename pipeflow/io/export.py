@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -274,13 +275,20 @@ def to_parquet(result: dict[str, Any], name: str = "history") -> bytes:
     pa = require("pyarrow", "parquet", "Parquet export")
     pq = require("pyarrow.parquet", "parquet", "Parquet export")
 
-    fields, arrays = [], []
+    fields, arrays, units = [], [], {}
     for label, values in zip(header, columns, strict=True):
         col, unit = split_header(label)
         kind = _arrow_type(pa, values)
         fields.append(pa.field(col, kind, metadata={"unit": unit}))
         arrays.append(pa.array(values, type=kind))
-    meta = {"table": name, "description": TABLES[name]}
+        units[col] = unit
+    meta = {
+        "table": name,
+        "description": TABLES[name],
+        # pandas (>= 2.1) restores DataFrame.attrs from this key on read_parquet: the units
+        # reach a notebook as pipeflow.io.notebook.to_dataframe gives them
+        "PANDAS_ATTRS": json.dumps({"units": units, "table": name}),
+    }
     schema = pa.schema(fields, metadata=meta)
     buf = pa.BufferOutputStream()
     pq.write_table(pa.Table.from_arrays(arrays, schema=schema), buf)

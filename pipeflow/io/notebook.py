@@ -1,4 +1,4 @@
-"""A simulation result in a notebook: xarray Dataset, pandas DataFrame, matplotlib Figure.
+"""Results in a notebook: xarray Dataset, pandas DataFrame, matplotlib Figure.
 
 Works on the JSON form of a result (:func:`pipeflow.schema.documents.simulation`, which is
 also what the service returns): every function takes that dictionary, a local
@@ -22,10 +22,20 @@ m/N, ...), ``magnitude`` and ``phase`` [rad] alike; coordinates ``frequency`` [r
 ``position`` [m], ``operating_point`` (0, 1, ...) with ``velocity`` [m/s] and ``omega0``
 [rad/s] along it; ``stable(operating_point)`` and ``max_growth_rate(operating_point)``
 [1/s]; unbounded values (on an undamped resonance) are NaN.
+
+Every other kind has its Dataset too (``crossing`` rows of a critical-velocity analysis;
+``(velocity or spin, mode)`` of an Argand or Campbell sweep; ``(spin, velocity)`` of a spin
+map; ``beta`` of a beta map; ``(amplitude, frequency)`` of a resonance chart; ``index`` of
+the Floquet multipliers; ``case`` of a study, a variable per column), every variable with
+its SI ``units``.  Each Dataset's ``attrs`` hold the result's own scalars (key, kind,
+status, critical velocity [m/s] ...) and the inputs: ``inputs`` (the request, JSON text)
+and its scalars flattened (``input.pipe.L``), from ``to_xarray(result, inputs=spec)`` or,
+for a local simulation result, from its :class:`~pipeflow.simulation.Simulation`.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -49,18 +59,80 @@ def document(result: Any) -> dict[str, Any]:
     return documents.simulation(result)
 
 
-def to_xarray(result: Any) -> Any:
-    """The result as an :class:`xarray.Dataset` (see the module docstring for its layout)."""
+def inputs_of(result: Any) -> dict[str, Any] | None:
+    """The inputs of a local :class:`~pipeflow.simulation.Result` (its
+    :class:`~pipeflow.simulation.Simulation`, profiles and options as their fields), or
+    None for a JSON result (the service's documents carry no request: pass ``inputs``)."""
+    import dataclasses
+
+    from pipeflow.simulation import Simulation
+
+    sim = getattr(result, "simulation", None)
+    if not isinstance(sim, Simulation):
+        return None
+    return {"simulation": json.loads(json.dumps(dataclasses.asdict(sim), default=repr))}
+
+
+def _flat(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    """``value``'s scalars under dotted names (lists of numbers kept as lists)."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            _flat(f"{prefix}.{k}" if prefix else str(k), v, out)
+    elif isinstance(value, bool):
+        out[prefix] = int(value)  # netCDF attributes have no booleans
+    elif isinstance(value, int | float | str):
+        out[prefix] = value
+    elif (
+        isinstance(value, list)
+        and value
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    ):
+        out[prefix] = list(value)
+
+
+def input_attrs(result: dict[str, Any], inputs: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The attributes every view carries: the result's own scalars (key, kind, status,
+    critical_velocity [m/s], ...) and, when known, the inputs, both whole (``inputs``: the
+    request as JSON text) and flattened (``input.pipe.L`` = 0.025, SI as in the request)."""
+    attrs: dict[str, Any] = {}
+    for k, v in result.items():
+        if k in ("warnings", "plots", "cached"):
+            continue
+        if isinstance(v, bool):
+            attrs[k] = int(v)
+        elif isinstance(v, int | float | str):
+            attrs[k] = v
+    if result.get("warnings"):
+        attrs["warnings"] = "\n".join(result["warnings"])
+    if inputs:
+        attrs["inputs"] = json.dumps(inputs, sort_keys=True)
+        flat: dict[str, Any] = {}
+        _flat("", dict(inputs), flat)
+        attrs.update({f"input.{k}": v for k, v in flat.items()})
+    return attrs
+
+
+def to_xarray(result: Any, inputs: Mapping[str, Any] | None = None) -> Any:
+    """The result as an :class:`xarray.Dataset` (see the module docstring for its layout),
+    for every kind of result: simulation, stability, argand/campbell sweeps, spin and beta
+    maps, resonance chart, Floquet, study and frequency response.  ``inputs``: the request
+    (JSON form), stored in ``attrs`` (a local simulation result brings its own)."""
     xr = require("xarray", "notebook", "to_xarray()")
     import numpy as np
 
+    if inputs is None:
+        inputs = inputs_of(result)
     result = document(result)
 
     def var(dims: tuple[str, ...], data: Any, units: str, long_name: str) -> Any:
         return xr.Variable(dims, np.asarray(data), {"units": units, "long_name": long_name})
 
-    if result.get("kind") == "frequency_response":
-        return _frf_xarray(xr, var, result)
+    kind = result.get("kind")
+    view = _VIEWS.get(kind) if isinstance(kind, str) else None
+    if view is not None:
+        ds = view(xr, var, result)
+        ds.attrs.update(input_attrs(result, inputs))
+        return ds
 
     coords: dict[str, Any] = {
         "t": var(("t",), result["t"], "s", "time"),
@@ -114,12 +186,7 @@ def to_xarray(result: Any) -> Any:
             "1",
             "complex mode shape of the frozen spectrum, max modulus 1",
         )
-    attrs = {
-        k: result[k]
-        for k in ("key", "status", "method", "initial_tip_displacement", "divergence_time")
-        if result.get(k) is not None
-    }
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    return xr.Dataset(data, coords=coords, attrs=input_attrs(result, inputs))
 
 
 def _frf_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
@@ -158,8 +225,161 @@ def _frf_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
             "largest growth rate Re xi",
         ),
     }
-    attrs = {k: result[k] for k in ("key", "quantity", "unit", "modes") if k in result}
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    return xr.Dataset(data, coords=coords)
+
+
+def _nan(values: Any) -> Any:
+    """null -> NaN, as a float array."""
+    import numpy as np
+
+    return np.array(
+        [[np.nan if v is None else v for v in row] for row in values]
+        if values and isinstance(values[0], list)
+        else [np.nan if v is None else v for v in values],
+        dtype=float,
+    )
+
+
+def _crossings(var: Any, rows: list[dict[str, Any]], dim: str = "crossing") -> dict[str, Any]:
+    """The stability crossings (velocity [m/s], frequency [rad/s], mode, kind, direction)."""
+    return {
+        "crossing_velocity": var((dim,), [c["velocity"] for c in rows], "m/s", "velocity"),
+        "crossing_frequency": var(
+            (dim,), [c["frequency"] for c in rows], "rad/s", "frequency of the crossing branch"
+        ),
+        "crossing_mode": var((dim,), [c["mode"] for c in rows], "1", "branch number"),
+        "crossing_kind": var((dim,), [c["kind"] for c in rows], "", "flutter or divergence"),
+        "crossing_direction": var(
+            (dim,), [c["direction"] for c in rows], "", "loss or gain of stability"
+        ),
+    }
+
+
+def _stability_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """Critical velocity: one row per crossing of sigma = 0 along the velocity range;
+    the critical velocity [m/s] and the verdicts in attrs."""
+    return xr.Dataset(_crossings(var, result.get("crossings") or []))
+
+
+def _sweep_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """Argand (against v [m/s]) or Campbell (against w0 [rad/s]) sweep: sigma [1/s],
+    omega [rad/s], damping ratio [-], confidence [-] per (parameter, mode)."""
+    import numpy as np
+
+    par = result["parameter"]
+    name = par["name"]
+    coords: dict[str, Any] = {
+        name: var((name,), par["values"], par["unit"], f"swept {name}"),
+        "mode": var(("mode",), [m["mode"] for m in result["modes"]], "1", "branch number"),
+    }
+    if "values_rpm" in par:
+        coords[f"{name}_rpm"] = var((name,), par["values_rpm"], "rpm", f"{name} in rpm")
+    data: dict[str, Any] = {}
+    for part, units, what in (
+        ("sigma", "1/s", "damping (real part)"),
+        ("omega", "rad/s", "frequency (imaginary part)"),
+        ("damping_ratio", "1", "damping ratio -sigma/|xi|"),
+        ("confidence", "1", "tracking confidence 0..1"),
+        ("frequency_hz", "Hz", "frequency |omega|/2 pi"),
+    ):
+        if all(part in m for m in result["modes"]):
+            rows = np.array([_nan(m[part]) for m in result["modes"]]).T
+            data[part] = var((name, "mode"), rows, units, what)
+    return xr.Dataset(data, coords=coords)
+
+
+def _spin_map_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """Growth rate max sigma [1/s] over (spin [rad/s], velocity [m/s]), critical velocity
+    [m/s] per spin."""
+    coords = {
+        "spin": var(("spin",), result["spins"], "rad/s", "spin w0"),
+        "velocity": var(("velocity",), result["velocities"], "m/s", "flow velocity"),
+    }
+    if "spins_rpm" in result:
+        coords["spin_rpm"] = var(("spin",), result["spins_rpm"], "rpm", "spin in rpm")
+    data = {
+        "growth_rate": var(
+            ("spin", "velocity"), _nan(result["growth_rate"]), "1/s", "largest sigma"
+        ),
+        "critical_velocity": var(
+            ("spin",), _nan(result["critical_velocity"]), "m/s", "critical flow velocity"
+        ),
+        "stable_at_start": var(("spin",), result["stable_at_start"], "1", "stable at v_min"),
+    }
+    return xr.Dataset(data, coords=coords)
+
+
+def _beta_map_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """Critical flow number u_cr [-] against the mass ratio beta [-]."""
+    coords = {"beta": var(("beta",), result["betas"], "1", "mass ratio M2/(M1+M2)")}
+    data = {
+        "u_cr": var(("beta",), _nan(result["u_cr"]), "1", "critical flow number"),
+        "stable_at_start": var(("beta",), result["stable_at_start"], "1", "stable at u_min"),
+    }
+    return xr.Dataset(data, coords=coords)
+
+
+def _resonance_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """Growth rate [1/s], largest multiplier [-] and the unstable flag over (pulsation
+    amplitude [m/s], pulsation frequency [rad/s])."""
+    dims = ("amplitude", "frequency")
+    coords = {
+        "amplitude": var(("amplitude",), result["amplitudes"], "m/s", "pulsation amplitude"),
+        "frequency": var(("frequency",), result["frequencies"], "rad/s", "pulsation frequency"),
+    }
+    data = {
+        "growth_rate": var(dims, _nan(result["growth_rate"]), "1/s", "log(max |lambda|)/T"),
+        "max_multiplier": var(dims, _nan(result["max_multiplier"]), "1", "max |lambda|"),
+        "unstable": var(dims, result["unstable"], "1", "unstable (max |lambda| > 1)"),
+    }
+    return xr.Dataset(data, coords=coords)
+
+
+def _floquet_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """Floquet multipliers lambda [-] (complex) and exponents [1/s], rad/s."""
+    import numpy as np
+
+    m, e = result["multipliers"], result["exponents"]
+    dims = ("index",)
+    data = {
+        "multiplier": var(
+            dims, np.asarray(m["real"]) + 1j * np.asarray(m["imag"]), "1", "Floquet multiplier"
+        ),
+        "exponent_sigma": var(dims, e["sigma"], "1/s", "Re mu = log|lambda|/T"),
+        "exponent_omega": var(dims, e["omega"], "rad/s", "Im mu = arg(lambda)/T"),
+    }
+    return xr.Dataset(data)
+
+
+def _study_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """One row per case (dimension ``case``), a variable per column with its unit."""
+    columns = result["columns"]
+    rows = result["rows"]
+    data = {}
+    for j, col in enumerate(columns):
+        values = [row[j] for row in rows]
+        numeric = all(v is None or isinstance(v, int | float) for v in values)
+        data[col["name"]] = var(
+            ("case",),
+            _nan(values) if numeric and not all(isinstance(v, bool) for v in values) else values,
+            col.get("unit", ""),
+            col.get("description", col["name"]),
+        )
+    return xr.Dataset(data)
+
+
+#: result kind -> its Dataset (simulations: :func:`to_xarray` itself)
+_VIEWS: dict[str, Any] = {
+    "frequency_response": _frf_xarray,
+    "stability": _stability_xarray,
+    "argand": _sweep_xarray,
+    "campbell": _sweep_xarray,
+    "spin_map": _spin_map_xarray,
+    "beta_map": _beta_map_xarray,
+    "resonance_chart": _resonance_xarray,
+    "floquet": _floquet_xarray,
+    "study": _study_xarray,
+}
 
 
 def to_dataframe(result: Any, name: str = "history") -> Any:

@@ -17,7 +17,8 @@ which is how ``examples/paper_figures.py`` draws the paper's families of curves.
 from __future__ import annotations
 
 import io
-from collections.abc import Callable, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -54,6 +55,60 @@ class PlotKind:
     panels: int = 1
     #: the y axis is logarithmic (no scientific tick format)
     log_y: bool = False
+    #: what the x and y axes show, where a display unit applies (:data:`DISPLAY_UNITS`):
+    #: "spin" [rad/s] or "frequency" [rad/s]; None: the axis stays as drawn
+    x_quantity: str | None = None
+    y_quantity: str | None = None
+
+
+#: display units of the axes (the data stay SI): quantity -> {unit: factor from rad/s};
+#: rpm is revolutions per minute (60 / 2 pi per rad/s), Hz cycles per second (1 / 2 pi)
+DISPLAY_UNITS: dict[str, dict[str, float]] = {
+    "spin": {"rad/s": 1.0, "rpm": 60.0 / (2.0 * math.pi), "Hz": 1.0 / (2.0 * math.pi)},
+    "frequency": {"rad/s": 1.0, "Hz": 1.0 / (2.0 * math.pi), "rpm": 60.0 / (2.0 * math.pi)},
+}
+
+
+def _check_units(units: Mapping[str, str] | None) -> dict[str, str]:
+    """``units`` (quantity -> display unit) checked against :data:`DISPLAY_UNITS`."""
+    out = dict(units or {})
+    for quantity, unit in out.items():
+        if quantity not in DISPLAY_UNITS:
+            raise PlotError(
+                f"no display unit for {quantity!r}; choose among {', '.join(DISPLAY_UNITS)}",
+                field="units",
+            )
+        if unit not in DISPLAY_UNITS[quantity]:
+            raise PlotError(
+                f"{quantity} in {unit!r}? choose one of {', '.join(DISPLAY_UNITS[quantity])}",
+                field="units",
+            )
+    return out
+
+
+def _display(axis: Any, factor: float, unit: str) -> None:
+    """Show ``axis`` (data in rad/s) in ``unit``: ticks at round values of the display
+    unit (the locator works on the scaled range), labels scaled, "[rad/s]" in the label
+    replaced.  The data are not touched."""
+    import numpy as np
+    from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator
+
+    log = axis.get_scale() == "log"
+    inner = LogLocator() if log else MaxNLocator(nbins="auto", steps=[1, 2, 2.5, 5, 10])
+
+    class Scaled(type(inner)):  # type: ignore[misc]
+        def tick_values(self, vmin: float, vmax: float) -> Any:
+            return np.asarray(inner.tick_values(vmin * factor, vmax * factor)) / factor
+
+        def __call__(self) -> Any:
+            lo, hi = self.axis.get_view_interval()
+            return self.tick_values(lo, hi)
+
+    locator = Scaled()
+    axis.set_major_locator(locator)
+    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v * factor:.6g}"))
+    label = axis.get_label_text()
+    axis.set_label_text(label.replace("[rad/s]", f"[{unit}]").replace("rad/s", unit))
 
 
 def _has_history(r: dict[str, Any]) -> bool:
@@ -74,19 +129,52 @@ def _branches(r: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def _draw_tip(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    ax.plot(r["t"], r["tip_displacement"], lw=1.0, label=label)
+    (line,) = ax.plot(r["t"], r["tip_displacement"], lw=1.0, label=label)
+    if r.get("status") == "diverged" and r.get("divergence_bound") is not None:
+        # the linear model's range, and where the run was stopped (pipeflow.divergence)
+        b, t = r["divergence_bound"], r["divergence_time"]
+        for sign in (1.0, -1.0):
+            ax.axhline(sign * b, color="0.5", lw=0.8, ls=":", zorder=0)
+        ax.plot([t], [r["tip_displacement"][-1]], "x", ms=8, color=line.get_color(),
+                label=f"diverged: |u| > {b:.3g} m at t = {t:.4g} s")  # fmt: skip
+        ax.legend(fontsize=8)
 
 
 def _fundamental(r: dict[str, Any]) -> dict[str, Any]:
     return r["eigenvalues"]["modes"][0]
 
 
-def _draw_damping(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    ax.plot(r["eigenvalues"]["t"], _fundamental(r)["sigma"], lw=1.2, label=label)
+def _least_stable(r: dict[str, Any]) -> dict[str, Any] | None:
+    """The least stable branch of an unstable run (growth somewhere in the frozen
+    spectrum, or stopped or overflowed), when it is not the fundamental: the branch that
+    decides the run (at v = 40 m/s on the paper's pipe, mode 5, while mode 1 decays)."""
+    unstable = r.get("first_unstable_time") is not None or r.get("status") in (
+        "diverging",
+        "diverged",
+        "overflow",
+    )
+    modes = r["eigenvalues"]["modes"]
+    least = next((m for m in modes if m.get("least_stable")), None)
+    return least if unstable and least is not None and least is not modes[0] else None
 
 
-def _draw_frequency(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    ax.plot(r["eigenvalues"]["t"], _fundamental(r)["omega"], lw=1.2, label=label)
+def _draw_branches(part: str) -> Callable[[Axes, dict[str, Any], str | None], None]:
+    """The fundamental's ``part`` ("sigma" or "omega") against time; an unstable run's
+    least stable branch dashed in the same colour."""
+
+    def draw(ax: Axes, r: dict[str, Any], label: str | None) -> None:
+        t = r["eigenvalues"]["t"]
+        (line,) = ax.plot(t, _fundamental(r)[part], lw=1.2, label=label)
+        least = _least_stable(r)
+        if least is not None:
+            name = f"mode {least['mode']}, least stable"
+            ax.plot(t, least[part], lw=1.4, ls="--", color=line.get_color(),
+                    label=name if label is None else f"{label}, {name}")  # fmt: skip
+            if part == "sigma":
+                ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
+            ax.legend(fontsize=8)
+
+    return draw
 
 
 def _draw_argand(ax: Axes, r: dict[str, Any], label: str | None) -> None:
@@ -373,19 +461,20 @@ PLOTS: dict[str, PlotKind] = {
         ),
         PlotKind(
             "damping",
-            "Damping of the fundamental mode",
+            "Damping of the fundamental mode (dashed: least stable branch, unstable runs)",
             "time t [s]",
             "damping σ [1/s]",
-            _draw_damping,
+            _draw_branches("sigma"),
             _has_eigen,
         ),
         PlotKind(
             "frequency",
-            "Fundamental frequency",
+            "Fundamental frequency (dashed: least stable branch, unstable runs)",
             "time t [s]",
             "frequency ω [rad/s]",
-            _draw_frequency,
+            _draw_branches("omega"),
             _has_eigen,
+            y_quantity="frequency",
         ),
         PlotKind(
             "argand",
@@ -394,6 +483,7 @@ PLOTS: dict[str, PlotKind] = {
             "frequency ω [rad/s]",
             _draw_argand,
             lambda r: _has_eigen(r) or _is_sweep(r),
+            y_quantity="frequency",
         ),
         PlotKind(
             "campbell",
@@ -402,6 +492,8 @@ PLOTS: dict[str, PlotKind] = {
             "frequency |ω| [rad/s]",
             _draw_campbell,
             lambda r: r.get("kind") == "campbell" and bool(r.get("modes")),
+            x_quantity="spin",
+            y_quantity="frequency",
         ),
         PlotKind(
             "sweep_frequency",
@@ -410,6 +502,7 @@ PLOTS: dict[str, PlotKind] = {
             "frequency ω [rad/s]",
             _draw_sweep("omega"),
             _is_sweep,
+            y_quantity="frequency",
         ),
         PlotKind(
             "sweep_damping",
@@ -426,6 +519,7 @@ PLOTS: dict[str, PlotKind] = {
             "spin ω0 [rad/s]",
             _draw_spin_map,
             lambda r: r.get("kind") == "spin_map" and bool(r.get("growth_rate")),
+            y_quantity="spin",
         ),
         PlotKind(
             "beta_map",
@@ -442,6 +536,7 @@ PLOTS: dict[str, PlotKind] = {
             "pulsation amplitude a [m/s]",
             _draw_resonance_chart,
             lambda r: r.get("kind") == "resonance_chart" and bool(r.get("growth_rate")),
+            x_quantity="frequency",
         ),
         PlotKind(
             "floquet_multipliers",
@@ -476,6 +571,7 @@ PLOTS: dict[str, PlotKind] = {
             _is_frf,
             panels=2,
             log_y=True,
+            x_quantity="frequency",
         ),
         PlotKind(
             "nyquist",
@@ -493,6 +589,7 @@ PLOTS: dict[str, PlotKind] = {
             _draw_waterfall,
             lambda r: _is_frf(r) and len(r["operating_points"]) > 1,
             log_y=True,
+            x_quantity="frequency",
         ),
         PlotKind(
             "deflection_shape",
@@ -519,13 +616,17 @@ def figure(
     *,
     title: str | None = None,
     size: tuple[float, float] = (6.4, 4.0),
+    units: Mapping[str, str] | None = None,
 ) -> Figure:
     """A figure of kind ``name`` with one curve (family) per ``(label, result)`` in ``series``.
 
     ``title`` overrides the kind's default title; labels of ``None`` draw no legend entry.
+    ``units`` shows spin and frequency axes in another unit (``{"spin": "rpm",
+    "frequency": "Hz"}``, :data:`DISPLAY_UNITS`); the data stay in rad/s.
     """
     if name not in PLOTS:
         raise PlotError(f"unknown plot {name!r}; choose one of {', '.join(PLOTS)}")
+    shown = _check_units(units)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -549,6 +650,15 @@ def figure(
     multi = ("argand", "displacements", "sweep_frequency", "sweep_damping", "mode_shapes")
     if any(label is not None for label, _ in series) or name in multi:
         ax.legend(fontsize=8)
+    # display units last: the drawing has set the scales and the labels
+    axes = fig.axes[: kind.panels]
+    for quantity, which in ((kind.x_quantity, "x"), (kind.y_quantity, "y")):
+        unit = shown.get(quantity or "")
+        if quantity is None or unit is None or unit == "rad/s":
+            continue
+        factor = DISPLAY_UNITS[quantity][unit]
+        for a in axes if which == "x" else axes[:1]:
+            _display(a.xaxis if which == "x" else a.yaxis, factor, unit)
     return fig
 
 
@@ -566,9 +676,14 @@ def to_bytes(fig: Figure, fmt: str = "png", dpi: int = 100) -> bytes:
 
 
 def render(
-    result: dict[str, Any], name: str, fmt: str = "png", *, title: str | None = None
+    result: dict[str, Any],
+    name: str,
+    fmt: str = "png",
+    *,
+    title: str | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> bytes:
-    """PNG or SVG bytes of plot ``name`` of one JSON result."""
+    """PNG or SVG bytes of plot ``name`` of one JSON result (``units``: see :func:`figure`)."""
     if fmt not in MEDIA_TYPES:
         raise PlotError(f"unknown image format {fmt!r}; choose png or svg", field="format")
-    return to_bytes(figure(name, [(None, result)], title=title), fmt)
+    return to_bytes(figure(name, [(None, result)], title=title, units=units), fmt)

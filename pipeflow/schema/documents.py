@@ -87,6 +87,8 @@ def simulation(result: Result, include_modal: bool | None = None) -> dict[str, A
         tip_displacement=_finite(result.tip_displacement),
         initial_tip_displacement=result.initial_tip_displacement,
         divergence_time=result.divergence_time,
+        divergence_bound=result.divergence_bound,
+        divergence_growth_rate=result.divergence_growth_rate,
         displacements=[
             r.document(r.Station, x=x, u=_finite(result.displacements[i]))
             for i, x in enumerate(result.simulation.positions)

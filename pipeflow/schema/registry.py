@@ -261,7 +261,7 @@ SIMULATION_SUMMARY = (
     ),
     Column("final_omega_1", "rad/s", "Frequency omega of the fundamental at t_end."),
     Column("method_used", "", "The solver that ran (what 'auto' chose)."),
-    Column("result_status", "", "The simulation's status: ok, diverging or overflow."),
+    Column("result_status", "", "The simulation's status: ok, diverging, diverged or overflow."),
 )
 
 

@@ -198,8 +198,10 @@ class SimulationResponse(BaseModel):
 
     key: str = Field(description="Parameter hash (SHA-256 hex) identifying this result.")
     cached: bool = Field(description="True when served from the cache, not computed now.")
-    status: Literal["ok", "diverging", "overflow"] = Field(
-        description="ok; diverging (a growing mode or the tip passed the divergence bound); "
+    status: Literal["ok", "diverging", "diverged", "overflow"] = Field(
+        description="ok; diverging (a branch of the frozen spectrum grows at t_end, the "
+        "deflection still within divergence_bound); diverged (the deflection passed "
+        "divergence_bound, the linear model's range: the history stops at divergence_time); "
         "overflow (samples after double-precision overflow are omitted)."
     )
     method: str = Field(description="Method as requested ('auto' by default).")
@@ -213,7 +215,17 @@ class SimulationResponse(BaseModel):
     tip_displacement: list[float] = Field(description="Tip displacement u(L, t) [m].")
     initial_tip_displacement: float = Field(description="u(L, 0) [m].")
     divergence_time: float | None = Field(
-        description="First time the tip passed the divergence bound [s], or null."
+        description="First output time [s] at which |u| at the tip or at a station passed "
+        "divergence_bound (the last sample of the history), or null."
+    )
+    divergence_bound: float | None = Field(
+        None,
+        description="The bound on |u| [m] that applied: output.divergence_bound, or by "
+        "default 0.1 L (twice the initial deflection when that is larger).",
+    )
+    divergence_growth_rate: float | None = Field(
+        None,
+        description="Largest sigma of the frozen spectrum at divergence_time [1/s], or null.",
     )
     displacements: list[Station] = Field(description="u(x, t) at the requested stations.")
     eigenvalues: Spectrum = Field(
@@ -252,7 +264,9 @@ class SimulationResponse(BaseModel):
 class MethodComparison(BaseModel):
     method: str = Field(description="Method name.")
     method_used: str = Field(description="Solver that ran ('auto' resolves to cma or magnus).")
-    status: str = Field(description="'ok', 'diverging' or 'overflow' (see simulations).")
+    status: str = Field(
+        description="'ok', 'diverging', 'diverged' or 'overflow' (see simulations)."
+    )
     solve_seconds: float = Field(description="Time inside the solver [s].")
     wall_seconds: float = Field(description="Whole run incl. eigenvalue traces [s].")
     speedup_vs_slowest: float | None = Field(description="Slowest solve time / this one [-].")
@@ -678,9 +692,9 @@ class StudyInstability(BaseModel):
     criterion: str = Field(description="What makes a case unstable (see `probability`).")
     probability: float | None = Field(
         description="Fraction of the decided cases that are unstable [-]. Simulation bases: "
-        "a case is unstable when its result_status is diverging or overflow, i.e. some "
+        "a case is unstable when its result_status is diverging, diverged or overflow: some "
         "branch of its frozen spectrum grows at t_end (sigma above the spectrum's rounding "
-        "level, which includes final_sigma_1 > 0), or its tip passed the divergence bound, "
+        "level, which includes final_sigma_1 > 0), or its deflection passed the divergence bound, "
         "or the solution overflowed. Stability bases (with operating_velocity): a case is "
         "unstable when it is unstable at the start of its range (stable_at_start false) or "
         "its critical_velocity is at or below operating_velocity; a case whose range ends "

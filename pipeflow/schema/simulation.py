@@ -21,9 +21,12 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    GetJsonSchemaHandler,
     field_validator,
     model_validator,
 )
+from pydantic.json_schema import JsonSchemaValue
+from pydantic_core import CoreSchema
 
 from pipeflow import paper, profiles
 from pipeflow._types import Progress
@@ -38,6 +41,7 @@ from pipeflow.modeshapes import (
     MAX_SHAPE_TIMES,
     MAX_SHAPE_VALUES,
 )
+from pipeflow.schema import units
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
@@ -150,6 +154,27 @@ class StrictModel(BaseModel):
     """
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _quantities(cls, data: Any) -> Any:
+        """A field in an SI unit also takes ``{"value": 3000, "unit": "rpm"}``, converted
+        here to the unit its description states (:mod:`pipeflow.schema.units`)."""
+        return units.convert_fields(cls, data)
+
+    @classmethod
+    def __get_pydantic_json_schema__(
+        cls, core_schema: CoreSchema, handler: GetJsonSchemaHandler
+    ) -> JsonSchemaValue:
+        schema = super().__get_pydantic_json_schema__(core_schema, handler)
+        # the generator itself (not this model's handler) files Quantity under $defs and
+        # answers a reference to it: one schema for every field taking a unit.  In both
+        # modes: a request model echoed in an answer (a simulation's loads) keeps one
+        # schema (and one model in generated clients); its numbers are SI numbers there
+        generator = handler.generate_json_schema  # type: ignore[attr-defined]
+        quantity = generator.generate_inner(units.Quantity.__pydantic_core_schema__)
+        units.quantity_json_schema(handler.resolve_ref_schema(schema), cls, quantity)
+        return schema
 
     def canonical(self) -> dict[str, Any]:
         """Normalised JSON form (every default filled in) that the cache key is computed from."""
@@ -556,7 +581,12 @@ class OutputSpec(StrictModel):
     )
     modal: bool = Field(False, description="Also return modal coordinates d [m], d' [m/s].")
     divergence_bound: float | None = Field(
-        None, gt=0, description="Tip amplitude [m] flagged as divergence; null means L."
+        None,
+        gt=0,
+        description="The linear model's range: a bound on |u| [m] at the tip and at every "
+        "output position. The run stops at the first output time past it (status "
+        "'diverged', with divergence_time [s] and divergence_growth_rate [1/s]). null "
+        "(default): 0.1 L, or twice the initial deflection when that is larger.",
     )
     mode_shapes: ModeShapesSpec | None = Field(
         None,

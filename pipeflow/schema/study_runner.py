@@ -590,8 +590,8 @@ def _unstable(
 
 #: how a case counts as unstable, by base kind (the result's instability.criterion)
 CRITERIA = {
-    "simulation": "result_status is diverging or overflow (a growing branch of the frozen "
-    "spectrum at t_end, the tip past its divergence bound, or overflow)",
+    "simulation": "result_status is diverging, diverged or overflow (a growing branch of the "
+    "frozen spectrum at t_end, the deflection past its divergence bound, or overflow)",
     "stability": "stable_at_start is false, or critical_velocity <= operating_velocity",
 }
 

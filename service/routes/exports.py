@@ -25,7 +25,7 @@ import threading
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, Header, Path, Request, Response
+from fastapi import APIRouter, Depends, Header, Path, Query, Request, Response
 
 from pipeflow.io import plots
 from pipeflow.io.export import (
@@ -193,7 +193,7 @@ async def table_response(
     return answer.response()
 
 
-def _render(body: bytes, name: str, fmt: str) -> bytes:
+def _render(body: bytes, name: str, fmt: str, units: dict[str, str] | None = None) -> bytes:
     result = json.loads(body)
     names = plots.available_plots(result)
     if name not in names:
@@ -204,7 +204,7 @@ def _render(body: bytes, name: str, fmt: str) -> bytes:
             errors=[{"field": "name", "location": "path", "message": f"unknown plot {name!r}"}],
         )
     with _draw_lock:
-        return plots.render(result, name, fmt)
+        return plots.render(result, name, fmt, units=units)
 
 
 @router.get(
@@ -234,22 +234,44 @@ async def get_result_plot(
     fmt: Annotated[Literal["png", "svg"], Path(description="Image format.")],
     store: StoreDep,
     if_none_match: Annotated[str | None, Header()] = None,
+    spin_unit: Annotated[
+        Literal[tuple(plots.DISPLAY_UNITS["spin"])],  # type: ignore[valid-type]
+        Query(description="Unit of the spin axes (Campbell, spin map); the data stay rad/s."),
+    ] = "rad/s",
+    frequency_unit: Annotated[
+        Literal[tuple(plots.DISPLAY_UNITS["frequency"])],  # type: ignore[valid-type]
+        Query(description="Unit of the frequency axes (Hz: cycles per second)."),
+    ] = "rad/s",
 ) -> Response:
     """The figure ``name`` of the result stored under ``key``: tip displacement u(L, t) [m],
     damping sigma [1/s] and fundamental frequency omega [rad/s] over t [s] (the paper's three
     kinds of figure), eigenvalue paths (argand) and station displacements."""
-    etag = f'"{key}-{name}.{fmt}"'
-    headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
+    units = {"spin": spin_unit, "frequency": frequency_unit}
+    shown = "".join(f"-{u.replace('/', '_')}" for u in units.values() if u != "rad/s")
+    headers, body = await stored(store, key, f'"{key}-{name}{shown}.{fmt}"', if_none_match)
     if fmt == "svg":  # opened on its own, an SVG is a document: its styles only, no script
         headers["Content-Security-Policy"] = SVG_CSP
+    if body is None:
+        return Response(status_code=304, headers=headers)
+    image = await asyncio.to_thread(_render, body, name, fmt, units)
+    return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)
+
+
+async def stored(
+    store: Any, key: str, etag: str, if_none_match: str | None
+) -> tuple[dict[str, str], bytes | None]:
+    """The caching headers of a drawing of the stored result ``key`` (``etag``: what is
+    drawn) and the result's bytes, or None when ``If-None-Match`` holds ``etag`` and the
+    result is stored (answer 304); a 404 problem when there is no such result.  One
+    rule for every picture and document drawn from a stored result."""
+    headers = {"ETag": etag, "Cache-Control": IMMUTABLE}
     if if_none_match is not None and etag_matches(if_none_match, etag):
         if await asyncio.to_thread(store.has_result, key):
-            return Response(status_code=304, headers=headers)
+            return headers, None
     body = await asyncio.to_thread(store.get_result, key)
     if body is None:
         raise ProblemError(404, f"no result {key}", slug="unknown-key")
-    image = await asyncio.to_thread(_render, body, name, fmt)
-    return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)
+    return headers, body
 
 
 @router.get(

@@ -42,12 +42,19 @@ window.SchemaForm = (function () {
       s = Object.assign({}, target, own);
     }
     if (Array.isArray(s.anyOf)) {
-      const others = s.anyOf.filter((o) => o.type !== "null");
+      // a number that also takes {"value", "unit"} (the API converts it to SI): the form
+      // asks for the SI number its label states
+      const quantity = (o) => typeof o.$ref === "string" && /\/Quantity$/.test(o.$ref);
+      const nullable = s.anyOf.some((o) => o.type === "null");
+      const others = s.anyOf.filter((o) => o.type !== "null" && !quantity(o));
       if (others.length === 1 && others.length < s.anyOf.length) {
         const own = Object.assign({}, s);
         delete own.anyOf;
-        s = Object.assign({}, deref(doc, others[0]), own, { nullable: true });
+        s = Object.assign({}, deref(doc, others[0]), own, nullable ? { nullable: true } : {});
       }
+    }
+    if (s.items && typeof s.items === "object" && Array.isArray(s.items.anyOf)) {
+      s = Object.assign({}, s, { items: deref(doc, s.items) });
     }
     return s;
   }

@@ -76,6 +76,7 @@
       axes: [{ label: xLabel, values: (u, splits) => splits.map(tick) }, yAxis],
       series: [{ label: xLabel }].concat(series.map((s, i) => ({
         label: s.label, stroke: s.stroke || COLORS[i % COLORS.length], width: s.width || 1.2,
+        dash: s.dash,
         value: (u, v) => (v === null ? "--" : label(v)),
       }))),
       cursor: { drag: { x: true, y: false } },
@@ -103,6 +104,7 @@
     // a rate that may be rounding
     const unstable = (first !== undefined && first !== null)
       || result.status === "overflow" || result.status === "diverging"
+      || result.status === "diverged"
       || (result.divergence_time !== undefined && result.divergence_time !== null);
     return { unstable, first, rate, least };
   }
@@ -123,7 +125,13 @@
         + ", e-folding time " + tick(1 / info.rate) + " s.");
     }
     if (result.divergence_time !== undefined && result.divergence_time !== null) {
-      parts.push("The tip passed the divergence bound at t = " + tick(result.divergence_time) + " s.");
+      const bound = typeof result.divergence_bound === "number"
+        ? " |u| ≤ " + tick(result.divergence_bound) + " m" : "";
+      const rate = typeof result.divergence_growth_rate === "number"
+        ? " (growth rate " + tick(result.divergence_growth_rate) + " 1/s there)" : "";
+      parts.push("Diverged: the deflection left the linear model's range" + bound
+        + " at t = " + tick(result.divergence_time) + " s" + rate
+        + "; the history stops there.");
     }
     if (result.status === "overflow") parts.push("The response overflowed double precision.");
     el.textContent = parts.join(" ");
@@ -218,8 +226,14 @@
     document.getElementById("results").hidden = false;
     banner(result);
     showLoads(result);
-    drawChart("chart-tip", "t [s]", "u(L, t) [m]", result.t,
-      [{ label: "tip displacement [m]", y: result.tip_displacement }], tipScale(result));
+    const tipSeries = [{ label: "tip displacement [m]", y: result.tip_displacement }];
+    if (result.status === "diverged" && typeof result.divergence_bound === "number") {
+      // the linear model's range, drawn where the run was stopped
+      const b = result.divergence_bound;
+      tipSeries.push({ label: "+bound [m]", y: result.t.map(() => b), stroke: "#888", dash: [6, 4] });
+      tipSeries.push({ label: "−bound [m]", y: result.t.map(() => -b), stroke: "#888", dash: [6, 4] });
+    }
+    drawChart("chart-tip", "t [s]", "u(L, t) [m]", result.t, tipSeries, tipScale(result));
     const ev = result.eigenvalues;
     drawChart("chart-damping", "t [s]", "σ [1/s]", ev.t, ev.modes.map((m) => ({
       label: "σ mode " + m.mode + (m.least_stable ? " (least stable)" : "") + " [1/s]",
@@ -227,8 +241,15 @@
       stroke: m.least_stable ? "#c0392b" : undefined,
       width: m.least_stable ? 2.5 : undefined,
     })));
-    drawChart("chart-frequency", "t [s]", "ω [rad/s]", ev.t,
-      [{ label: "ω mode " + ev.modes[0].mode + " [rad/s]", y: ev.modes[0].omega }]);
+    // an unstable run: the least stable branch next to the fundamental (the flutter branch
+    // is often not mode 1; at v = 40 m/s it is mode 5)
+    const freq = [{ label: "ω mode " + ev.modes[0].mode + " [rad/s]", y: ev.modes[0].omega }];
+    const least = instability(result).least;
+    if (instability(result).unstable && least && least !== ev.modes[0]) {
+      freq.push({ label: "ω mode " + least.mode + " (least stable) [rad/s]", y: least.omega,
+        stroke: "#c0392b", width: 2.5 });
+    }
+    drawChart("chart-frequency", "t [s]", "ω [rad/s]", ev.t, freq);
     const used = document.getElementById("method-used");
     used.textContent = result.method_used
       ? "Method: " + result.method + " → " + result.method_used
@@ -241,7 +262,41 @@
     SF.showWarnings(document.getElementById("warnings"), result.warnings);
   }
 
+  // ---- the mode shapes, animated (a GIF drawn by the API: pipeflow.io.animation) -------
+
+  function modeShapes(key) {
+    const box = document.getElementById("mode-shapes");
+    const block = state.result && state.result.mode_shapes;
+    box.hidden = !(block && block.modes && block.modes.length);
+    if (box.hidden) return;
+    const modeSel = document.getElementById("shape-mode");
+    const timeSel = document.getElementById("shape-time");
+    modeSel.textContent = "";
+    for (const m of block.modes) {
+      modeSel.append(el("option", { value: String(m.mode) }, "mode " + m.mode));
+    }
+    timeSel.textContent = "";
+    block.t.forEach((t, i) => timeSel.append(el("option", { value: String(i) }, "t = " + tick(t) + " s")));
+    const show = () => {
+      const img = document.getElementById("shape-gif");
+      img.src = API.result(key) + "/animations/mode_shapes.gif?mode=" + modeSel.value
+        + "&time_index=" + timeSel.value;
+      img.alt = "mode " + modeSel.value + " in motion";
+    };
+    modeSel.onchange = show;
+    timeSel.onchange = show;
+    show();
+  }
+
+  function el(tag, attrs, text) {
+    const node = document.createElement(tag);
+    for (const [k, v] of Object.entries(attrs || {})) node.setAttribute(k, v);
+    if (text !== undefined) node.textContent = text;
+    return node;
+  }
+
   function share(key, spec) {
+    modeShapes(key);
     SF.shareLink(document.getElementById("share-link"), { key, spec });
     document.getElementById("csv-history").href = API.result(key) + "?format=csv";
     document.getElementById("csv-eigen").href = API.result(key) + "?format=csv&table=eigenvalues";

@@ -41,12 +41,26 @@ def test_positive_flow_decays(flow: object) -> None:
 @pytest.mark.parametrize("flow", [Constant(-0.4), polynomial(0, -0.4)])
 def test_negative_flow_grows(flow: object) -> None:
     """Figs. 11, 14: for v < 0 the amplitude grows with time; reported as diverging, never
-    as NaN/Inf, with the aspirating-pipe caveat."""
-    r = run(flow)
-    assert r.status == "diverging"
+    as NaN/Inf, with the aspirating-pipe caveat.  The paper's figures draw the linear
+    equation's growth over the whole second, past the model's range: a bound of 1e300 m keeps
+    the history whole (the default stops it, :func:`test_negative_flow_stops_at_the_bound`)."""
+    r = run(flow, divergence_bound=1e300)
+    assert r.status == "diverging" and r.t.size == 2001
     assert envelope(r, 0.9, 1.0) > 2.0 * envelope(r, 0.0, 0.1)
     assert np.all(np.isfinite(r.tip_displacement))
     assert any("aspirating" in w for w in r.warnings)
+
+
+@pytest.mark.parametrize("flow", [Constant(-0.4), polynomial(0, -0.4)])
+def test_negative_flow_stops_at_the_bound(flow: object) -> None:
+    """With the default bound (twice the initial 2.72 mm: the paper's u0 starts the tip at
+    0.109 L, past 0.1 L) the growing run stops at its first sample past 5.45 mm."""
+    r = run(flow)
+    assert r.status == "diverged"
+    assert r.divergence_bound == pytest.approx(2 * r.initial_tip_displacement, rel=1e-12)
+    assert r.t[-1] == r.divergence_time < 1.0
+    assert abs(r.tip_displacement[-1]) > r.divergence_bound
+    assert np.all(np.abs(r.tip_displacement[:-1]) <= r.divergence_bound)
 
 
 def test_faster_flow_decays_faster() -> None:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pipeflow.io.export import SIMULATION_TABLES, table
-from pipeflow.io.notebook import plot, to_dataframe, to_xarray
+from pipeflow.io.notebook import inputs_of, plot, to_dataframe, to_xarray
 from pipeflow.io.plots import PLOTS
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
@@ -102,7 +102,9 @@ def test_the_io_functions_take_a_result_or_its_json(result: Result) -> None:
     """pipeflow.io.notebook's functions take a local Result (its document written by
     pipeflow.schema.documents) or that document, and give the same views."""
     doc = documents.simulation(result)
-    assert to_xarray(result).identical(to_xarray(doc))
+    # the document carries no request: the local result's inputs are given to it
+    assert to_xarray(result).identical(to_xarray(doc, inputs=inputs_of(result)))
+    assert "inputs" in to_xarray(result).attrs and "inputs" not in to_xarray(doc).attrs
     assert to_dataframe(result, "eigenvalues").equals(to_dataframe(doc, "eigenvalues"))
     assert plot(result, "damping").axes[0].lines[0].get_ydata().tolist() == (
         plot(doc, "damping").axes[0].lines[0].get_ydata().tolist()

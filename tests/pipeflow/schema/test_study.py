@@ -445,7 +445,7 @@ def test_an_lti_study_runs_batched_with_the_standalone_keys_and_summaries(
             scale = abs(complex(want["final_sigma_1"], want["final_omega_1"]))
             for col in ("final_sigma_1", "final_omega_1"):
                 assert abs(r[col] - want[col]) <= 1e-10 * scale
-        assert statuses == {"ok", "diverging"}
+        assert statuses == {"ok", "diverged"}  # v = 40 m/s stops at the bound
 
 
 class ShippingHost:

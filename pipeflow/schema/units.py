@@ -1,0 +1,264 @@
+"""Quantities with their unit on input, converted to SI at validation (pint).
+
+Wherever a request field takes a number in an SI unit, it also takes that number with its
+own unit, as the one documented form ``{"value": 3000, "unit": "rpm"}`` (a JSON object,
+never a string to evaluate): ``{"value": 25, "unit": "mm"}`` for a length in metres,
+``{"value": 5, "unit": "bar"}`` for a pressure, ``{"value": 50, "unit": "Hz"}`` for an
+angular frequency in rad/s.  The field's SI unit is the one its description states in
+brackets (``"Pipe length ... [m]."``): that one statement documents the field and drives
+the conversion.  Profiles (``flow.velocity``, ``rotation.omega0``, load histories) take
+their unit from the field that holds them: their ``value``, ``mean``, ``amplitude`` and
+table ``values`` in it, polynomial ``coefficients[k]`` in it per s^k.
+
+The conversion happens before any other check, so the bounds apply in SI, the request's
+canonical form (and so the service's cache key) holds the SI number only, and the same
+physics asked in rpm or rad/s is one key.  A unit of the wrong dimension, or one pint does
+not know, is refused naming the field (``rotation.omega0.value: 3 m is a length, not an
+angular velocity [rad/s]``).
+
+Hz means cycles per second here (1 Hz = 2 pi rad/s), and rpm revolutions per minute
+(1 rpm = 2 pi / 60 rad/s): pint's default registry takes the radian as dimensionless and
+would read 1 Hz as 1 rad/s.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+from typing import TYPE_CHECKING, Any
+
+from pydantic import BaseModel, ConfigDict
+
+from pipeflow.errors import InvalidField
+
+if TYPE_CHECKING:
+    import pint
+
+#: the JSON form of a quantity (a member of the request schema wherever a unit applies)
+QUANTITY_SCHEMA: dict[str, Any] = {
+    "type": "object",
+    "title": "Quantity",
+    "description": "A number with its unit, converted to the field's SI unit at validation: "
+    '{"value": 3000, "unit": "rpm"}, {"value": 25, "unit": "mm"} (pint unit names; Hz is '
+    "cycles per second, 1 Hz = 2 pi rad/s).",
+    "properties": {
+        "value": {"type": "number", "description": "The number, in `unit`."},
+        "unit": {
+            "type": "string",
+            "minLength": 1,
+            "maxLength": 64,
+            "description": "Its unit (pint's names: mm, bar, rpm, Hz, g/cm, ...).",
+        },
+    },
+    "required": ["value", "unit"],
+    "additionalProperties": False,
+}
+
+#: the kinds of profile (pipeflow.schema.simulation's ProfileSpec)
+PROFILE_KINDS = ("constant", "polynomial", "harmonic", "table")
+#: the members of a profile (pipeflow.schema.simulation's profile kinds) in the holder's unit
+PROFILE_MEMBERS = ("value", "mean", "amplitude", "values")
+_BRACKET = re.compile(r"\[([^\[\]]+)\]")
+#: names of dimensions in messages
+_DIMENSIONS = {
+    "[length]": "a length",
+    "[time]": "a time",
+    "[mass]": "a mass",
+    "1 / [time]": "an angular velocity or rate",
+    "[length] / [time]": "a velocity",
+    "[mass] / [length] / [time] ** 2": "a pressure or modulus",
+    "[length] ** 4": "a second moment of area",
+    "[mass] / [length]": "a mass per length",
+    "[mass] * [length] ** 2": "a moment of inertia",
+    "[mass] * [length] / [time] ** 2": "a force",
+    "[mass] / [time] ** 2": "a force per length",
+    "[length] / [time] ** 2": "an acceleration",
+    "[mass] / [length] / [time]": "a viscous damping coefficient",
+    "dimensionless": "a number without dimension",
+}
+
+
+@functools.cache
+def registry() -> pint.UnitRegistry:
+    """The unit registry (pint is imported on the first quantity)."""
+    import pint
+
+    ureg: pint.UnitRegistry = pint.UnitRegistry(on_redefinition="ignore")
+    ureg.define("hertz = cycle / second = Hz")  # cycles, not radians, per second
+    return ureg
+
+
+@functools.cache
+def si_unit(description: str | None) -> str | None:
+    """The SI unit a field's description states in brackets (the first bracket that
+    pint reads as a unit with a dimension), or None (no such bracket, or ``[-]`` first:
+    a number without dimension).  Brackets that are no unit (``[v_min, v_max]``) are
+    skipped."""
+    for text in _BRACKET.findall(description or ""):
+        if text.strip() == "-":
+            return None
+        try:
+            unit = registry().parse_units(text.strip())
+        except Exception:
+            continue
+        if not unit.dimensionless or "radian" in str(unit):
+            return text.strip()
+    return None
+
+
+def is_quantity(value: Any) -> bool:
+    return isinstance(value, dict) and set(value) == {"value", "unit"}
+
+
+def _dimension(unit: Any) -> str:
+    dim = str(unit.dimensionality)
+    return _DIMENSIONS.get(dim, dim)
+
+
+def to_si(value: Any, unit: str, loc: str) -> Any:
+    """``value`` in ``unit`` [SI]: a quantity object converted, anything else unchanged
+    (the field's own validation refuses it if it is not a number).  Refuses naming
+    ``loc`` a quantity that is malformed or of the wrong dimension."""
+    # only an object with a "unit" is a quantity: {"value": 100} may be a constant profile
+    # whose kind is left to its default (ConstantRotation.omega0)
+    if not isinstance(value, dict) or "unit" not in value:
+        return value
+    if not is_quantity(value):
+        raise InvalidField(f"{loc}: a quantity is {{'value': number, 'unit': string}}", loc)
+    number, given = value["value"], value["unit"]
+    if isinstance(number, bool) or not isinstance(number, int | float) or not math.isfinite(number):
+        raise InvalidField(f"{loc}.value: a finite number is required", f"{loc}.value")
+    if not isinstance(given, str) or not 0 < len(given) <= 64:
+        raise InvalidField(f"{loc}.unit: a unit name (1 to 64 characters)", f"{loc}.unit")
+    ureg = registry()
+    try:
+        source = ureg.parse_units(given)
+    except Exception:
+        raise InvalidField(f"{loc}.unit: unknown unit {given!r}", f"{loc}.unit") from None
+    target = ureg.parse_units(unit)
+    try:
+        converted = float(ureg.Quantity(number, source).to(target).magnitude)
+    except Exception:
+        raise InvalidField(
+            f"{loc}: {number} {given} is {_dimension(source)}, not {_dimension(target)} [{unit}]",
+            loc,
+        ) from None
+    if not math.isfinite(converted):
+        raise InvalidField(f"{loc}: {number} {given} is not finite in {unit}", loc)
+    return converted
+
+
+def convert_fields(model: type[Any], data: Any) -> Any:
+    """The fields of ``data`` (a request model's input) that hold quantities, converted to
+    the SI unit their description states; lists element by element; a profile member by
+    the holder's unit (coefficients[k] per s^k).  Other input is returned unchanged."""
+    if not isinstance(data, dict):
+        return data
+    out: dict[str, Any] | None = None
+    for name, description in _candidates(model):  # type: ignore[arg-type]
+        value = data.get(name)
+        # only an object can be a quantity: plain numbers never reach pint
+        if not (isinstance(value, dict) or (isinstance(value, list) and _objects(value))):
+            continue
+        unit = si_unit(description)
+        if unit is None:
+            continue
+        if out is None:
+            out = dict(data)
+        if isinstance(value, list):
+            out[name] = [to_si(v, unit, f"{name}.{i}") for i, v in enumerate(value)]
+        elif isinstance(value, dict) and _is_profile(value):
+            out[name] = convert_profile(value, unit, name)
+        else:
+            out[name] = to_si(value, unit, name)
+    return data if out is None else out
+
+
+@functools.cache
+def _candidates(model: type[Any]) -> tuple[tuple[str, str], ...]:
+    """The fields of ``model`` whose description has a bracket (a unit, perhaps), with
+    it: the only ones :func:`convert_fields` looks at (read once per model)."""
+    return tuple(
+        (name, field.description)
+        for name, field in model.model_fields.items()
+        if field.description and "[" in field.description
+    )
+
+
+def _is_profile(value: dict[str, Any]) -> bool:
+    """A profile (its kind, or the kind left to its default: a constant's ``value``)."""
+    if "unit" in value:
+        return False
+    return value.get("kind") in PROFILE_KINDS or (
+        "kind" not in value and bool(set(value) & {*PROFILE_MEMBERS, "coefficients"})
+    )
+
+
+def _objects(values: list[Any]) -> bool:
+    return any(isinstance(v, dict) for v in values)
+
+
+def convert_profile(profile: dict[str, Any], unit: str, loc: str) -> dict[str, Any]:
+    """A profile's members in ``unit`` (the holder's), coefficients[k] in unit/s^k."""
+    out = dict(profile)
+    for name in PROFILE_MEMBERS:
+        if name in out:
+            value = out[name]
+            where = f"{loc}.{name}"
+            out[name] = (
+                [to_si(v, unit, f"{where}.{i}") for i, v in enumerate(value)]
+                if isinstance(value, list)
+                else to_si(value, unit, where)
+            )
+    if isinstance(out.get("coefficients"), list):
+        out["coefficients"] = [
+            to_si(c, f"({unit}) / s ** {k}" if k else unit, f"{loc}.coefficients.{k}")
+            for k, c in enumerate(out["coefficients"])
+        ]
+    return out
+
+
+def quantity_json_schema(
+    schema: dict[str, Any], model: type[Any], quantity: dict[str, Any]
+) -> dict[str, Any]:
+    """``schema`` (a request model's validation JSON schema) with each field that takes a
+    quantity offered as either its number or ``quantity`` (the schema, or its reference,
+    of :data:`QUANTITY_SCHEMA`)."""
+    props = schema.get("properties", {})
+    profile = "kind" in model.model_fields  # a profile's members take the holder's unit
+    for name, field in model.model_fields.items():
+        key = field.alias or name
+        member = profile and name in (*PROFILE_MEMBERS, "coefficients")
+        if key not in props or not (member or si_unit(field.description) is not None):
+            continue
+        prop = props[key]
+        if prop.get("type") == "number":
+            props[key] = _either(prop, quantity)
+        elif prop.get("type") == "array" and prop.get("items", {}).get("type") == "number":
+            prop["items"] = _either(prop["items"], quantity)
+        elif "anyOf" in prop and any(p.get("type") == "number" for p in prop["anyOf"]):
+            prop["anyOf"] = [
+                _either(p, quantity) if p.get("type") == "number" else p for p in prop["anyOf"]
+            ]
+    return schema
+
+
+def _either(number: dict[str, Any], quantity: dict[str, Any]) -> dict[str, Any]:
+    """A number schema or a quantity; the field's description and default stay outside."""
+    outer: dict[str, Any] = {
+        k: number.pop(k) for k in ("title", "description", "default") if k in number
+    }
+    return {"anyOf": [number, dict(quantity)], **outer}
+
+
+class Quantity(BaseModel):
+    """The JSON form of a quantity (:data:`QUANTITY_SCHEMA`): one named schema that every
+    field taking a unit refers to.  Not a validator: :func:`to_si` reads the objects."""
+
+    model_config = ConfigDict(
+        title="Quantity", extra="forbid", json_schema_extra=lambda s, _: s.update(QUANTITY_SCHEMA)
+    )
+
+    value: float
+    unit: str

@@ -1,0 +1,156 @@
+"""Quantities with their unit on input (pipeflow.schema.units, issue 24).
+
+The conversions are checked against factors written out here (1 rpm = 2 pi / 60 rad/s,
+1 Hz = 2 pi rad/s, 1 bar = 1e5 Pa, 1 mm = 1e-3 m), at 1e-15 relative (one or two
+roundings of a product).  The cache key is computed from the canonical form, which holds
+the SI number: the same physics in rpm or rad/s is one key.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import pytest
+from pydantic import ValidationError
+
+from pipeflow.errors import InvalidField
+from pipeflow.schema.frequency import HAMMER_EXAMPLE, FrequencyResponseSpec
+from pipeflow.schema.keys import canonical_key
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
+from pipeflow.schema.stability import StabilitySpec
+from pipeflow.schema.units import si_unit
+
+
+def _body(**changes: Any) -> dict[str, Any]:
+    body = copy.deepcopy(PAPER_EXAMPLE)
+    for path, value in changes.items():
+        node = body
+        *parents, last = path.split("__")
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[last] = value
+    return body
+
+
+def _key(body: dict[str, Any]) -> str:
+    return canonical_key("simulation", SimulationSpec.model_validate(body).canonical())
+
+
+def test_rpm_and_rad_per_s_give_the_same_key() -> None:
+    rpm = _body(rotation__omega0={"kind": "constant", "value": {"value": 3000, "unit": "rpm"}})
+    rad = _body(rotation__omega0={"kind": "constant", "value": 100 * math.pi})
+    hz = _body(rotation__omega0={"kind": "constant", "value": {"value": 50, "unit": "Hz"}})
+    spec = SimulationSpec.model_validate(rpm)
+    assert spec.rotation.omega0.value == pytest.approx(3000 * 2 * math.pi / 60, rel=1e-15)
+    assert _key(rpm) == _key(rad) == _key(hz)
+    assert _key(rpm) != _key(_body())  # 100 rad/s is another case
+
+
+@pytest.mark.parametrize(
+    ("path", "quantity", "si"),
+    [
+        ("pipe__L", {"value": 25, "unit": "mm"}, 0.025),
+        ("pipe__E", {"value": 7.8, "unit": "GPa"}, 7.8e9),
+        ("pipe__M1", {"value": 0.1884, "unit": "g/m"}, 1.884e-4),
+        ("pipe__I", {"value": 12.1, "unit": "mm^4"}, 1.21e-11),
+        ("initial__u0", {"value": 1, "unit": "mm"}, 1e-3),
+        ("time__t_end", {"value": 250, "unit": "ms"}, 0.25),
+        ("output__divergence_bound", {"value": 2, "unit": "mm"}, 2e-3),
+        ("output__positions", [{"value": 12.5, "unit": "mm"}, 0.02], [0.0125, 0.02]),
+    ],
+)
+def test_a_quantity_is_converted_to_the_fields_si_unit(path: str, quantity: Any, si: Any) -> None:
+    spec = SimulationSpec.model_validate(_body(**{path: quantity}))
+    node: Any = spec
+    for p in path.split("__"):
+        node = getattr(node, p)
+    assert node == pytest.approx(si, rel=1e-15)
+
+
+def test_profile_members_take_the_holders_unit() -> None:
+    """Polynomial coefficients c_k in unit/s^k: 40 cm/s^2 is 0.4 m/s^2."""
+    body = _body(
+        flow__velocity={"kind": "polynomial", "coefficients": [0, {"value": 40, "unit": "cm/s^2"}]}
+    )
+    assert SimulationSpec.model_validate(body).flow.velocity.coefficients == pytest.approx(
+        [0.0, 0.4], rel=1e-15
+    )
+    assert _key(body) == _key(_body())  # the paper's v = 0.4 t
+
+
+def test_pressure_in_bar_and_frequencies_in_hz_elsewhere() -> None:
+    stab = StabilitySpec.model_validate(
+        {
+            "pipe": {**PAPER_EXAMPLE["pipe"], "E": {"value": 78000, "unit": "bar"}},
+            "velocity_range": [0, {"value": 108, "unit": "km/h"}],
+        }
+    )
+    assert stab.pipe.E == pytest.approx(7.8e9, rel=1e-15)
+    assert stab.velocity_range[1] == pytest.approx(30.0, rel=1e-15)
+    frf = FrequencyResponseSpec.model_validate(
+        {**HAMMER_EXAMPLE, "frequencies": {"values": [{"value": 10, "unit": "Hz"}, 5.0]}}
+    )
+    assert frf.frequencies.values == pytest.approx([20 * math.pi, 5.0], rel=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("path", "quantity", "field", "words"),
+    [
+        ("pipe__L", {"value": 3, "unit": "rpm"}, ("pipe", "L"), "not a length [m]"),
+        (
+            "rotation__omega0",
+            {"kind": "constant", "value": {"value": 3, "unit": "m"}},
+            ("rotation", "omega0", "value"),
+            "is a length, not",
+        ),
+        ("pipe__E", {"value": 3, "unit": "furlongs per bogus"}, ("pipe", "E", "unit"), "unknown"),
+        ("pipe__E", {"value": 3, "unit": "Pa", "x": 1}, ("pipe", "E"), "'unit'"),
+        ("pipe__E", {"value": "3", "unit": "Pa"}, ("pipe", "E", "value"), "finite number"),
+        ("pipe__L", {"value": -25, "unit": "mm"}, ("pipe", "L"), "greater than 0"),
+    ],
+)
+def test_a_wrong_quantity_is_refused_naming_the_field(
+    path: str, quantity: Any, field: tuple[str, ...], words: str
+) -> None:
+    with pytest.raises(ValidationError) as err:
+        SimulationSpec.model_validate(_body(**{path: quantity}))
+    (e,) = err.value.errors()
+    cause = (e.get("ctx") or {}).get("error")
+    loc = tuple(e["loc"]) + (cause.loc if isinstance(cause, InvalidField) else ())
+    assert loc == field, e
+    assert words in e["msg"], e["msg"]
+
+
+def test_the_schema_offers_the_quantity_form_where_a_unit_applies() -> None:
+    top = SimulationSpec.model_json_schema()
+    schema = top["$defs"]
+    length = schema["PipeSpec"]["properties"]["L"]
+    assert length["anyOf"][0]["type"] == "number"
+    assert length["anyOf"][1] == {"$ref": "#/$defs/Quantity"}
+    assert schema["Quantity"]["required"] == ["value", "unit"]
+    assert "[m]" in length["description"]
+    assert top["properties"]["modes"]["type"] == "integer"  # no unit
+    # one schema in both modes (no -Input/-Output split of echoed request models)
+    answer = SimulationSpec.model_json_schema(mode="serialization")["$defs"]["PipeSpec"]
+    assert answer["properties"]["L"] == length
+
+
+def test_units_are_read_from_the_descriptions() -> None:
+    assert si_unit("Pipe length [m].") == "m"
+    assert si_unit("[v_min, v_max] flow velocities [m/s], increasing") == "m/s"
+    assert si_unit("Viscous ratio [-] (eq. (3.1), [1/s])") is None
+    assert si_unit("Number of modes.") is None
+
+
+def test_a_constant_profile_without_its_kind_is_not_a_quantity() -> None:
+    """{"value": 100} is a constant spin whose kind is left to its default (the stability
+    form sends it so), not a quantity missing its unit."""
+    body = {"pipe": PAPER_EXAMPLE["pipe"], "velocity_range": [0, 60]}
+    spec = StabilitySpec.model_validate({**body, "rotation": {"omega0": {"value": 100}}})
+    assert spec.rotation.omega0.value == 100
+    rpm = {"omega0": {"value": {"value": 955, "unit": "rpm"}}}
+    assert StabilitySpec.model_validate({**body, "rotation": rpm}).rotation.omega0.value == (
+        pytest.approx(955 * 2 * math.pi / 60, rel=1e-15)
+    )

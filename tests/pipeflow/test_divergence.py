@@ -1,0 +1,140 @@
+"""Runs that leave the linear model's range stop there (pipeflow.divergence, issue 24).
+
+At v = 40 m/s the paper's pipe (w0 = 100 rad/s) is past its critical velocity, 27.69 m/s:
+the flutter branch grows at sigma = 1694 1/s and the unstopped history overflowed double
+precision (1e304 m for a 25 mm pipe) before this module.  Now the run stops at the first
+sample whose |u| passes the bound, with status 'diverged', that time and the growth rate.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from pipeflow.divergence import DEFAULT_RANGE, default_bound, divergence
+from pipeflow.errors import InvalidInput
+from pipeflow.model import Loading, build_model
+from pipeflow.paper import PAPER_PIPE, PAPER_PIPE_JSON
+from pipeflow.profiles import Constant, polynomial
+from pipeflow.schema import documents
+from pipeflow.schema.simulation import SimulationSpec
+from pipeflow.simulation import Simulation, simulate
+
+L = PAPER_PIPE.L
+
+
+def _flutter(**kw: object) -> Simulation:
+    base: dict[str, object] = dict(
+        flow=Constant(40.0), spin=Constant(100.0), u0=1e-6, modes=10, t_end=0.02, samples=4001
+    )
+    base.update(kw)
+    return Simulation(PAPER_PIPE, **base)  # type: ignore[arg-type]
+
+
+def test_past_the_critical_velocity_the_run_stops_with_time_and_growth_rate() -> None:
+    """u0 = 1 um starts the tip at 2.7 um; the default bound is 0.1 L = 2.5 mm.  The
+    growth rate reported is the largest real part of the eigenvalues of S at that time,
+    computed here again by scipy.linalg.eigvals (1e-9 relative: two LAPACK calls on one
+    matrix agree to rounding times its condition); the history's own growth over its
+    last 2 ms, a log-linear fit of its successive peaks, agrees with it to 3% (the decaying
+    branches are e^-(1694+185) x 2 ms ~ 1e-2 of the flutter one by then)."""
+    sim = _flutter()
+    r = simulate(sim)
+    assert r.status == "diverged"
+    assert r.divergence_bound == pytest.approx(DEFAULT_RANGE * L, rel=1e-15)
+    assert r.t[-1] == r.divergence_time and r.t.size < sim.samples
+    assert abs(r.tip_displacement[-1]) > r.divergence_bound
+    assert np.all(np.abs(r.tip_displacement[:-1]) <= r.divergence_bound)
+
+    model = build_model(PAPER_PIPE, sim.modes)
+    S = model.state_matrix(Loading(sim.flow, sim.spin).coefficients(np.array([r.t[-1]])))[0]
+    sigma = float(scipy.linalg.eigvals(S).real.max())
+    assert sigma == pytest.approx(1694.26, rel=1e-5)
+    assert r.divergence_growth_rate == pytest.approx(sigma, rel=1e-9)
+
+    late = r.t >= r.t[-1] - 2e-3
+    u = np.abs(r.tip_displacement[late])
+    peaks = np.flatnonzero((u[1:-1] > u[:-2]) & (u[1:-1] >= u[2:])) + 1
+    assert peaks.size >= 3
+    slope = np.polyfit(r.t[late][peaks], np.log(u[peaks]), 1)[0]
+    assert slope == pytest.approx(sigma, rel=0.03)
+
+    doc = documents.simulation(r)
+    assert doc["status"] == "diverged" and doc["divergence_growth_rate"] == r.divergence_growth_rate
+    assert len(doc["t"]) == r.t.size
+    json.dumps(doc, allow_nan=False)  # every number finite
+
+
+def test_the_history_up_to_the_stop_is_the_unstopped_run() -> None:
+    """The stop is post-processing: the samples kept are the run's own (same solver, same
+    grid), compared with a run whose bound is never reached to 1e-12 of the bound."""
+    sim = _flutter(t_end=0.006, samples=1201)
+    r = simulate(sim)
+    whole = simulate(dataclasses.replace(sim, divergence_bound=1e300))
+    assert whole.status == "diverging" and whole.t.size == sim.samples
+    k = r.t.size
+    np.testing.assert_allclose(r.d, whole.d[:k], rtol=0, atol=1e-12 * r.divergence_bound)
+    assert np.abs(whole.tip_displacement[k - 1]) > r.divergence_bound
+
+
+def test_a_stable_run_is_unchanged() -> None:
+    """The paper's example (v = 0.4 t, stable) never nears the bound (2 x 2.72 mm): the
+    same history, status and warnings as with no bound at all, every sample kept."""
+    sim = Simulation(PAPER_PIPE, flow=polynomial(0, 0.4), spin=Constant(100.0), t_end=0.3)
+    r = simulate(sim)
+    free = simulate(dataclasses.replace(sim, divergence_bound=1e300))
+    assert r.status == free.status == "ok"
+    assert r.divergence_time is None and r.divergence_growth_rate is None
+    assert r.t.size == sim.samples
+    np.testing.assert_array_equal(r.tip_displacement, free.tip_displacement)  # same process
+    assert r.warnings == free.warnings
+    assert r.divergence_bound == pytest.approx(2 * r.initial_tip_displacement, rel=1e-15)
+
+
+def test_a_station_past_the_bound_stops_the_run_and_is_named() -> None:
+    """Any output station counts, not only the tip: a bound between the station's and
+    the tip's largest |u| stops at the station's first sample past it."""
+    sim = _flutter(t_end=0.006, samples=1201, positions=(0.0125,), divergence_bound=1e300)
+    whole = simulate(sim)
+    station, tip = np.abs(whole.displacements[0]), np.abs(whole.tip_displacement)
+    bound = 0.5 * float(station.max())
+    expected = int(np.flatnonzero((station > bound) | (tip > bound))[0])
+    r = simulate(dataclasses.replace(sim, divergence_bound=bound))
+    assert r.t.size == expected + 1
+    model = build_model(PAPER_PIPE, sim.modes)
+    stop = divergence(
+        whole.t,
+        np.zeros_like(tip),  # the tip never passes: the station is named
+        whole.displacements,
+        np.array([0.0125]),
+        bound,
+        model,
+        Loading(sim.flow, sim.spin),
+    )
+    assert stop is not None and stop.where == "x = 0.0125 m"
+    assert stop.index == int(np.flatnonzero(station > bound)[0])
+
+
+def test_default_bound() -> None:
+    assert default_bound(0.025, 0.0) == pytest.approx(0.0025)
+    assert default_bound(0.025, 0.0027244) == pytest.approx(0.0054488)
+
+
+@pytest.mark.parametrize("bound", [0.0, -1.0, float("inf"), float("nan")])
+def test_a_bound_that_is_not_a_positive_length_is_refused(bound: float) -> None:
+    with pytest.raises(InvalidInput) as err:
+        simulate(_flutter(divergence_bound=bound))
+    assert err.value.parameter == "divergence_bound"
+
+
+def test_the_request_field_carries_the_bound_in_metres() -> None:
+    spec = SimulationSpec.model_validate(
+        {"pipe": dict(PAPER_PIPE_JSON), "output": {"divergence_bound": 0.002}}
+    )
+    assert spec.to_simulation().divergence_bound == 0.002
+    schema = SimulationSpec.model_json_schema()["$defs"]["OutputSpec"]["properties"]
+    assert "[m]" in schema["divergence_bound"]["description"]
