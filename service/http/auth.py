@@ -154,7 +154,10 @@ class Authenticate(HttpMiddleware):
 
     async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         state = scope.setdefault("state", {})
-        state["principal"] = None
+        if self.settings.auth_required:
+            state["principal"] = None  # only a verified key names one
+        else:
+            state.setdefault("principal", None)  # an outer layer's identity is kept
         path = scope["path"]
         if not self.settings.auth_required or not protected(path, self.settings):
             await self.app(scope, receive, send)
