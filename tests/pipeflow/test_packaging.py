@@ -53,7 +53,7 @@ def test_results_do_not_load_the_presentation_layer() -> None:
 def test_dependencies_and_extras() -> None:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     base = {d.split(">")[0].split("=")[0] for d in project["dependencies"]}
-    assert base == {"numpy", "scipy", "pydantic", "rfc8785"}
+    assert base == {"numpy", "scipy", "pydantic", "rfc8785", "pint"}  # pint: units on input
     extras = project["optional-dependencies"]
     assert {"service", "client", "plots", "dev"} <= set(extras)
     assert any(d.startswith("fastapi") for d in extras["service"])
