@@ -266,11 +266,13 @@ def _tip_history(w: NDArray[np.complex128], a: NDArray[np.complex128], t: FloatA
 
 def time_variant(sim: Simulation) -> bool:
     """Whether :func:`time_variant_summaries` computes ``sim`` itself: flow or spin varying
-    in time, method ``magnus`` or ``auto``, no external loads and no mode shapes asked for."""
+    in time, method ``magnus`` or ``auto``, no external loads, no mode shapes and no output
+    stations asked for."""
     return (
         sim.method in STACKED_METHODS
         and not sim.loads
         and not sim.mode_shape_times
+        and not sim.positions  # a station may pass the divergence bound before the tip
         and not (sim.flow.is_constant and sim.spin.is_constant)
     )
 
@@ -406,17 +408,25 @@ def _varying_row(
     if not np.all(np.isfinite(Z)):
         return None  # the single run reports the overflow and the finite prefix
     model, sim = case.model, case.sim
-    tip = model.from_balanced(Z)[0] @ model.tip
-    peak = float(np.max(np.abs(tip)))
-    bound = sim.divergence_bound if sim.divergence_bound is not None else sim.pipe.L
+    tip = np.abs(model.from_balanced(Z)[0] @ model.tip)
+    # the linear model's range as simulate applies it (pipeflow.divergence): the history
+    # stops at the first sample past the bound, the peak taken up to there
+    bound = sim.divergence_bound
+    if bound is None:
+        bound = default_bound(sim.pipe.L, float(tip[0]))
+    if np.any(np.abs(tip - bound) <= THRESHOLD_RTOL * bound):
+        return None
+    over = tip > bound
     xi, last = final
-    sigma = float(np.max(last.real))
-    level = float(MARGINAL_RTOL * np.max(np.abs(last)))
-    if abs(abs(sigma) - level) <= THRESHOLD_RTOL * level:
-        return None
-    if abs(peak - bound) <= THRESHOLD_RTOL * bound:
-        return None
-    growing = bool(max_growth_rates(last) > 0)
-    diverging = growing or peak > bound
-    status = SimulationStatus.DIVERGING if diverging else SimulationStatus.OK
+    if over.any():
+        peak = float(np.max(tip[: int(np.argmax(over)) + 1]))
+        status = SimulationStatus.DIVERGED
+    else:
+        peak = float(np.max(tip))
+        sigma = float(np.max(last.real))
+        level = float(MARGINAL_RTOL * np.max(np.abs(last)))
+        if abs(abs(sigma) - level) <= THRESHOLD_RTOL * level:
+            return None
+        growing = bool(max_growth_rates(last) > 0)
+        status = SimulationStatus.DIVERGING if growing else SimulationStatus.OK
     return CaseSummary(peak, float(xi.real), float(xi.imag), str(result.method), str(status))

@@ -78,6 +78,8 @@ which propagates Z' = S(t) Z over a period.
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -434,124 +436,16 @@ class Magnus(Solver):
     error_advice: ClassVar[str] = "use a smaller tolerance or step"
 
     def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
-        loading, t = problem.loading, problem.t
-        opts = problem.options
-        dt = np.diff(t)
-        t_end = float(t[-1])
-        N = problem.model.size
-        scale = float(np.linalg.norm(problem.z0)) or 1.0
-        if problem.loads is not None:
-            scale = load_scale(problem)
-        gen = MagnusGenerator(problem.model, loading, scale, problem.loads)
-        invariant = gen.invariant
-        budget = step_budget(opts)
-        step = given_step(opts)
-        if step is None and not (0 < opts.tolerance < 1):
-            raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
-        h0 = step if step is not None else t_end / PILOT_STEPS
-        # bounded in floating point before the cast; the error check's run with twice the
-        # step takes half as many again, and when it may refine (no user step) the run with
-        # four times the step a quarter: the first run gets 2/3 or 4/7 of the budget
-        refines = step is None
-        first = budget if invariant else (4 * budget) // 7 if refines else (2 * budget) // 3
-        substeps = step_counts(dt, h0, first, "magnus", step is not None)
-        if dt.size == 1 and not invariant:
-            substeps = np.maximum(substeps, 2)  # the check needs a coarser run to compare with
-        warnings: list[str] = []
-        exps = 0
-        attempts = 0
-        estimate = 0.0
-        rate = 4.0
-        method = ""
-        previous: tuple[FloatArray, int] | None = None
-        while True:
-            attempts += 1
-            self._check_budget(int(substeps.sum()), budget, dt, substeps, opts.tolerance)
-            if invariant:
-                plan = StepPlan(substeps, np.full(dt.size, 4, dtype=np.int64))
-            else:
-                orders, used = choose_orders(gen, t, substeps)
-                exps += used
-                plan = StepPlan(substeps, orders)
-            Zaug, used = propagate(problem, gen, t, plan)
-            exps += used
-            if invariant:
-                break
-            if previous is not None:
-                # a refinement: the previous attempt is the coarser run of the check (no
-                # fresh run with twice the step); Richardson with the step ratio at the
-                # slowest rate a refinement is assumed to converge at, REFINED_FLOOR_RATE
-                # = 2: not the observed rate, which before the asymptotic regime
-                # under-estimated the error 5x (paper example forced from rest: 1.3e-9 for a
-                # true 7.2e-9), nor log2(RICHARDSON_DIVISOR + 1) = 2.32 as the first check,
-                # which under-reported there too (6.9e-9 for 7.2e-9: the error fell 4.8x
-                # from 2,000 to 4,000 steps, not 5x)
-                Zprev, steps_prev = previous
-                ratio = plan.steps / steps_prev
-                d1 = relative_difference(Zprev, Zaug[:, :N], N)
-                floor_rate = REFINED_FLOOR_RATE
-                estimate = d1 / max(ratio**floor_rate - 1.0, 1e-300)
-                method = (
-                    f"difference from the previous attempt ({steps_prev} steps, step ratio "
-                    f"{ratio:.3g}) over ratio^{floor_rate:.2f} - 1"
-                )
-            else:
-                # Richardson-type check: the same orders with twice and four times the step
-                idx, coarse = plan.coarse(t)
-                idx2, coarser = coarse.coarse(t[idx])
-                # the run with four times the step is counted too when it may be made (the
-                # estimate asks for a refinement, never with a user step)
-                check = coarse.steps + (coarser.steps if refines else 0)
-                self._check_budget(plan.steps + check, budget, dt, substeps, opts.tolerance)
-                Zc, used = propagate(problem, gen, t[idx], coarse)
-                exps += used
-                d1 = relative_difference(Zc, Zaug[idx], N)
-                estimate = d1 / RICHARDSON_DIVISOR
-                method = (
-                    f"difference from a run with twice the step, divided by {RICHARDSON_DIVISOR:g}"
-                )
-            # the rounding of the sequential propagation (one unit roundoff per step, a
-            # bound of its random walk of ~20 eps sqrt(steps) past 400 steps): below it
-            # two runs cannot tell their errors apart (4 modes, 38,400 steps: a difference
-            # of 1e-14, a true error of 1e-13)
-            estimate += plan.steps * ROUNDING_PER_STEP
-            if step is not None or estimate <= opts.tolerance:
-                break
-            if attempts >= MAX_ATTEMPTS or not math.isfinite(estimate):
-                warnings.append(
-                    f"magnus could not verify the tolerance {opts.tolerance:.3g}: estimated "
-                    f"relative error {estimate:.3g} after {attempts} attempts"
-                )
-                break
-            if previous is None:
-                # the rate observed against a run with four times the step (not h^4: it
-                # over- or under-shoots while h |xi_max| > pi)
-                Zcc, used = propagate(problem, gen, t[idx][idx2], coarser)
-                exps += used
-                rate = observed_rate(d1, Zc[idx2], Zcc, N, int(plan.order.max()))
-            # refine by the factor that brings the estimate to SAFETY * tolerance at that
-            # rate, spread over the intervals (no rounding up to whole multiples)
-            factor = (estimate / (SAFETY * opts.tolerance)) ** (1.0 / rate)
-            previous = (Zaug[:, :N].copy(), plan.steps)
-            substeps = _substeps(dt, h0, budget, factor, substeps)
-        Z = Zaug[:, :N].copy()
-        h_used = dt / plan.substeps
-        stats.steps, stats.attempts, stats.matrix_exponentials = plan.steps, attempts, exps
-        diagnostics: dict[str, Any] = {
-            "time_invariant": invariant,
-            "step_source": "step" if opts.step is not None else "tolerance",
-            "step_max": float(h_used.max()),
-            "step_min": float(h_used.min()),
-            "steps_order_6": int(plan.substeps[plan.order == 6].sum()),
-            "tolerance": opts.tolerance,
-            "estimated_relative_error": estimate,
-            "error_estimate_method": (
-                "exact for constant coefficients (rounding only)"
-                if invariant
-                else f"{method}, plus one unit roundoff per step (rounding)"
-            ),
-        }
-        return SolverOutput(z=Z, diagnostics=diagnostics, warnings=warnings)
+        """Drive :func:`step_control` with :func:`propagate` (the stacked solver of
+        :mod:`pipeflow.solvers.magnus_stack` drives the same control over many problems)."""
+        control = step_control(problem, stats)
+        run = next(control)
+        try:
+            while True:
+                run = control.send(propagate(problem, run.gen, run.t, run.plan))
+        except StopIteration as stop:
+            out: SolverOutput = stop.value
+            return out
 
     @staticmethod
     def _check_budget(
@@ -572,9 +466,7 @@ def propagate(
 ) -> tuple[FloatArray, int]:
     """Augmented states at the times ``t`` [s] following ``plan``, and the exponentials used."""
     Zaug = np.empty((t.size, gen.size))
-    z = problem.z0.astype(float)
-    if gen.forced:
-        z = np.append(z, gen.scale)
+    z = augmented_initial_state(problem, gen)
     Zaug[0] = z
     dt = np.diff(t)
     if gen.invariant:
@@ -660,3 +552,149 @@ def _substeps(
             count = np.ceil(current * factor)
     count = np.nan_to_num(count, nan=budget + 1.0, posinf=budget + 1.0)
     return np.clip(count, 1, budget + 1).astype(np.int64)
+
+
+@dataclass
+class MagnusRun:
+    """One propagation :func:`step_control` asks for: ``plan`` over the output times ``t``
+    [s] with the generators ``gen``, from the problem's initial state."""
+
+    gen: MagnusGenerator
+    t: FloatArray
+    plan: StepPlan
+
+
+#: :func:`step_control`'s type: yields runs, is sent (states, exponentials used)
+StepControl = Generator[MagnusRun, tuple[FloatArray, int], SolverOutput]
+
+
+def step_control(problem: Problem, stats: SolverStats) -> StepControl:
+    """The step control of :class:`Magnus` for one problem, as a generator: it yields each
+    propagation it needs (a :class:`MagnusRun`) and is sent back the augmented states at
+    the run's output times and the exponentials used; it returns the solver's output.
+    One definition for the single run (:meth:`Magnus._solve_impl`, which sends
+    :func:`propagate`'s answers) and the stacked runs of a study
+    (:mod:`pipeflow.solvers.magnus_stack`, which propagates many problems' runs at once)."""
+    loading, t = problem.loading, problem.t
+    opts = problem.options
+    dt = np.diff(t)
+    t_end = float(t[-1])
+    N = problem.model.size
+    scale = float(np.linalg.norm(problem.z0)) or 1.0
+    if problem.loads is not None:
+        scale = load_scale(problem)
+    gen = MagnusGenerator(problem.model, loading, scale, problem.loads)
+    invariant = gen.invariant
+    budget = step_budget(opts)
+    step = given_step(opts)
+    if step is None and not (0 < opts.tolerance < 1):
+        raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
+    h0 = step if step is not None else t_end / PILOT_STEPS
+    # bounded in floating point before the cast; the error check's run with twice the
+    # step takes half as many again, and when it may refine (no user step) the run with
+    # four times the step a quarter: the first run gets 2/3 or 4/7 of the budget
+    refines = step is None
+    first = budget if invariant else (4 * budget) // 7 if refines else (2 * budget) // 3
+    substeps = step_counts(dt, h0, first, "magnus", step is not None)
+    if dt.size == 1 and not invariant:
+        substeps = np.maximum(substeps, 2)  # the check needs a coarser run to compare with
+    warnings: list[str] = []
+    exps = 0
+    attempts = 0
+    estimate = 0.0
+    rate = 4.0
+    method = ""
+    previous: tuple[FloatArray, int] | None = None
+    while True:
+        attempts += 1
+        Magnus._check_budget(int(substeps.sum()), budget, dt, substeps, opts.tolerance)
+        if invariant:
+            plan = StepPlan(substeps, np.full(dt.size, 4, dtype=np.int64))
+        else:
+            orders, used = choose_orders(gen, t, substeps)
+            exps += used
+            plan = StepPlan(substeps, orders)
+        Zaug, used = yield MagnusRun(gen, t, plan)
+        exps += used
+        if invariant:
+            break
+        if previous is not None:
+            # a refinement: the previous attempt is the coarser run of the check (no
+            # fresh run with twice the step); Richardson with the step ratio at the
+            # slowest rate a refinement is assumed to converge at, REFINED_FLOOR_RATE
+            # = 2: not the observed rate, which before the asymptotic regime
+            # under-estimated the error 5x (paper example forced from rest: 1.3e-9 for a
+            # true 7.2e-9), nor log2(RICHARDSON_DIVISOR + 1) = 2.32 as the first check,
+            # which under-reported there too (6.9e-9 for 7.2e-9: the error fell 4.8x
+            # from 2,000 to 4,000 steps, not 5x)
+            Zprev, steps_prev = previous
+            ratio = plan.steps / steps_prev
+            d1 = relative_difference(Zprev, Zaug[:, :N], N)
+            floor_rate = REFINED_FLOOR_RATE
+            estimate = d1 / max(ratio**floor_rate - 1.0, 1e-300)
+            method = (
+                f"difference from the previous attempt ({steps_prev} steps, step ratio "
+                f"{ratio:.3g}) over ratio^{floor_rate:.2f} - 1"
+            )
+        else:
+            # Richardson-type check: the same orders with twice and four times the step
+            idx, coarse = plan.coarse(t)
+            idx2, coarser = coarse.coarse(t[idx])
+            # the run with four times the step is counted too when it may be made (the
+            # estimate asks for a refinement, never with a user step)
+            check = coarse.steps + (coarser.steps if refines else 0)
+            Magnus._check_budget(plan.steps + check, budget, dt, substeps, opts.tolerance)
+            Zc, used = yield MagnusRun(gen, t[idx], coarse)
+            exps += used
+            d1 = relative_difference(Zc, Zaug[idx], N)
+            estimate = d1 / RICHARDSON_DIVISOR
+            method = f"difference from a run with twice the step, divided by {RICHARDSON_DIVISOR:g}"
+        # the rounding of the sequential propagation (one unit roundoff per step, a
+        # bound of its random walk of ~20 eps sqrt(steps) past 400 steps): below it
+        # two runs cannot tell their errors apart (4 modes, 38,400 steps: a difference
+        # of 1e-14, a true error of 1e-13)
+        estimate += plan.steps * ROUNDING_PER_STEP
+        if step is not None or estimate <= opts.tolerance:
+            break
+        if attempts >= MAX_ATTEMPTS or not math.isfinite(estimate):
+            warnings.append(
+                f"magnus could not verify the tolerance {opts.tolerance:.3g}: estimated "
+                f"relative error {estimate:.3g} after {attempts} attempts"
+            )
+            break
+        if previous is None:
+            # the rate observed against a run with four times the step (not h^4: it
+            # over- or under-shoots while h |xi_max| > pi)
+            Zcc, used = yield MagnusRun(gen, t[idx][idx2], coarser)
+            exps += used
+            rate = observed_rate(d1, Zc[idx2], Zcc, N, int(plan.order.max()))
+        # refine by the factor that brings the estimate to SAFETY * tolerance at that
+        # rate, spread over the intervals (no rounding up to whole multiples)
+        factor = (estimate / (SAFETY * opts.tolerance)) ** (1.0 / rate)
+        previous = (Zaug[:, :N].copy(), plan.steps)
+        substeps = _substeps(dt, h0, budget, factor, substeps)
+    Z = Zaug[:, :N].copy()
+    h_used = dt / plan.substeps
+    stats.steps, stats.attempts, stats.matrix_exponentials = plan.steps, attempts, exps
+    diagnostics: dict[str, Any] = {
+        "time_invariant": invariant,
+        "step_source": "step" if opts.step is not None else "tolerance",
+        "step_max": float(h_used.max()),
+        "step_min": float(h_used.min()),
+        "steps_order_6": int(plan.substeps[plan.order == 6].sum()),
+        "tolerance": opts.tolerance,
+        "estimated_relative_error": estimate,
+        "error_estimate_method": (
+            "exact for constant coefficients (rounding only)"
+            if invariant
+            else f"{method}, plus one unit roundoff per step (rounding)"
+        ),
+    }
+    return SolverOutput(z=Z, diagnostics=diagnostics, warnings=warnings)
+
+
+def augmented_initial_state(problem: Problem, gen: MagnusGenerator) -> FloatArray:
+    """The state :func:`propagate` starts from: the problem's, with the forcing's scale
+    appended when ``gen`` is forced (the spin's acceleration or loads)."""
+    z = problem.z0.astype(float)
+    return np.append(z, gen.scale) if gen.forced else z

@@ -6,14 +6,11 @@ same step plans, order choices, error estimates, refinements and diagnostics (th
 of :meth:`Magnus._solve_impl`, step for step), with the propagations of all problems that
 are at the same stage done together.
 
-How.  Each problem's step control is a generator (:func:`_control`, the batched version of
-``Magnus._solve_impl``: that method calls :func:`~pipeflow.solvers.magnus.propagate`
-inline, so it could not be reused here without editing ``magnus.py``; its logic is the
-same line for line, and tests/pipeflow/test_batch.py checks that :func:`solve_one`, the
-generator driven by the single run's ``propagate``, gives ``Magnus.solve``'s output bit
-for bit, loads and constant coefficients included: ``_solve_impl`` could be that driver).
+How.  Each problem's step control is :func:`~pipeflow.solvers.magnus.step_control`, the
+generator ``Magnus._solve_impl`` itself drives with the single run's
+:func:`~pipeflow.solvers.magnus.propagate` (one definition of the control).
 Where the single run propagates, the generator yields the run it needs (its generator,
-output times, plan and initial state) and is sent the states back.  The driver collects
+output times and plan) and is sent the states back.  The driver collects
 the pending runs of every problem, groups those on the same output times and state size,
 and propagates each group by :func:`propagate_stack`: per window of output intervals, the
 step exponentials of all the group's runs with the same sub-step count and order in one
@@ -31,41 +28,25 @@ are already one batched exponential or differ in shape.
 
 from __future__ import annotations
 
-import math
 import time
 from collections import defaultdict
-from collections.abc import Generator, Sequence
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow._types import FloatArray
-from pipeflow.errors import InvalidInput
 from pipeflow.linalg import expm_stack, product_of_steps
 from pipeflow.solvers.base import (
     Problem,
     SolverOutput,
     SolverStats,
-    given_step,
-    relative_difference,
-    step_budget,
-    step_counts,
 )
 from pipeflow.solvers.magnus import (
-    MAX_ATTEMPTS,
-    PILOT_STEPS,
-    RICHARDSON_DIVISOR,
-    SAFETY,
-    Magnus,
-    MagnusGenerator,
-    StepPlan,
-    _substeps,
-    choose_orders,
-    load_scale,
-    observed_rate,
-    propagate,
+    MagnusRun,
+    StepControl,
+    augmented_initial_state,
+    step_control,
 )
 
 #: most runs propagated together (bounds the window's propagators: 16 runs x 256
@@ -88,153 +69,19 @@ def stackable(problem: Problem) -> bool:
     return problem.loads is None and not problem.loading.is_time_invariant
 
 
-@dataclass
-class _Run:
-    """One propagation a problem's control asks for: ``plan`` over the output times ``t``
-    [s] from the augmented initial state ``z0``."""
-
-    gen: MagnusGenerator
-    t: FloatArray
-    plan: StepPlan
-    z0: FloatArray
-
-
-_Control = Generator[_Run, tuple[FloatArray, int], SolverOutput]
-
-
-def _control(problem: Problem, stats: SolverStats) -> _Control:
-    """The step control of :meth:`Magnus._solve_impl` for one problem, yielding its
-    propagations (see the module docstring); returns the solver's output.
-
-    Complete (constant coefficients and external loads included): :func:`solve_one`
-    drives it with the single run's :func:`~pipeflow.solvers.magnus.propagate` and gives
-    ``Magnus.solve``'s output (tested), so ``Magnus._solve_impl`` could become that driver
-    (one definition of the control) when ``magnus.py`` is next edited."""
-    loading, t = problem.loading, problem.t
-    opts = problem.options
-    dt = np.diff(t)
-    t_end = float(t[-1])
-    N = problem.model.size
-    scale = float(np.linalg.norm(problem.z0)) or 1.0
-    if problem.loads is not None:
-        scale = load_scale(problem)
-    gen = MagnusGenerator(problem.model, loading, scale, problem.loads)
-    invariant = gen.invariant
-    z0 = problem.z0.astype(float)
-    if gen.forced:
-        z0 = np.append(z0, gen.scale)
-    budget = step_budget(opts)
-    step = given_step(opts)
-    if step is None and not (0 < opts.tolerance < 1):
-        raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
-    h0 = step if step is not None else t_end / PILOT_STEPS
-    refines = step is None
-    first = budget if invariant else (4 * budget) // 7 if refines else (2 * budget) // 3
-    substeps = step_counts(dt, h0, first, "magnus", step is not None)
-    if dt.size == 1 and not invariant:
-        substeps = np.maximum(substeps, 2)
-    warnings: list[str] = []
-    exps = 0
-    attempts = 0
-    estimate = 0.0
-    rate = 4.0
-    method = ""
-    previous: tuple[FloatArray, int] | None = None
-    while True:
-        attempts += 1
-        Magnus._check_budget(int(substeps.sum()), budget, dt, substeps, opts.tolerance)
-        if invariant:
-            plan = StepPlan(substeps, np.full(dt.size, 4, dtype=np.int64))
-        else:
-            orders, used = choose_orders(gen, t, substeps)
-            exps += used
-            plan = StepPlan(substeps, orders)
-        Zaug, used = yield _Run(gen, t, plan, z0)
-        exps += used
-        if invariant:
-            break
-        if previous is not None:
-            Zprev, steps_prev = previous
-            ratio = plan.steps / steps_prev
-            d1 = relative_difference(Zprev, Zaug[:, :N], N)
-            floor_rate = math.log2(RICHARDSON_DIVISOR + 1.0)
-            estimate = d1 / max(ratio**floor_rate - 1.0, 1e-300)
-            method = (
-                f"difference from the previous attempt ({steps_prev} steps, step ratio "
-                f"{ratio:.3g}) over ratio^{floor_rate:.2f} - 1"
-            )
-        else:
-            idx, coarse = plan.coarse(t)
-            idx2, coarser = coarse.coarse(t[idx])
-            check = coarse.steps + (coarser.steps if refines else 0)
-            Magnus._check_budget(plan.steps + check, budget, dt, substeps, opts.tolerance)
-            Zc, used = yield _Run(gen, t[idx], coarse, z0)
-            exps += used
-            d1 = relative_difference(Zc, Zaug[idx], N)
-            estimate = d1 / RICHARDSON_DIVISOR
-            method = f"difference from a run with twice the step, divided by {RICHARDSON_DIVISOR:g}"
-        if step is not None or estimate <= opts.tolerance:
-            break
-        if attempts >= MAX_ATTEMPTS or not math.isfinite(estimate):
-            warnings.append(
-                f"magnus could not verify the tolerance {opts.tolerance:.3g}: estimated "
-                f"relative error {estimate:.3g} after {attempts} attempts"
-            )
-            break
-        if previous is None:
-            Zcc, used = yield _Run(gen, t[idx][idx2], coarser, z0)
-            exps += used
-            rate = observed_rate(d1, Zc[idx2], Zcc, N, int(plan.order.max()))
-        factor = (estimate / (SAFETY * opts.tolerance)) ** (1.0 / rate)
-        previous = (Zaug[:, :N].copy(), plan.steps)
-        substeps = _substeps(dt, h0, budget, factor, substeps)
-    h_used = dt / plan.substeps
-    stats.steps, stats.attempts, stats.matrix_exponentials = plan.steps, attempts, exps
-    diagnostics: dict[str, Any] = {
-        "time_invariant": invariant,
-        "step_source": "step" if opts.step is not None else "tolerance",
-        "step_max": float(h_used.max()),
-        "step_min": float(h_used.min()),
-        "steps_order_6": int(plan.substeps[plan.order == 6].sum()),
-        "tolerance": opts.tolerance,
-        "estimated_relative_error": estimate,
-        "error_estimate_method": (
-            "exact for constant coefficients (rounding only)" if invariant else method
-        ),
-    }
-    return SolverOutput(z=Zaug[:, :N].copy(), diagnostics=diagnostics, warnings=warnings)
-
-
-def solve_one(problem: Problem) -> SolverOutput:
-    """``Magnus.solve(problem)`` by :func:`_control` and the single run's
-    :func:`~pipeflow.solvers.magnus.propagate` (any problem, loads included)."""
-    started = time.perf_counter()
-    out = _finish([_drive_one(problem)], started)[0]
-    assert isinstance(out, SolverOutput)
-    return out
-
-
-def _drive_one(problem: Problem) -> tuple[SolverOutput, SolverStats]:
-    stats = SolverStats()
-    control = _control(problem, stats)
-    run = next(control)
-    try:
-        while True:
-            run = control.send(propagate(problem, run.gen, run.t, run.plan))
-    except StopIteration as stop:
-        return stop.value, stats
-
-
-def propagate_stack(runs: Sequence[_Run]) -> tuple[FloatArray, list[int]]:
-    """The augmented states of every run (same output times and state size) at its output
-    times, shape (runs, times, size), and the exponentials each used."""
+def propagate_stack(
+    runs: Sequence[MagnusRun], z0s: Sequence[FloatArray]
+) -> tuple[FloatArray, list[int]]:
+    """The states of every run (same output times and state size) from its initial state
+    in ``z0s`` at its output times, shape (runs, times, size), and the exponentials each
+    used."""
     t = runs[0].t
     n = runs[0].gen.size
     B = len(runs)
     dt = np.diff(t)
     K = dt.size
     Z = np.empty((B, t.size, n))
-    z = np.stack([r.z0 for r in runs])
+    z = np.stack(list(z0s))
     Z[:, 0] = z
     exps = [0] * B
     window = max(1, min(MAX_WINDOW, WINDOW_ENTRIES // (B * n * n)))
@@ -283,8 +130,8 @@ def solve_many(problems: Sequence[Problem]) -> list[SolverOutput | Exception]:
     started = time.perf_counter()
     out: list[SolverOutput | Exception | None] = [None] * len(problems)
     stats = [SolverStats() for _ in problems]
-    controls: dict[int, _Control] = {}
-    pending: dict[int, _Run] = {}
+    controls: dict[int, StepControl] = {}
+    pending: dict[int, MagnusRun] = {}
 
     def advance(i: int, sent: tuple[FloatArray, int] | None) -> None:
         try:
@@ -301,7 +148,7 @@ def solve_many(problems: Sequence[Problem]) -> list[SolverOutput | Exception]:
     for i, problem in enumerate(problems):
         if not stackable(problem):
             raise ValueError(f"problem {i} has loads or constant coefficients")
-        controls[i] = _control(problem, stats[i])
+        controls[i] = step_control(problem, stats[i])
         advance(i, None)
     while pending:
         groups: dict[tuple[bytes, int], list[int]] = defaultdict(list)
@@ -310,7 +157,10 @@ def solve_many(problems: Sequence[Problem]) -> list[SolverOutput | Exception]:
         for members in groups.values():
             for s in range(0, len(members), MAX_RUNS):
                 part = members[s : s + MAX_RUNS]
-                Z, used = propagate_stack([pending[i] for i in part])
+                Z, used = propagate_stack(
+                    [pending[i] for i in part],
+                    [augmented_initial_state(problems[i], pending[i].gen) for i in part],
+                )
                 for b, i in enumerate(part):
                     advance(i, (Z[b], used[b]))
     return _finish(list(zip(out, stats, strict=True)), started)

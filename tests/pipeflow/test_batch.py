@@ -37,7 +37,7 @@ from pipeflow.schema.study_runner import Piece, run_cases
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options, Problem, SolverOutput
 from pipeflow.solvers.base import relative_difference
-from pipeflow.solvers.magnus_stack import solve_many, solve_one
+from pipeflow.solvers.magnus_stack import solve_many
 
 RTOL = 1e-10
 
@@ -159,7 +159,7 @@ def test_time_variant_summaries_equal_the_single_runs() -> None:
     sims = _varying_cases()
     assert all(time_variant(s) for s in sims)
     statuses = _assert_rows_equal(sims, summaries(sims))
-    assert statuses == {"ok", "diverging"}
+    assert statuses == {"ok", "diverged"}  # the growing case passes the divergence bound
 
 
 def _problem(sim: Simulation) -> Problem:
@@ -177,43 +177,21 @@ def test_stacked_magnus_has_the_single_runs_control_and_diagnostics() -> None:
     for problem, out in zip(problems, stacked, strict=True):
         assert isinstance(out, SolverOutput)
         single = SOLVERS["magnus"].solve(problem)
-        ignore = {"solve_seconds"}
+        # the estimate is a difference of two runs' states (~1e-9 of them): the states'
+        # rounding (1e-16, different product orders in the stack) moves it by up to ~1e-7
+        # of itself; every other entry (steps, attempts, orders, method) is equal
+        ignore = {"solve_seconds", "estimated_relative_error"}
         assert {k: v for k, v in out.diagnostics.items() if k not in ignore} == {
             k: v for k, v in single.diagnostics.items() if k not in ignore
         }
+        assert out.diagnostics["estimated_relative_error"] == pytest.approx(
+            single.diagnostics["estimated_relative_error"], rel=1e-6
+        )
         assert out.warnings == single.warnings
         # the same steps and exponentials: rounding only (see the module docstring)
         assert relative_difference(out.z, single.z) <= 1e-12
         attempts.add(out.diagnostics["attempts"])
     assert max(attempts) > 1  # the refining control is exercised
-
-
-def test_the_stacks_step_control_is_the_single_runs() -> None:
-    """solve_one (the stack's control generator driven by the single run's propagate)
-    against Magnus.solve: identical states and diagnostics, bit for bit (the same
-    operations in the same order, in one process), on every kind of problem the single
-    run takes: time-variant, spin-up, refining, a user step, constant coefficients and
-    external loads."""
-    base = _varying_cases()[0]
-    load = PointForce(position=PAPER_PIPE.L, force=Harmonic(0.0, 1e-3, 50.0))
-    sims = [
-        *(_varying_cases()[i] for i in (0, 3, 8, 9)),
-        dataclasses.replace(base, flow=Constant(5.0)),  # constant coefficients
-        dataclasses.replace(base, loads=(load,)),
-    ]
-    for sim in sims:
-        problem = _problem(sim)
-        if sim.loads:
-            from pipeflow.loads import project_loads
-
-            problem = dataclasses.replace(problem, loads=project_loads(problem.model, sim.loads))
-        ours, single = solve_one(problem), SOLVERS["magnus"].solve(problem)
-        np.testing.assert_array_equal(ours.z, single.z)
-        drop = {"solve_seconds"}
-        assert {k: v for k, v in ours.diagnostics.items() if k not in drop} == {
-            k: v for k, v in single.diagnostics.items() if k not in drop
-        }, sim
-        assert ours.warnings == single.warnings
 
 
 @pytest.mark.slow  # ~9 s: DOP853 at rtol 1e-12 over three runs
