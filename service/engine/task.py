@@ -47,7 +47,7 @@ from pipeflow import parallel
 from pipeflow.errors import Cancelled, ErrorRecord, StorageError, classify
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
-from service.store import Claim, Store
+from service.store import Claim, Store, worker_store
 from service.store.memo import StoreMemo
 
 log = logging.getLogger("service.engine.task")
@@ -91,10 +91,6 @@ class TaskConfig:
     progress_interval_s: float  # heartbeat, progress and cancel-check period [s]
     stale_after_s: float  # a lease without heartbeat for this long is dead [s]
     grace_s: float  # past timeout_s + grace_s a silent computation is killed [s]
-
-
-_STORES: dict[str, Store] = {}
-_STORES_LOCK = threading.Lock()
 
 
 def _store(cfg: TaskConfig) -> Store:
@@ -454,14 +450,3 @@ def _compute(
         return ("ok", encoding.dumps(result), None)  # non-finite numbers -> null (the one rule)
     except Exception as exc:
         return ("error", None, ErrorRecord.internal(f"internal error: {type(exc).__name__}: {exc}"))
-
-
-def worker_store(db_url: str, cache_max_bytes: int) -> Store:
-    """One store per worker process and database (no migrations: the service ran them),
-    shared by the tasks (:func:`_store`) and by the memos their pieces carry
-    (:class:`service.store.memo.StoreMemo` reopens itself here)."""
-    with _STORES_LOCK:
-        store = _STORES.get(db_url)
-        if store is None:
-            store = _STORES[db_url] = Store(db_url, cache_max_bytes, 0, migrate=False)
-        return store

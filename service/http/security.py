@@ -8,9 +8,10 @@ framed by another site: no click-jacking), and ``Referrer-Policy: no-referrer``.
 sets its own policy where it serves something a browser renders: the pages
 (:data:`PAGE_CSP`: scripts, styles, images and fetches from this origin only, no inline
 script or style, which the viewer pages do not use), the documentation pages
-(:data:`DOCS_CSP`: they configure themselves inline) and SVG figures (:data:`SVG_CSP`: the
-inline styles matplotlib writes, no script).  Everything else (JSON, problem documents,
-tables, PNG) gets :data:`API_CSP`, which allows nothing to load.
+(:data:`DOCS_CSP`: they configure themselves inline), SVG figures (:data:`SVG_CSP`: the
+inline styles matplotlib writes, no script) and HTML reports (:data:`REPORT_CSP`).
+Everything else (JSON, problem documents, tables, PNG) gets :data:`API_CSP`, which
+allows nothing to load.
 """
 
 from __future__ import annotations
@@ -56,6 +57,12 @@ DOCS_CSP = policy(
 )
 #: an SVG figure opened on its own: matplotlib's inline styles, nothing else
 SVG_CSP = policy(default_src="'none'", style_src="'unsafe-inline'", form_action="'none'")
+
+#: a report page (pipeflow.io.report): one self-contained document, its inline styles and
+#: its figures as data: URLs, no script
+REPORT_CSP = policy(
+    default_src="'none'", style_src="'unsafe-inline'", img_src="data:", form_action="'none'"
+)
 
 #: the headers every answer carries (the CSP unless the route set its own)
 HEADERS = {

@@ -20,6 +20,7 @@ from pipeflow.io import animation, report
 from pipeflow.io.plots import PlotError
 from service.deps import StoreDep
 from service.http.problems import ProblemError, responses
+from service.http.security import REPORT_CSP
 from service.routes.exports import BINARY, _draw_lock, stored
 from service.schemas import KEY_PATTERN
 
@@ -60,6 +61,8 @@ async def get_result_report(
     """The report of the result stored under ``key``: a self-contained HTML page (figures
     embedded as PNG) or a PDF (matplotlib's PdfPages: the text, then one figure a page)."""
     headers, body = await stored(store, key, f'"{key}-report.{fmt}"', if_none_match)
+    if fmt == "html":  # opened in a browser: its inline styles and data: figures only
+        headers["Content-Security-Policy"] = REPORT_CSP
     if body is None:
         return Response(status_code=304, headers=headers)
     job = await asyncio.to_thread(store.get_job, key)

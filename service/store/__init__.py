@@ -16,6 +16,8 @@ reports not ready) and flips :attr:`Store.healthy` until a probe write succeeds 
 
 from __future__ import annotations
 
+import threading
+
 from service.store.connection import PROBE_BYTES, StoreConnection, sqlite_url
 from service.store.errors import StorageError, StoreRefused
 from service.store.jobs import (
@@ -47,6 +49,7 @@ __all__ = [
     "StoreRefused",
     "Usage",
     "sqlite_url",
+    "worker_store",
 ]
 
 
@@ -71,3 +74,18 @@ class Store(ResultStore, JobStore):
             done = self._finish(conn, key, "succeeded", None, owner)
         self._remember_put(items, evicted, keep=remember)
         return done
+
+
+_STORES: dict[str, Store] = {}
+_STORES_LOCK = threading.Lock()
+
+
+def worker_store(db_url: str, cache_max_bytes: int) -> Store:
+    """One store per worker process and database (no migrations: the service ran them),
+    shared by the tasks (:func:`service.engine.task._store`) and by the memos their pieces carry
+    (:class:`service.store.memo.StoreMemo` reopens itself here)."""
+    with _STORES_LOCK:
+        store = _STORES.get(db_url)
+        if store is None:
+            store = _STORES[db_url] = Store(db_url, cache_max_bytes, 0, migrate=False)
+        return store

@@ -14,7 +14,7 @@ write reports it).
 A memo travels with the pieces of a study to the workers that run them (each piece looks
 up and writes its own cases, :mod:`pipeflow.schema.study_runner`): it pickles as its
 store's URL and reopens as the worker process's own store of that database
-(:func:`service.engine.task.worker_store`), never as a copy of a connection.
+(:func:`service.store.worker_store`), never as a copy of a connection.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any
 import orjson
 
 from service import encoding
-from service.store import StorageError, Store
+from service.store import StorageError, Store, worker_store
 
 log = logging.getLogger("service.store")
 
@@ -58,6 +58,4 @@ class StoreMemo:
 
 def _reopen(url: str, cache_max_bytes: int) -> StoreMemo:
     """A pickled :class:`StoreMemo` in the process that unpickles it (a Dask worker)."""
-    from service.engine.task import worker_store  # the engine imports this module
-
     return StoreMemo(worker_store(url, cache_max_bytes))

@@ -39,6 +39,8 @@ def test_operations_errors_and_example() -> None:
         "getResult",
         "getResultPlot",
         "getResultTable",
+        "getResultReport",
+        "getResultModeShapeAnimation",
         "getHealth",
         "getReadiness",
         "getMetrics",

@@ -231,21 +231,24 @@ def test_stability_job_flow_shares_the_cache(api: TestClient) -> None:
 
 
 def test_saturated_503(tight: TestClient) -> None:
-    """All slots taken (one worker, no queue): 503 with Retry-After on every new endpoint."""
+    """All slots taken (one worker, no queue): 503 with Retry-After on the synchronous
+    endpoint; the job endpoints accept into the durable queue (202, issue 22 defect 4)."""
     busy = tight.post("/test/sleep-jobs", json={"seconds": 30, "tag": "stability-busy"})
     key = busy.json()["key"]
+    queued: list[str] = []
     try:
         wait_job(tight, key, until=lambda j: j["status"] == "running")
-        for path, body in (
-            ("/v1/stability", PAPER),
-            ("/v1/stability/jobs", PAPER),
-            ("/v1/sweeps", _sweep("argand")),
-        ):
+        resp = tight.post("/v1/stability", json=PAPER)
+        _problem(resp, 503)
+        assert resp.headers["retry-after"] == "3"
+        for path, body in (("/v1/stability/jobs", PAPER), ("/v1/sweeps", _sweep("argand"))):
             resp = tight.post(path, json=body)
-            _problem(resp, 503)
-            assert resp.headers["retry-after"] == "3"
+            assert resp.status_code == 202, resp.text
+            assert resp.json()["status"] == "queued"
+            queued.append(resp.json()["key"])
     finally:
-        tight.delete(f"/v1/jobs/{key}")
+        for k in (key, *queued):
+            tight.delete(f"/v1/jobs/{k}")
 
 
 # -- POST /v1/sweeps -------------------------------------------------------------------------
