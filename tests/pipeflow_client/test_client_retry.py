@@ -28,6 +28,9 @@ from pipeflow_client.client import retry_after_seconds
 from tests.live import uvicorn_server
 from tests.service.conftest import SMALL
 
+#: slow (CI's second step): a server of its own kept saturated: ~13 s
+pytestmark = pytest.mark.slow
+
 
 def _blocker(tag: float) -> dict[str, Any]:
     """Seconds of RK4 (10 modes, 15 s simulated): holds the only slot until cancelled;

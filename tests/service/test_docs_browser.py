@@ -17,6 +17,9 @@ import pytest
 
 from tests.live import ROOT
 
+#: slow (CI's second step): a real chromium and a server of its own: over 10 s a file
+pytestmark = pytest.mark.slow
+
 #: every operationId of the committed OpenAPI document (the pages must show them all)
 OPERATIONS = sorted(
     op["operationId"]

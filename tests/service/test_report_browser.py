@@ -15,6 +15,9 @@ import pytest
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from tests.service.browser import Page, open_page, page
 
+#: slow (CI's second step): a real chromium and a server of its own: over 10 s a file
+pytestmark = pytest.mark.slow
+
 __all__ = ["page"]
 
 

@@ -18,6 +18,9 @@ import pytest
 
 from tests.service.browser import Page, open_page, page
 
+#: slow (CI's second step): a real chromium and a server of its own: over 10 s a file
+pytestmark = pytest.mark.slow
+
 __all__ = ["page"]
 
 

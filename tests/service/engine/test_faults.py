@@ -155,6 +155,7 @@ def _fill(directory: Path, leave: int) -> Path:
     return filler
 
 
+@pytest.mark.slow  # over 8 s (CI's second step)
 def test_full_disk_answers_507_then_recovers(tiny_disk: Path) -> None:
     with make_client(tiny_disk, workers=1, retry_after_s=2, progress_interval_s=0.1) as c:
         wait_ready(c)

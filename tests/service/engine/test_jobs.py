@@ -124,6 +124,7 @@ def test_runtime_limit_fails_job(tight: TestClient) -> None:
     assert "runtime limit" in job["error"]["detail"]
 
 
+@pytest.mark.slow  # over 8 s (CI's second step)
 def test_watchdog_fails_silent_job(tight: TestClient) -> None:
     """A worker that never reports progress is stopped by the watchdog, and the pool recovers."""
     key = _sleep_job(tight, seconds=60, report=False, tag="silent")
@@ -157,6 +158,7 @@ def test_saturated_503(tight: TestClient) -> None:
     assert tight.post("/v1/simulations", json=SMALL).status_code == 200
 
 
+@pytest.mark.slow  # over 8 s (CI's second step)
 def test_post_after_delete_never_answers_a_dead_job(
     tmp_path: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
