@@ -12,6 +12,7 @@ exists and points at the API services.  The same topology runs as local processe
 from __future__ import annotations
 
 import importlib
+import json
 import re
 from pathlib import Path
 from typing import Any
@@ -166,3 +167,223 @@ def test_postgresql_driver_needs_no_system_libpq() -> None:
     impl, _, libs = out.stdout.partition(" ")
     assert impl == "binary"
     assert "psycopg_binary" in libs and "/lib/x86_64-linux-gnu/libpq" not in libs, libs
+
+
+# -- monitoring: Prometheus scrapes each replica and the scheduler, Grafana shows them -------
+
+MONITORING = ("prometheus", "grafana")
+#: PromQL keywords (operators and modifiers), which are not metric names
+_PROMQL_WORDS = {"bool", "and", "or", "unless", "offset", "on", "ignoring"}
+_PROMQL_WORDS |= {"by", "without", "group_left", "group_right"}
+
+
+def _mounts(service: dict[str, Any]) -> dict[str, tuple[str, str]]:
+    """``{container path: (host source, mode)}`` of a service's short-syntax volumes."""
+    out = {}
+    for volume in service.get("volumes", []):
+        source, target, *mode = volume.split(":")
+        out[target] = (source, mode[0] if mode else "rw")
+    return out
+
+
+def _prometheus_config(compose: dict[str, Any]) -> dict[str, Any]:
+    source, mode = _mounts(compose["services"]["prometheus"])["/etc/prometheus/prometheus.yml"]
+    assert mode == "ro"
+    doc: dict[str, Any] = yaml.safe_load((ROOT / source).read_text())
+    return doc
+
+
+def _jobs(config: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {job["job_name"]: job for job in config["scrape_configs"]}
+
+
+def _targets(job: dict[str, Any]) -> set[str]:
+    return {t for static in job["static_configs"] for t in static["targets"]}
+
+
+def test_prometheus_scrapes_each_replica_and_the_scheduler(compose: dict[str, Any]) -> None:
+    """Each API service by name (the proxy's /metrics would alternate between replicas),
+    with the bearer key compose gives Prometheus as a secret (auth stays on for /metrics),
+    and the scheduler's HTTP server on the port its command binds."""
+    services = compose["services"]
+    jobs = _jobs(_prometheus_config(compose))
+    assert set(jobs) == {"pipeflow-api", "dask-scheduler"}
+
+    apis = {
+        f"{name}:{_parse(s['command']).params['port']}"
+        for name, s in services.items()
+        if s.get("command", [None])[0] == "uvicorn"
+    }
+    assert apis == {"api1:8000", "api2:8000"}
+    api_job = jobs["pipeflow-api"]
+    assert _targets(api_job) == apis
+    assert not any(t.startswith("proxy:") for job in jobs.values() for t in _targets(job))
+    assert api_job.get("metrics_path", "/metrics") == "/metrics"
+
+    # /metrics needs a key in compose: Prometheus reads one from its secret file
+    for name in ("api1", "api2"):
+        env = services[name]["environment"]
+        assert env["PIPEFLOW_AUTH_REQUIRED"] == "true"
+        assert str(env.get("PIPEFLOW_METRICS_AUTH", "true")).lower() == "true"
+    auth = api_job["authorization"]
+    assert auth.get("type", "Bearer") == "Bearer" and "credentials" not in auth
+    (secret,) = services["prometheus"]["secrets"]
+    assert auth["credentials_file"] == f"/run/secrets/{secret}"
+    assert compose["secrets"][secret] == {"environment": "PIPEFLOW_METRICS_KEY"}
+
+    dashboard = _parse(services["scheduler"]["command"]).params
+    port = dashboard["dashboard_address"].rpartition(":")[2]
+    assert _targets(jobs["dask-scheduler"]) == {f"scheduler:{port}"}
+    assert "authorization" not in jobs["dask-scheduler"]
+
+
+def test_scheduler_dashboard_is_on_and_internal(compose: dict[str, Any]) -> None:
+    scheduler = compose["services"]["scheduler"]
+    assert "--no-dashboard" not in scheduler["command"]
+    params = _parse(scheduler["command"]).params
+    assert params["dashboard"] is True
+    host, _, port = params["dashboard_address"].rpartition(":")
+    assert host in ("", "0.0.0.0") and port.isdigit()  # every interface of the container
+    assert "ports" not in scheduler  # reachable on the compose network, not from the host
+
+
+def test_monitoring_services(compose: dict[str, Any]) -> None:
+    """Official images pinned by tag, configuration mounted read-only, the UIs published on
+    the host's loopback interface only; Grafana's provisioning points at the files."""
+    services = compose["services"]
+    for name in MONITORING:
+        service = services[name]
+        image, _, tag = service["image"].partition(":")
+        assert image in ("prom/prometheus", "grafana/grafana") and tag and tag != "latest"
+        assert "build" not in service
+        for port in service.get("ports", []):
+            assert port.startswith("127.0.0.1:"), (name, port)
+        assert "test" in service["healthcheck"], name
+
+    mounts = _mounts(services["grafana"])
+    provisioning, mode = mounts["/etc/grafana/provisioning"]
+    assert mode == "ro"
+    datasources = yaml.safe_load(
+        (ROOT / provisioning / "datasources" / "prometheus.yml").read_text()
+    )["datasources"]
+    (ds,) = datasources
+    assert ds["type"] == "prometheus" and ds["url"] == "http://prometheus:9090"
+    (provider,) = yaml.safe_load((ROOT / provisioning / "dashboards" / "pipeflow.yml").read_text())[
+        "providers"
+    ]
+    path = provider["options"]["path"]
+    source, mode = mounts[path]
+    assert mode == "ro"
+    files = sorted((ROOT / source).glob("*.json"))
+    assert files
+    for file in files:
+        dashboard = json.loads(file.read_text())
+        for panel in dashboard["panels"]:
+            assert panel["datasource"]["uid"] == ds["uid"], panel["title"]
+
+
+def _dashboard_metrics() -> dict[str, set[str]]:
+    """The metric names of every panel expression of the dashboards, by panel title."""
+    out: dict[str, set[str]] = {}
+    for file in sorted((ROOT / "deploy" / "grafana" / "dashboards").glob("*.json")):
+        for panel in json.loads(file.read_text())["panels"]:
+            names: set[str] = set()
+            for target in panel["targets"]:
+                names |= _metric_names(target["expr"])
+            assert names, panel["title"]
+            out[panel["title"]] = names
+    return out
+
+
+def _metric_names(expr: str) -> set[str]:
+    """Metric names of a PromQL expression: identifiers that are not functions, not in
+    label matchers, grouping clauses, ranges or strings, and not keywords."""
+    expr = re.sub(r'"[^"]*"', "", expr)
+    expr = re.sub(r"\{[^}]*\}|\[[^\]]*\]", "", expr)
+    expr = re.sub(r"\b(by|without|on|ignoring|group_left|group_right)\s*\([^)]*\)", "", expr)
+    names = set(re.findall(r"(?<![\w:.])([A-Za-z_:][\w:]*)\b(?!\s*\()", expr))
+    return names - _PROMQL_WORDS
+
+
+def test_metric_names_of_an_expression() -> None:
+    expr = (
+        'histogram_quantile(0.95, sum by (route, le) (rate(x_bucket{job="a", le=~"1"}'
+        "[$__rate_interval]))) / on (route) group_left y offset 5m"
+    )
+    assert _metric_names(expr) == {"x_bucket", "y"}
+
+
+def _exported(text: str) -> set[str]:
+    """Every sample name the exposition ``text`` can have, from its families' types (a
+    labelled metric with no child yet has a family and no sample)."""
+    from prometheus_client.parser import text_string_to_metric_families
+
+    suffixes = {
+        "counter": ("_total", "_created"),
+        "histogram": ("_bucket", "_count", "_sum", "_created"),
+        "summary": ("", "_count", "_sum", "_created"),
+    }
+    out: set[str] = set()
+    for family in text_string_to_metric_families(text):
+        out |= {family.name + s for s in suffixes.get(family.type, ("",))}
+        out |= {sample.name for sample in family.samples}
+    return out
+
+
+def test_dashboard_queries_what_the_service_exports(tmp_path: Path) -> None:
+    """Every ``pipeflow_*`` name of a panel is in a live app's GET /metrics; the other
+    names are the scheduler's (next test) or Prometheus' own ``up``."""
+    from tests.service.conftest import make_client
+
+    with make_client(tmp_path) as client:  # /metrics answers before the workers are warm
+        assert client.get("/healthz").status_code == 200
+        response = client.get("/metrics")
+    assert response.status_code == 200
+    exported = _exported(response.text)
+    used = _dashboard_metrics()
+    for title, names in used.items():
+        ours = {n for n in names if n.startswith("pipeflow_")}
+        assert ours <= exported, (title, ours - exported)
+        assert names - ours <= {"up"} | {n for n in names if n.startswith("dask_")}, title
+    everything = set().union(*used.values())
+    for family in ("http_requests_total", "http_request_duration_seconds_bucket"):
+        assert f"pipeflow_{family}" in everything
+    for gauge in ("in_flight", "queue_depth", "jobs", "workers"):
+        assert f"pipeflow_{gauge}" in everything
+    assert {"pipeflow_cache_lookups_total", "pipeflow_computations_total"} <= everything
+
+
+def test_dashboard_queries_what_the_scheduler_exports(compose: dict[str, Any]) -> None:
+    """The ``dask_*`` names of the panels are in the /metrics of a ``dask scheduler`` run
+    with the compose file's options (on free local ports, without TLS)."""
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    from service.launch import free_port
+
+    command = compose["services"]["scheduler"]["command"]
+    port, http = free_port(), free_port()
+    args = [a for a in command[2:] if a not in ("--port", "--dashboard-address")]
+    args = [a for a in args if not a.startswith(":") and not a.isdigit()]
+    program = [sys.executable, "-m", "distributed.cli.dask_scheduler", *args]
+    program += ["--host", "127.0.0.1", "--port", str(port)]
+    program += ["--dashboard-address", f"127.0.0.1:{http}"]
+    proc = subprocess.Popen(program, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        end = time.monotonic() + 30
+        while True:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{http}/metrics", timeout=2) as r:
+                    text = r.read().decode()
+                break
+            except OSError:
+                assert time.monotonic() < end and proc.poll() is None, "no scheduler /metrics"
+                time.sleep(0.2)
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    exported = _exported(text)
+    dask = {n for names in _dashboard_metrics().values() for n in names if n.startswith("dask_")}
+    assert dask and dask <= exported, dask - exported
