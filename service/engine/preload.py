@@ -167,8 +167,8 @@ def warm_task(cfg: Any) -> int:
 
 def _open_stores() -> list[str]:
     """The database URLs this worker has a store open for (none before its first task)."""
-    task = sys.modules.get("service.engine.task")
-    return list(getattr(task, "_STORES", {}))
+    store = sys.modules.get("service.store")
+    return list(getattr(store, "_STORES", {}))
 
 
 def ping() -> dict[str, Any]:

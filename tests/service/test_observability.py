@@ -242,6 +242,7 @@ def test_live_server_logs_and_metrics_carry_the_request_id(tmp_path: Path) -> No
         "duration_ms": 0,
         "cache": "MISS",
         "key": key,
+        "principal": None,  # authentication is off: no key id (service.http.auth)
     }
     assert miss_line["duration_ms"] > 0
     hit_line = next(r for r in requests if r["request_id"] == hit_id)
