@@ -61,23 +61,6 @@ def _paper_and_explicit(name: str) -> tuple[Pipe, Pipe]:
 
 @pytest.mark.parametrize("name", ["paper", "unit"])
 @pytest.mark.parametrize("n", [3, 10, 17])
-def test_explicit_zero_extensions_build_the_same_model(name: str, n: int) -> None:
-    """Bit for bit, both computed in this process (no file): the new fields left out or given
-    explicitly as zero build identical arrays (same bits, same signs of zero: adding a zero
-    term can turn -0.0 into 0.0), because ``build_model`` adds an extension's term only when
-    its field is non-zero.  Built past ``build_model``'s cache (the two pipes compare equal,
-    so the cache would hand back one object)."""
-    pipe, explicit = _paper_and_explicit(name)
-    build = build_model.__wrapped__  # uncached: two separate computations
-    plain, zeros = build(pipe, n), build(explicit, n)
-    for a in ARRAYS:
-        new, same = getattr(plain, a), getattr(zeros, a)
-        assert np.array_equal(new, same) and np.array_equal(np.signbit(new), np.signbit(same)), a
-    assert not plain.C_0.any() and not zeros.C_0.any()
-
-
-@pytest.mark.parametrize("name", ["paper", "unit"])
-@pytest.mark.parametrize("n", [3, 10, 17])
 def test_defaults_reproduce_the_paper_model(name: str, n: int) -> None:
     """Against the arrays ``build_model`` wrote at commit a19ec21 (main before issue 14,
     ``data/paper_model_a19ec21.npz``), to 1e-13 of each array's largest entry: that file was
@@ -479,7 +462,9 @@ def test_heavily_damped_high_modes_keep_their_numbers() -> None:
     )
     assert np.allclose(np.abs(res.frozen.xi[0]), w[:2], rtol=1e-9)
     assert res.mode_shapes is not None
-    assert np.array_equal(res.mode_shapes.xi[0], res.frozen.xi[0])
+    # the mode shapes' eigenvalues are the traced spectrum's at t = 0 (one run, one process:
+    # the same decomposition; 1e-14 allows a different but equivalent evaluation order)
+    np.testing.assert_allclose(res.mode_shapes.xi[0], res.frozen.xi[0], rtol=1e-14, atol=0)
 
 
 @pytest.mark.parametrize(
