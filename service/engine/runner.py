@@ -628,6 +628,8 @@ class Runner:
             progress_interval_s=s.progress_interval_s,
             stale_after_s=s.stale_after_s,
             grace_s=max(self.watchdog_grace_s, 0.1 * s.job_timeout_s),
+            checkpoint_interval_s=s.checkpoint_interval_s,
+            checkpoint_max_bytes=s.checkpoint_max_bytes,
         )
 
     def _submit_task(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
