@@ -285,6 +285,28 @@ class JobStore(StoreConnection):
             job = self._job(conn, key)
         return job, True
 
+    def requeue_stale(self, stale_after_s: float) -> list[str]:
+        """Put back into the durable queue the jobs a replica took (or accepted to drive)
+        that no attempt has started and whose replica has not been heard of for
+        ``stale_after_s`` [s] (it died between taking and starting them): they wait again
+        for a free slot of any replica, in their turn, instead of being driven by whichever
+        replica notices first, beyond its slots.  Returns their keys."""
+        cond = [
+            jobs.c.status == "queued",
+            jobs.c.dispatcher.is_not(None),
+            jobs.c.owner.is_(None),
+            jobs.c.heartbeat.is_(None) | (jobs.c.heartbeat < time.time() - stale_after_s),
+        ]
+        with self._write() as conn:
+            keys = [r.key for r in conn.execute(select(jobs.c.key).where(*cond))]
+            if keys:
+                conn.execute(
+                    update(jobs)
+                    .where(jobs.c.key.in_(keys), *cond)
+                    .values(dispatcher=None, dispatched=None, heartbeat=time.time())
+                )
+        return keys
+
     def waiting_jobs(self) -> int:
         """Jobs in the durable queue (accepted, not yet taken by a replica)."""
         with self._read() as conn:
