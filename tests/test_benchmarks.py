@@ -217,3 +217,20 @@ def test_bench_http_smoke() -> None:
     )
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert "CSV written again / kept:" in done.stdout and "hit with key / without:" in done.stdout
+
+
+@pytest.mark.slow  # a benchmark's smoke run, 3-10 s
+def test_checkpoint_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-def]
+    """benchmarks/bench_checkpoint.py --smoke prints its two tables (it asserts itself that
+    the resumed states equal the whole run's); no timing is asserted."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_checkpoint.py"
+    spec = importlib.util.spec_from_file_location("pipeflow_bench_checkpoint", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--smoke"]) == 0
+    out = capsys.readouterr().out
+    for row in ("| plain |", "| idle |", "| memory |", "| sqlite |", "| from zero |"):
+        assert row in out, row
