@@ -71,7 +71,9 @@ class _Stop(Exception):
 
 def carried_by(blob: bytes) -> int:
     """Exponentials a resume from ``blob`` carries over (magnus's header)."""
-    head = decode(blob).header
+    snap = decode(blob)
+    assert snap is not None
+    head = snap.header
     return int(sum(head["exponentials"]) + head["partial"]["exponentials"])
 
 

@@ -47,7 +47,7 @@ import io
 import json
 import logging
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
@@ -141,13 +141,16 @@ def encode(header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> bytes
     return buf.getvalue()
 
 
-def decode(data: bytes) -> Snapshot:
-    """:func:`encode`'s blob read back (ValueError, KeyError, OSError if it is not one)."""
+def decode(data: bytes, wanted: Callable[[dict[str, Any]], bool] | None = None) -> Snapshot | None:
+    """:func:`encode`'s blob read back (ValueError, KeyError, OSError if it is not one);
+    with ``wanted``, None unless ``wanted(header)``, and the arrays are not read then."""
     with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-        arrays = {name: npz[name] for name in npz.files}
-    header = json.loads(arrays.pop("__header__").tobytes().decode())
-    if not isinstance(header, dict):
-        raise ValueError("checkpoint header is not an object")
+        header = json.loads(npz["__header__"].tobytes().decode())
+        if not isinstance(header, dict):
+            raise ValueError("checkpoint header is not an object")
+        if wanted is not None and not wanted(header):
+            return None
+        arrays = {name: npz[name] for name in npz.files if name != "__header__"}
     return Snapshot(header, arrays)
 
 
@@ -183,16 +186,20 @@ class Checkpointer:
         if not data:
             return None
         try:
-            snap = decode(data)
+            snap = decode(data, self._mine)
         except (ValueError, KeyError, OSError) as exc:
             log.warning("checkpoint unreadable, starting from zero: %s", exc)
             return None
-        head = snap.header
-        if head.get("format") != FORMAT or head.get("fingerprint") != self._print():
-            log.info("checkpoint of another solve (%s), not resumed from", head.get("solver"))
+        if snap is None:
+            log.info("checkpoint of another solve, not resumed from")
             return None
         self.last = time.monotonic()
         return snap
+
+    def _mine(self, header: dict[str, Any]) -> bool:
+        """Whether a blob with ``header`` was written by this very solve (the arrays of
+        another solve's blob are not read)."""
+        return header.get("format") == FORMAT and header.get("fingerprint") == self._print()
 
     def due(self) -> bool:
         """Whether a checkpoint should be written now (interval elapsed since the start or

@@ -159,8 +159,11 @@ def test_unreadable_checkpoint_starts_from_zero() -> None:
 
 def test_blob_round_trip() -> None:
     a = np.arange(6.0).reshape(2, 3)
-    snap = decode(encode({"k": 3, "name": "x"}, {"a": a}))
+    blob = encode({"k": 3, "name": "x"}, {"a": a})
+    snap = decode(blob)
+    assert snap is not None
     assert snap.header == {"k": 3, "name": "x"} and np.array_equal(snap.arrays["a"], a)
+    assert decode(blob, lambda header: header["k"] == 4) is None
 
 
 @pytest.mark.parametrize(("kill_at", "at_output"), [(1, False), (5, True), (7, False)])
