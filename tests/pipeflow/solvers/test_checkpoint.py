@@ -119,6 +119,33 @@ def test_magnus_resumes_where_it_was_interrupted_twice(exponentials: Callable[[]
     assert "resumed_from_time" not in whole.diagnostics
 
 
+@pytest.mark.parametrize(
+    "sim",
+    [
+        # auto runs magnus for time-variant flow: the same checkpoints
+        replace(PULSATING, method="auto"),
+        # a spin-up (forced: the state augmented by the forcing's scale) and v = 0.4 t
+        paper_sim(
+            polynomial(0, 0.4),
+            "magnus",
+            samples=801,
+            spin=polynomial(100.0, 200.0),
+            options=Options(tolerance=1e-9),
+        ),
+    ],
+    ids=["auto", "spin-up"],
+)
+def test_magnus_resume_other_problems(sim: Simulation) -> None:
+    whole = run(sim, None)
+    cp = Memory(kill_at=3)
+    interrupted(sim, cp)
+    cp.kill_at = None
+    resumed = run(sim, cp)
+    assert np.array_equal(resumed.d, whole.d) and np.array_equal(resumed.ddot, whole.ddot)
+    assert resumed.diagnostics["resumed_exponentials"] > 0
+    assert resumed.diagnostics["matrix_exponentials"] == whole.diagnostics["matrix_exponentials"]
+
+
 def test_magnus_checkpoints_only_after_the_interval() -> None:
     """A run shorter than the interval never saves (short runs do not pay); with an
     interval of 0 every window of 256 output intervals saves."""
