@@ -17,7 +17,8 @@ from service.store.checkpoints import StoreCheckpoints
 _keys = itertools.count()
 
 
-@pytest.fixture(params=["sqlite", "postgresql"])
+#: PostgreSQL: a cluster of its own for the module (2-5 s to start): CI's slow step
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.slow)])
 def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Store]:
     url = (
         request.getfixturevalue("postgres")
