@@ -217,3 +217,34 @@ def test_bench_http_smoke() -> None:
     )
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert "CSV written again / kept:" in done.stdout and "hit with key / without:" in done.stdout
+
+
+@pytest.mark.slow
+def test_bench_cold_paper_smoke() -> None:
+    """benchmarks/bench_cold_paper.py --rounds 2 (two real servers): the rows are printed,
+    and the servers' logs show each side where it claims to be: every computation of the
+    ``lane`` server in the API process, the paper example of the ``worker`` server
+    (``fast_lane_max_metered_s=0``) on its Dask worker (2 warm-up, 2 rounds; its 2 warm-up
+    LTI requests in its lane)."""
+    import ast
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, "benchmarks/bench_cold_paper.py", "--rounds", "2"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    for row in ("paper example, fast lane (metered)", "paper example, Dask worker", "LTI"):
+        assert f"| {row}" in done.stdout, done.stdout
+    counts = {
+        line.split(":")[0]: ast.literal_eval(line.split("lane/outcome ", 1)[1])
+        for line in done.stdout.splitlines()
+        if line.startswith("server ")
+    }
+    # (2 warm-up + 2 rounds) x (paper + LTI), all in the lane; no hand-off at 0.1 s
+    assert counts["server lane"] == {"api/ok": 8}, counts
+    assert counts["server worker"] == {"worker/ok": 4, "api/ok": 2}, counts
