@@ -124,6 +124,11 @@ def main(argv: list[str] | None = None) -> int:
             f"| {label} | {p50[side] * 1e3:.1f} ms | {what} {p50[ref] * 1e3:.1f} ms | "
             f"{p50[side] / p50[ref]:.2f}x | {paired(out, side, ref):.2f}x |"
         )
+    print(
+        "paper example, fast lane / Dask worker: ratio of p50s "
+        f"{p50['paper lane'] / p50['paper worker']:.2f}x, median per-round ratio "
+        f"{paired(out, 'paper lane', 'paper worker'):.2f}x"
+    )
     for name, counts in logs.items():
         print(f"server {name}: computations by lane/outcome {counts}")
     return 0
