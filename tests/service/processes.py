@@ -19,6 +19,8 @@ from service.settings import Settings
 from service.store import Job, Store
 
 TERMINAL = ("succeeded", "failed", "cancelled")
+#: heartbeat every 0.1 s, a lease without one for 2 s is dead: a recovery takes seconds
+FAST_RECOVERY = {"PIPEFLOW_PROGRESS_INTERVAL_S": "0.1", "PIPEFLOW_STALE_AFTER_S": "2"}
 
 
 def spawn(args: list[str], log: Path, **overrides: str) -> subprocess.Popen[bytes]:

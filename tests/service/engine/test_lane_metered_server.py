@@ -29,7 +29,7 @@ import pytest
 
 from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.simulation import PAPER_EXAMPLE
-from tests.service.processes import job_record, kill_group, server, wait_job
+from tests.service.processes import FAST_RECOVERY, job_record, kill_group, server, wait_job
 
 #: slow: real servers with a Dask cluster (5-15 s each to start), seconds of numerics
 pytestmark = pytest.mark.slow
@@ -48,8 +48,6 @@ LONG: dict[str, Any] = {
     "flow": {"velocity": {"kind": "harmonic", "mean": 2.0, "amplitude": 1.0, "frequency": 50.0}},
     "time": {"t_end": 4.0, "samples": 4001},
 }
-#: heartbeat every 0.1 s, a lease without one for 2 s is dead: the recovery takes seconds
-FAST_RECOVERY = {"PIPEFLOW_PROGRESS_INTERVAL_S": "0.1", "PIPEFLOW_STALE_AFTER_S": "2"}
 
 
 def _env(data_dir: Path, **more: str) -> dict[str, str]:

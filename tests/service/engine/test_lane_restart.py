@@ -18,13 +18,17 @@ from fastapi import FastAPI
 from service.launch import free_port
 from service.main import create_app
 from service.settings import Settings
-from tests.service.processes import job_record, kill_group, spawn, wait_http, wait_job
+from tests.service.processes import (
+    FAST_RECOVERY,
+    job_record,
+    kill_group,
+    spawn,
+    wait_http,
+    wait_job,
+)
 
 #: slow (two real servers started, one killed, a stale lease waited for: 15-30 s)
 pytestmark = pytest.mark.slow
-
-#: heartbeat every 0.1 s, a lease without one for 2 s is dead: the recovery takes seconds
-FAST_RECOVERY = {"PIPEFLOW_PROGRESS_INTERVAL_S": "0.1", "PIPEFLOW_STALE_AFTER_S": "2"}
 
 
 def create_app_with_test_routes() -> FastAPI:
