@@ -14,7 +14,10 @@ fast lane on, started as ``benchmarks/bench_cold_ab.py`` does):
   before the metered lane (the LTI case still in the lane).
 
 Each round, in a rotating order: a cold paper request to each server, a cold LTI request to
-the ``lane`` server, ``documents.simulation(simulate())`` of the paper example and
+the ``lane`` server, a cold request of the paper example at 501 samples to each server
+(``refined``: its step control plans a 13,500-step refinement past the lane's allowance, so
+the ``lane`` server hands it off to its worker: what a hand-off costs over going to the
+worker at once), ``documents.simulation(simulate())`` of the paper example and
 ``simulate()`` of the LTI case in this process (``bench_service.simulate_timer``).  Each
 request is a new key (u0 changed by 1e-9 relative).  Printed: the medians, their ratios,
 and the median of the per-round ratios (each request over the reference timed in the same
@@ -49,6 +52,11 @@ SERVERS: dict[str, dict[str, str]] = {
 }
 
 
+#: the paper example at 501 samples: 875 steps of pilot, check and rate (13 ms estimated),
+#: then a refinement of 13,500 steps (206 ms) past the default allowance (0.1 s)
+REFINED: dict[str, Any] = {**BENCH.PAPER, "time": {"t_end": 1.0, "samples": 501}}
+
+
 def where(log: Path) -> dict[str, int]:
     """``lane/outcome`` -> count of the ``computation finished`` lines in a server's log."""
     counts: dict[str, int] = {}
@@ -63,7 +71,16 @@ def measure(rounds: int) -> tuple[dict[str, list[float]], dict[str, dict[str, in
     paper_ref = BENCH.simulate_timer(BENCH.PAPER, True)
     lti_ref = BENCH.simulate_timer(BENCH.LTI)
     out: dict[str, list[float]] = {
-        k: [] for k in ("paper lane", "paper worker", "paper ref", "lti lane", "lti ref")
+        k: []
+        for k in (
+            "paper lane",
+            "paper worker",
+            "paper ref",
+            "lti lane",
+            "lti ref",
+            "refined lane",
+            "refined worker",
+        )
     }
     with tempfile.TemporaryDirectory(prefix="pipeflow-paper-") as tmp, ExitStack() as stack:
         urls = {}
@@ -74,6 +91,7 @@ def measure(rounds: int) -> tuple[dict[str, list[float]], dict[str, dict[str, in
         for url in urls.values():  # each server's first requests: not counted
             BENCH.cold_requests(client, url, BENCH.PAPER, 2, 10**6)
             BENCH.cold_requests(client, url, BENCH.LTI, 2, 10**6)
+            BENCH.cold_requests(client, url, REFINED, 1, 10**6)
         for _ in range(2):
             paper_ref(), lti_ref()
 
@@ -89,6 +107,8 @@ def measure(rounds: int) -> tuple[dict[str, list[float]], dict[str, dict[str, in
             "paper ref": lambda i: paper_ref(),
             "lti lane": lambda i: post(urls["lane"], BENCH.LTI, i),
             "lti ref": lambda i: lti_ref(),
+            "refined lane": lambda i: post(urls["lane"], REFINED, i),
+            "refined worker": lambda i: post(urls["worker"], REFINED, i),
         }
         names = list(steps)
         for r in range(rounds):
@@ -128,6 +148,12 @@ def main(argv: list[str] | None = None) -> int:
         "paper example, fast lane / Dask worker: ratio of p50s "
         f"{p50['paper lane'] / p50['paper worker']:.2f}x, median per-round ratio "
         f"{paired(out, 'paper lane', 'paper worker'):.2f}x"
+    )
+    print(
+        f"paper example at 501 samples (handed off by the lane server): lane server "
+        f"{p50['refined lane'] * 1e3:.1f} ms, worker server {p50['refined worker'] * 1e3:.1f} "
+        f"ms p50, ratio {p50['refined lane'] / p50['refined worker']:.2f}x, median per-round "
+        f"{paired(out, 'refined lane', 'refined worker'):.2f}x"
     )
     for name, counts in logs.items():
         print(f"server {name}: computations by lane/outcome {counts}")
