@@ -1,164 +1,162 @@
-"""The paper example's cold path: the options for its dispatch, measured in one process
-and one run (interleaved), against the library call that makes the same document.
+"""Cold requests over HTTP against the library call that makes the same document, in one
+run, interleaved: the paper example (issue 23's target: at most 1.15x
+``simulate().to_dict()``) and the LTI case (at most 5x ``simulate()``).
 
-    python benchmarks/bench_cold_paper.py --rounds 12
+    python benchmarks/bench_cold_paper.py --rounds 30
 
-The app runs in this process (``httpx.ASGITransport``, its lifespan: one Dask worker
-process, the fast lane on).  Each round, in a rotating order:
+Two real servers (``uvicorn service.main:app`` from this tree, one Dask worker each, the
+fast lane on, started as ``benchmarks/bench_cold_ab.py`` does):
 
-- ``dask``: a cold paper-example request as the service runs it today (time-variant: no
-  estimate, so a Dask worker computes it);
-- ``lane``: the same request with the simulation's run-time estimate replaced by 10 ms
-  for the round (what a time-variant estimate under ``fast_lane_max_s`` would do: a
-  thread of this process computes it);
-- ``simulate().to_dict()`` here (``bench_service.simulate_timer(PAPER, True)``);
-- a no-op Dask task (submit to result), unpinned and pinned to the worker
-  (``workers=[address]``: what a "warm pinned worker connection" can be in Dask, whose
-  tasks always pass through the scheduler), and a hop to a thread of this process.
+- ``lane``: the default settings: the paper example runs in the fast lane under the
+  allowance of metered work (``fast_lane_max_metered_s``), the LTI case in the lane by
+  its estimate;
+- ``worker``: ``fast_lane_max_metered_s=0``: the paper example on the Dask worker, as
+  before the metered lane (the LTI case still in the lane).
 
-During each request an asyncio task sleeps 1 ms in a loop; the largest lag past 1 ms is
-the event loop's worst wait in that request (a computation in the lane shares the GIL
-with the event loop; numpy's kernels release it).  Medians over the rounds.
+Each round, in a rotating order: a cold paper request to each server, a cold LTI request to
+the ``lane`` server, a cold request of the paper example at 501 samples to each server
+(``refined``: its step control plans a 13,500-step refinement past the lane's allowance, so
+the ``lane`` server hands it off to its worker: what a hand-off costs over going to the
+worker at once), ``documents.simulation(simulate())`` of the paper example and
+``simulate()`` of the LTI case in this process (``bench_service.simulate_timer``).  Each
+request is a new key (u0 changed by 1e-9 relative).  Printed: the medians, their ratios,
+and the median of the per-round ratios (each request over the reference timed in the same
+round: steadier when the machine's load drifts).  Where each computation ran is read from
+the servers' logs (``computation finished``: ``lane`` api | worker, ``outcome``).
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import os
 import sys
 import tempfile
-import time
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_name, "1")  # as the service pins them (before numpy loads)
+    os.environ.setdefault(_name, "1")  # as the service pins its workers (before numpy loads)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
-import bench_service as BENCH  # noqa: E402
+import bench_cold_ab as AB  # noqa: E402  (the server start)
+import bench_service as BENCH  # noqa: E402  (cases, timers, percentiles, log reading)
 import httpx  # noqa: E402
 
-from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
-from service.main import create_app  # noqa: E402
-from service.settings import Settings  # noqa: E402
+#: the servers: name -> settings other than the defaults (log lines say where it ran)
+SERVERS: dict[str, dict[str, str]] = {
+    "lane": {"log_level": "INFO"},
+    "worker": {"log_level": "INFO", "fast_lane_max_metered_s": "0"},
+}
 
 
-def _noop() -> int:
-    return 0
+#: the paper example at 501 samples: 875 steps of pilot, check and rate (13 ms estimated),
+#: then a refinement of 13,500 steps (206 ms) past the default allowance (0.1 s)
+REFINED: dict[str, Any] = {**BENCH.PAPER, "time": {"t_end": 1.0, "samples": 501}}
 
 
-async def _lagged(run: Any) -> tuple[float, float, Any]:
-    """(seconds of ``await run``, largest event-loop lag past a 1 ms sleep meanwhile, result)."""
-    lags: list[float] = [0.0]
-    done = False
-
-    async def probe() -> None:
-        while not done:
-            t0 = time.perf_counter()
-            await asyncio.sleep(0.001)
-            lags.append(time.perf_counter() - t0 - 0.001)
-
-    task = asyncio.create_task(probe())
-    t0 = time.perf_counter()
-    result = await run
-    seconds = time.perf_counter() - t0
-    done = True
-    await task
-    return seconds, max(lags), result
+def where(log: Path) -> dict[str, int]:
+    """``lane/outcome`` -> count of the ``computation finished`` lines in a server's log."""
+    counts: dict[str, int] = {}
+    for r in BENCH.log_records(log):
+        if r.get("message") == "computation finished":
+            name = f"{r.get('lane')}/{r.get('outcome')}"
+            counts[name] = counts.get(name, 0) + 1
+    return counts
 
 
-async def measure(rounds: int) -> dict[str, list[float]]:
-    sim = COMPUTATIONS["simulation"]
-    real_estimate = sim.run_time
-    lane = {"on": False}
-
-    def estimate(spec: Any) -> float | None:
-        return 0.01 if lane["on"] else (real_estimate(spec) if real_estimate else None)
-
-    object.__setattr__(sim, "run_time", estimate)  # a frozen dataclass: this run only
-    doc_ref = BENCH.simulate_timer(BENCH.PAPER, True)
+def measure(rounds: int) -> tuple[dict[str, list[float]], dict[str, dict[str, int]]]:
+    paper_ref = BENCH.simulate_timer(BENCH.PAPER, True)
+    lti_ref = BENCH.simulate_timer(BENCH.LTI)
     out: dict[str, list[float]] = {
-        k: [] for k in ("dask", "lane", "ref", "lag dask", "lag lane", "noop", "pinned", "hop")
-    }
-    with tempfile.TemporaryDirectory(prefix="pipeflow-paper-") as tmp:
-        app = create_app(
-            Settings(data_dir=tmp, workers=1, log_level="WARNING", fast_lane_max_s=0.5)
+        k: []
+        for k in (
+            "paper lane",
+            "paper worker",
+            "paper ref",
+            "lti lane",
+            "lti ref",
+            "refined lane",
+            "refined worker",
         )
-        async with app.router.lifespan_context(app):
-            runner = app.state.runner
-            while not runner.ready:
-                await asyncio.sleep(0.05)
-            identity = await runner.client.scheduler.identity()
-            address = next(iter(identity["workers"]))
-            transport = httpx.ASGITransport(app=app)
-            async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
+    }
+    with tempfile.TemporaryDirectory(prefix="pipeflow-paper-") as tmp, ExitStack() as stack:
+        urls = {}
+        for name, settings in SERVERS.items():
+            (Path(tmp) / name).mkdir()
+            urls[name] = AB.start(ROOT, settings, Path(tmp) / name, stack)
+        client = stack.enter_context(httpx.Client(timeout=120))
+        for url in urls.values():  # each server's first requests: not counted
+            BENCH.cold_requests(client, url, BENCH.PAPER, 2, 10**6)
+            BENCH.cold_requests(client, url, BENCH.LTI, 2, 10**6)
+            BENCH.cold_requests(client, url, REFINED, 1, 10**6)
+        for _ in range(2):
+            paper_ref(), lti_ref()
 
-                async def post(side: str, i: int) -> None:
-                    lane["on"] = side == "lane"
-                    before = runner.lane_runs
-                    seconds, lag, r = await _lagged(
-                        c.post("/v1/simulations", json=BENCH.variant(BENCH.PAPER, i))
-                    )
-                    if r.status_code != 200 or r.headers["x-cache"] != "MISS":
-                        raise RuntimeError(f"{r.status_code} {r.text[:300]}")
-                    if (runner.lane_runs > before) != (side == "lane"):
-                        raise RuntimeError(f"the {side} request went the other way")
-                    if i > 0:
-                        out[side].append(seconds)
-                        out[f"lag {side}"].append(lag)
+        def post(url: str, spec: dict[str, Any], i: int) -> float:
+            dt, r = BENCH.timed_post(client, url + "/v1/simulations", BENCH.variant(spec, i))
+            if r.headers.get("X-Cache") != "MISS":
+                raise RuntimeError("a cold request was answered from the cache")
+            return dt
 
-                for w in range(2):  # warm-up of both sides: not counted
-                    await post("lane", -(2 * w + 1))
-                    await post("dask", -(2 * w + 2))
-                for r in range(rounds):
-                    sides = ["dask", "lane", "ref"]
-                    for side in sides[r % 3 :] + sides[: r % 3]:
-                        if side == "ref":
-                            out["ref"].append(doc_ref())
-                        else:
-                            await post(side, 1 + 2 * r + (side == "lane"))
-                    for _ in range(5):
-                        t0 = time.perf_counter()
-                        await runner.client.submit(_noop, pure=False)
-                        out["noop"].append(time.perf_counter() - t0)
-                        t0 = time.perf_counter()
-                        await runner.client.submit(
-                            _noop, pure=False, workers=[address], allow_other_workers=False
-                        )
-                        out["pinned"].append(time.perf_counter() - t0)
-                        t0 = time.perf_counter()
-                        await asyncio.to_thread(_noop)
-                        out["hop"].append(time.perf_counter() - t0)
-    object.__setattr__(sim, "run_time", real_estimate)
-    return out
+        steps = {
+            "paper lane": lambda i: post(urls["lane"], BENCH.PAPER, i),
+            "paper worker": lambda i: post(urls["worker"], BENCH.PAPER, i),
+            "paper ref": lambda i: paper_ref(),
+            "lti lane": lambda i: post(urls["lane"], BENCH.LTI, i),
+            "lti ref": lambda i: lti_ref(),
+            "refined lane": lambda i: post(urls["lane"], REFINED, i),
+            "refined worker": lambda i: post(urls["worker"], REFINED, i),
+        }
+        names = list(steps)
+        for r in range(rounds):
+            for name in names[r % len(names) :] + names[: r % len(names)]:
+                out[name].append(steps[name](r + 1))
+        logs = {name: where(Path(tmp) / name / "server.log") for name in SERVERS}
+    return out, logs
+
+
+def paired(out: dict[str, list[float]], side: str, ref: str) -> float:
+    """Median over the rounds of ``side`` / ``ref`` measured in the same round."""
+    return BENCH.pct([a / b for a, b in zip(out[side], out[ref], strict=True)], 50)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rounds", type=int, default=12)
+    ap.add_argument("--rounds", type=int, default=30)
     args = ap.parse_args(argv)
     print(BENCH.machine(), flush=True)
-    out = asyncio.run(measure(args.rounds))
+    out, logs = measure(args.rounds)
     load = " ".join(f"{x:.1f}" for x in os.getloadavg())
     p50 = {k: BENCH.pct(v, 50) for k, v in out.items()}
-    ref = p50["ref"]
     print(f"load average at the end {load}; {args.rounds} rounds")
-    print("| paper example, cold | p50 | / simulate().to_dict() | event-loop lag p50 (max) |")
-    print("|---|---|---|---|")
-    print(f"| simulate().to_dict() here | {ref * 1e3:.1f} ms | 1.00x | |")
-    for side in ("dask", "lane"):
-        lag = out[f"lag {side}"]
+    print("| cold request | p50 | reference p50 | ratio of p50s | median per-round ratio |")
+    print("|---|---|---|---|---|")
+    rows = (
+        ("paper example, fast lane (metered)", "paper lane", "paper ref", "to_dict()"),
+        ("paper example, Dask worker", "paper worker", "paper ref", "to_dict()"),
+        ("LTI, fast lane", "lti lane", "lti ref", "simulate()"),
+    )
+    for label, side, ref, what in rows:
         print(
-            f"| {side} | {p50[side] * 1e3:.1f} ms | {p50[side] / ref:.2f}x | "
-            f"{p50[f'lag {side}'] * 1e3:.2f} ms ({max(lag) * 1e3:.2f} ms) |"
+            f"| {label} | {p50[side] * 1e3:.1f} ms | {what} {p50[ref] * 1e3:.1f} ms | "
+            f"{p50[side] / p50[ref]:.2f}x | {paired(out, side, ref):.2f}x |"
         )
     print(
-        f"no-op Dask task p50 {p50['noop'] * 1e3:.2f} ms, pinned to the worker "
-        f"{p50['pinned'] * 1e3:.2f} ms, a thread hop {p50['hop'] * 1e3:.3f} ms"
+        "paper example, fast lane / Dask worker: ratio of p50s "
+        f"{p50['paper lane'] / p50['paper worker']:.2f}x, median per-round ratio "
+        f"{paired(out, 'paper lane', 'paper worker'):.2f}x"
     )
+    print(
+        f"paper example at 501 samples (handed off by the lane server): lane server "
+        f"{p50['refined lane'] * 1e3:.1f} ms, worker server {p50['refined worker'] * 1e3:.1f} "
+        f"ms p50, ratio {p50['refined lane'] / p50['refined worker']:.2f}x, median per-round "
+        f"{paired(out, 'refined lane', 'refined worker'):.2f}x"
+    )
+    for name, counts in logs.items():
+        print(f"server {name}: computations by lane/outcome {counts}")
     return 0
 
 

@@ -107,6 +107,24 @@ class Cancelled(Exception):
     """Raised inside a solver when its progress callback asks it to stop."""
 
 
+class OverAllowance(Exception):
+    """Raised before metered work that would pass the allowance installed for it
+    (:func:`pipeflow.parallel.metered`): the computation stops having paid only the work
+    charged before, and its caller runs it again elsewhere (the service's fast lane hands
+    the job to a worker).  Not a failure of the computation or of the request.
+
+    ``spent_s`` [s]: estimated work charged so far; ``asked_s`` [s]: the work refused;
+    ``bound_s`` [s]: the allowance; ``what``: the work refused (e.g. a magnus propagation
+    of so many steps)."""
+
+    def __init__(self, spent_s: float, asked_s: float, bound_s: float, what: str) -> None:
+        super().__init__(
+            f"{what} (estimated {asked_s * 1e3:.3g} ms after {spent_s * 1e3:.3g} ms) would pass "
+            f"the allowance of {bound_s * 1e3:.3g} ms"
+        )
+        self.spent_s, self.asked_s, self.bound_s, self.what = spent_s, asked_s, bound_s, what
+
+
 class StorageError(Exception):
     """A read or write of a store failed (disk full, I/O error, database unreachable): the
     service's result store, or a memo behind a fan-out.

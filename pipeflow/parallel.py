@@ -13,6 +13,13 @@ A computation whose pieces are worth keeping on their own (the cases of a study)
 consult a :class:`Memo`: results of pieces already computed, by their key, looked up and
 stored in batches by the computation (the host's memo, e.g. the service's result store).
 
+Work whose cost is known only as it is planned (a solver's step control) can be metered:
+the solver calls :func:`charge` with its estimate before doing each part, and a caller that
+installed an allowance with :func:`metered` gets :class:`~pipeflow.errors.OverAllowance`
+raised before the part that would pass it (the service runs small computations in a thread
+of its API process this way and hands one that would pass its bound to a worker).  Without
+an allowance :func:`charge` does nothing.
+
 Pieces and their function must be picklable (module-level functions, plain data, numpy
 arrays, pydantic models): a host may run them in other processes or on other machines.
 """
@@ -23,8 +30,10 @@ import contextlib
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextvars import ContextVar
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol, TypeVar
+
+from pipeflow.errors import OverAllowance
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -92,6 +101,51 @@ def current_host() -> Host:
 def current_memo() -> Memo | None:
     """The memo installed by :func:`hosting`, if any."""
     return _MEMO.get()
+
+
+@dataclass
+class Allowance:
+    """A bound on the metered work of the computations in a :func:`metered` block and the
+    work they charged so far, both estimated on one core [s]."""
+
+    bound_s: float
+    spent_s: float = 0.0
+    #: the parts charged, in order: (what, estimated seconds) (diagnostics, tests)
+    charges: list[tuple[str, float]] = field(default_factory=list)
+
+    def charge(self, seconds: float, what: str) -> None:
+        """Count ``seconds`` of work about to be done; raises
+        :class:`~pipeflow.errors.OverAllowance` (counting nothing) if it would pass
+        :attr:`bound_s`."""
+        if self.spent_s + seconds > self.bound_s:
+            raise OverAllowance(self.spent_s, seconds, self.bound_s, what)
+        self.spent_s += seconds
+        self.charges.append((what, seconds))
+
+
+_ALLOWANCE: ContextVar[Allowance | None] = ContextVar("pipeflow_allowance", default=None)
+
+
+@contextlib.contextmanager
+def metered(bound_s: float) -> Iterator[Allowance]:
+    """Meter the work of the computations in this block against ``bound_s`` [s, estimated
+    on one core]: a :func:`charge` that would pass it raises
+    :class:`~pipeflow.errors.OverAllowance` before that work starts."""
+    allowance = Allowance(float(bound_s))
+    token = _ALLOWANCE.set(allowance)
+    try:
+        yield allowance
+    finally:
+        _ALLOWANCE.reset(token)
+
+
+def charge(seconds: float, what: str) -> None:
+    """Work of ``seconds`` [s, estimated on one core] is about to be done (``what`` names
+    it): counted against the allowance of the enclosing :func:`metered` block, which raises
+    :class:`~pipeflow.errors.OverAllowance` if it would pass it; nothing without one."""
+    allowance = _ALLOWANCE.get()
+    if allowance is not None:
+        allowance.charge(seconds, what)
 
 
 def fan_out(fn: Callable[[T], R], items: Sequence[T]) -> Iterator[tuple[int, R]]:

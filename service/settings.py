@@ -96,6 +96,19 @@ class Settings(BaseSettings):
         "(the computation's own estimate, for one core; kinds without an estimate never "
         "take it); larger ones go to a Dask worker.",
     )
+    fast_lane_max_metered_s: float = Field(
+        0.1,
+        ge=0,
+        le=10.0,
+        description="Allowance of metered work of a computation in the fast lane [s, "
+        "estimated on one core before each part runs]: a time-variant magnus simulation "
+        "(whose step count is known only as its step control plans it) takes the lane when "
+        "the rest of its work is estimated under fast_lane_max_s, and is charged each "
+        "propagation's estimate (steps x the cost of a step of its size) before it is "
+        "computed; the first one that would pass this allowance stops it there and its job "
+        "goes to a Dask worker (the record re-queued, computed once). 0: such runs always "
+        "go to a worker.",
+    )
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest accepted request body [bytes]; larger: 413."
     )

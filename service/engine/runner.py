@@ -54,6 +54,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from pipeflow.errors import ErrorRecord, StorageError
+from pipeflow.parallel import metered
 from pipeflow.schema.registry import COMPUTATIONS
 from service import observability
 from service.engine.preload import MODULE as PRELOAD
@@ -126,6 +127,17 @@ def _internal(message: str) -> dict[str, Any]:
     return ErrorRecord.internal(message).to_dict()
 
 
+def _run_in_lane(allowance_s: float | None, *args: Any) -> Outcome:
+    """:func:`run_job` (``args``) in a thread of the fast lane; with ``allowance_s`` [s]
+    its metered work is charged against it (:func:`pipeflow.parallel.metered`, a context
+    variable of this thread's run only), and the work that would pass it is not started:
+    the run ends ``handoff`` (:mod:`service.engine.task`)."""
+    if allowance_s is None:
+        return run_job(*args)
+    with metered(allowance_s):
+        return run_job(*args)
+
+
 class Runner:
     """The replica's side of the engine (the name is the routes' seam: ``RunnerDep``)."""
 
@@ -155,6 +167,7 @@ class Runner:
             )
         self._lane_busy = 0
         self.lane_runs = 0  # computations the fast lane ran (tests, diagnostics)
+        self.lane_handoffs = 0  # of those, stopped by their allowance and sent to a worker
         #: this replica's id in the job records it drives (``dispatcher``)
         self.replica = uuid.uuid4().hex
         self._kick = asyncio.Event()  # wakes the dispatcher (a job queued, a flight ended)
@@ -641,30 +654,47 @@ class Runner:
         self.computations += 1
         return self._execute(flight, job)
 
-    def _lane_takes(self, flight: Flight, job: Job | None) -> bool:
-        """Whether the fast lane runs this attempt: the lane is on and has a free thread,
-        the computation estimates its run time (:attr:`Computation.run_time`) at most
-        ``fast_lane_max_s``, and it is the job's first attempt here (a recovered or
-        retried job goes to a worker; ``job`` None: a new record, see :meth:`_lane_first`).
-        Below ~50 ms the cross-process round trip of a Dask task (client -> scheduler ->
-        worker -> scheduler -> client, 10-25 ms on the 2-core machine) costs as much as
-        the computation; beyond, the worker's isolation (its own core and GIL, killed if
-        it overruns) is worth it."""
-        estimate = flight.job.computation.run_time
+    def _lane_takes(self, flight: Flight, job: Job | None) -> tuple[bool, float | None]:
+        """Whether the fast lane runs this attempt, and the allowance [s] of its metered
+        work (None: not metered).  The lane must be on and have a free thread, and it must
+        be the job's first attempt here (a recovered, retried or handed-off job goes to a
+        worker; ``job`` None: a new record, see :meth:`_lane_first`).  Then either
+
+        - the computation estimates its whole run time (:attr:`Computation.run_time`) at
+          most ``fast_lane_max_s``: below ~50 ms the cross-process round trip of a Dask
+          task (client -> scheduler -> worker -> scheduler -> client, 10-25 ms on the
+          2-core machine) costs as much as the computation; beyond, the worker's
+          isolation (its own core and GIL, killed if it overruns) is worth it; or
+        - its work of unknown cost is metered (:attr:`Computation.metered_run_time`: a
+          time-variant magnus simulation, whose steps are known only as its step control
+          plans them), the rest is estimated at most ``fast_lane_max_s``, and
+          ``fast_lane_max_metered_s`` > 0: it runs under that allowance
+          (:func:`_run_in_lane`), charged each propagation's estimate before it is
+          computed, and the first that would pass it stops the computation there; its
+          job then goes to a worker (:meth:`_drive_once`: the lease given up with the
+          reason, the record still active, submitted again).  An overrun is therefore
+          bounded by the allowance plus the estimated rest, not only advised."""
+        computation = flight.job.computation
         if (
             self._lane is None
-            or estimate is None
             or self._lane_busy >= self.settings.fast_lane_threads
             or (job is not None and job.attempts > 0)
             or flight.resubmits > 0
         ):
-            return False
-        try:
-            seconds = estimate(flight.job.request)
-        except Exception:  # an estimate is advice: never fail a request over it
-            log.exception("estimate of %s", flight.job.computation.name)
-            return False
-        return seconds is not None and seconds <= self.settings.fast_lane_max_s
+            return False, None
+        limit = self.settings.fast_lane_max_s
+        try:  # an estimate is advice: never fail a request over it
+            whole = computation.run_time(flight.job.request) if computation.run_time else None
+            if whole is not None and whole <= limit:
+                return True, None
+            allowance = self.settings.fast_lane_max_metered_s
+            if computation.metered_run_time is None or allowance <= 0:
+                return False, None
+            rest = computation.metered_run_time(flight.job.request)
+        except Exception:
+            log.exception("estimate of %s", computation.name)
+            return False, None
+        return (True, allowance) if rest is not None and rest <= limit else (False, None)
 
     async def _lane_first(
         self, flight: Flight, force: bool
@@ -678,7 +708,8 @@ class Runner:
         there first, or the result was stored: the ordinary path goes on from it);
         ``(None, None)`` when the lane does not take it or did not start.  Raises the
         :class:`StorageError` that refused the write."""
-        if not self._lane_takes(flight, None):
+        taken, allowance = self._lane_takes(flight, None)
+        if not taken:
             return None, None
         loop = asyncio.get_running_loop()
         claimed: asyncio.Future[Claim] = loop.create_future()
@@ -704,7 +735,7 @@ class Runner:
             dispatcher=self.replica,
         )
         try:
-            run = self._in_lane(flight, flight.key, accept)
+            run = self._in_lane(flight, flight.key, accept, allowance)
             waiter = asyncio.ensure_future(self._result_of(run))
         except RuntimeError:  # the lane is shut down (the replica is stopping)
             return None, None
@@ -725,20 +756,27 @@ class Runner:
         return None, waiter
 
     def _in_lane(
-        self, flight: Flight, key: str, accept: Accept | None = None
+        self,
+        flight: Flight,
+        key: str,
+        accept: Accept | None = None,
+        allowance: float | None = None,
     ) -> Awaitable[Outcome]:
         """:func:`run_job` in a thread of the fast lane, with this replica's store: the
         record, its lease and the result as a worker writes them (a restart finds the
         lease stale and recovers the job); the event loop only awaits.  The lane's thread
         counts as busy until its computation returns, even one abandoned past its limit.
-        ``accept``: the lane writes the job's record too (:meth:`_lane_first`)."""
+        ``accept``: the lane writes the job's record too (:meth:`_lane_first`);
+        ``allowance`` [s]: the computation's metered work is bounded by it
+        (:func:`_run_in_lane`)."""
         assert self._lane is not None
         loop = asyncio.get_running_loop()
         self._lane_busy += 1
         self.lane_runs += 1
         try:
             fut = self._lane.submit(
-                run_job,
+                _run_in_lane,
+                allowance,
                 flight.job.computation,
                 flight.job.request,
                 key,
@@ -765,8 +803,9 @@ class Runner:
     def _execute(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
         from distributed import fire_and_forget
 
-        if self._lane_takes(flight, job):
-            return self._in_lane(flight, job.key)
+        taken, allowance = self._lane_takes(flight, job)
+        if taken:
+            return self._in_lane(flight, job.key, allowance=allowance)
 
         dask_key = f"{job.kind}-{job.key}-g{job.generation}-a{job.attempts}"
         if flight.resubmits:
@@ -885,6 +924,11 @@ class Runner:
                 waiter = None
                 if outcome.seconds is not None:
                     flight.seconds = outcome.seconds
+                if outcome.status == "handoff":
+                    # the lane's allowance stopped it: the record is unowned and says why,
+                    # and the submission below goes to a worker (no first attempt now)
+                    self.lane_handoffs += 1
+                    log.info("job %s handed off from the fast lane: %s", key, outcome.note)
                 if outcome.status == "storage":
                     assert outcome.error is not None
                     await self._storage_failure(key, outcome.error)

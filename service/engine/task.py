@@ -17,7 +17,9 @@ Until then the overdue thread holds the process's thread, so no new task starts 
 The return value is small (the body goes to the store): an :class:`Outcome`, whose
 ``status`` is ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
 already) | ``elsewhere`` (a live attempt holds the lease) | ``lost`` (another attempt took
-the lease) | ``storage`` (the store refused a write).  Errors travel as neutral
+the lease) | ``storage`` (the store refused a write) | ``handoff`` (the fast lane's
+metered computation would pass its allowance: stopped, its lease given up with the reason,
+the job left for a worker).  Errors travel as neutral
 :class:`pipeflow.errors.ErrorRecord` values (made by :func:`pipeflow.errors.classify`),
 never as pickled exceptions, and the job record stores them as such: only the HTTP layer
 turns a record into a problem document.  A computation that fans out
@@ -44,7 +46,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from pipeflow import parallel
-from pipeflow.errors import Cancelled, ErrorRecord, StorageError, classify
+from pipeflow.errors import Cancelled, ErrorRecord, OverAllowance, StorageError, classify
 from pipeflow.solvers.checkpoint import checkpointing
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
@@ -402,6 +404,12 @@ def _run_job(
             )
             body = payload if done and inline is not None else None
             return Outcome("succeeded", seconds=seconds, finished=done, body=body)
+        if status == "handoff":
+            # the lane's allowance stopped it before the work that would pass it: the record
+            # stays active, unowned, with the reason; the replica submits it to a worker
+            why = str(payload)
+            store.release(key, owner, f"handed off to a worker by the fast lane: {why}")
+            return Outcome("handoff", seconds=seconds, note=why)
         if status == "cancelled":
             store.release(key, owner)  # the record already says cancelled (by the request)
             return Outcome("cancelled", seconds=seconds, note=str(payload))
@@ -415,10 +423,10 @@ def _run_job(
 def _compute(
     computation: Computation, request: Any, beat: _Heartbeat, cfg: TaskConfig, job: Job
 ) -> tuple[str, bytes | str | None, ErrorRecord | None]:
-    """``("ok", json bytes, None)`` | ``("error", None, record)`` | ``("cancelled" | "lost",
-    why, None)``.  A long solve checkpoints into the store under ``job``'s key and
-    generation and resumes from an earlier attempt's checkpoint; the result's diagnostics
-    then say which attempt of the job resumed (``resumed_attempt``)."""
+    """``("ok", json bytes, None)`` | ``("error", None, record)`` | ``("cancelled" | "lost" |
+    "handoff", why, None)``.  A long solve checkpoints into the store under ``job``'s key
+    and generation and resumes from an earlier attempt's checkpoint; the result's
+    diagnostics then say which attempt of the job resumed (``resumed_attempt``)."""
 
     def progress(fraction: float) -> None:
         if time.monotonic() > beat.deadline:
@@ -458,6 +466,8 @@ def _compute(
         if beat.stop == "lost":
             return ("lost", "another attempt took over the job", None)
         return ("cancelled", str(exc) or "cancelled", None)
+    except OverAllowance as exc:  # the fast lane's allowance (service.engine.runner)
+        return ("handoff", str(exc), None)
     except StorageError as exc:  # a failed store is no failure of the computation
         return ("error", None, ErrorRecord.internal(f"internal error: StorageError: {exc}"))
     except Exception as exc:

@@ -150,3 +150,32 @@ def test_library_errors_survive_pickling_with_their_parameter() -> None:
         back = pickle.loads(pickle.dumps(err))
         assert type(back) is type(err) and str(back) == str(err)
         assert back.__dict__ == err.__dict__
+
+
+# -- the allowance of metered work -------------------------------------------------------
+
+
+def test_an_allowance_refuses_the_charge_that_would_pass_it_and_counts_nothing_of_it() -> None:
+    import pytest
+
+    from pipeflow.errors import OverAllowance
+
+    parallel.charge(1e9, "without an allowance: nothing is counted or refused")
+    with parallel.metered(1.0) as allowance:
+        parallel.charge(0.6, "a")
+        parallel.charge(0.4, "b")  # exactly at the bound: allowed
+        with pytest.raises(OverAllowance) as refused:
+            parallel.charge(1e-9, "c")
+        assert allowance.spent_s == pytest.approx(1.0)  # the refused charge is not counted
+        assert [what for what, _ in allowance.charges] == ["a", "b"]
+        assert (refused.value.spent_s, refused.value.asked_s, refused.value.bound_s) == (
+            pytest.approx(1.0),
+            1e-9,
+            1.0,
+        )
+        assert refused.value.what == "c" and "would pass the allowance" in str(refused.value)
+        with parallel.metered(0.0):  # nested: the inner one counts, the outer one is kept
+            with pytest.raises(OverAllowance):
+                parallel.charge(1e-12, "d")
+        assert allowance.spent_s == pytest.approx(1.0)
+    parallel.charge(1e9, "the block's allowance is gone with the block")

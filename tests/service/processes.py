@@ -15,8 +15,12 @@ from typing import Any
 import httpx
 
 from service.launch import ROOT, answers, child_environment, serve
+from service.settings import Settings
+from service.store import Job, Store
 
 TERMINAL = ("succeeded", "failed", "cancelled")
+#: heartbeat every 0.1 s, a lease without one for 2 s is dead: a recovery takes seconds
+FAST_RECOVERY = {"PIPEFLOW_PROGRESS_INTERVAL_S": "0.1", "PIPEFLOW_STALE_AFTER_S": "2"}
 
 
 def spawn(args: list[str], log: Path, **overrides: str) -> subprocess.Popen[bytes]:
@@ -95,3 +99,16 @@ def wait_job(
             return job
         assert time.monotonic() < end, f"job {key} stuck: {resp.text}"
         time.sleep(0.1)
+
+
+def job_record(data_dir: Path, key: str) -> Job:
+    """The job record as the store in ``data_dir`` holds it (the HTTP document has no
+    worker: where it ran, ``host:pid`` of the API process in the fast lane or a Dask
+    worker's ``tcp://`` address)."""
+    store = Store(Settings(data_dir=data_dir).db_url, 10**9, 0, migrate=False)
+    try:
+        job = store.get_job(key)
+    finally:
+        store.close()
+    assert job is not None
+    return job

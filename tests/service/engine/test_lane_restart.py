@@ -18,14 +18,17 @@ from fastapi import FastAPI
 from service.launch import free_port
 from service.main import create_app
 from service.settings import Settings
-from service.store import Job, Store
-from tests.service.processes import kill_group, spawn, wait_http, wait_job
+from tests.service.processes import (
+    FAST_RECOVERY,
+    job_record,
+    kill_group,
+    spawn,
+    wait_http,
+    wait_job,
+)
 
 #: slow (two real servers started, one killed, a stale lease waited for: 15-30 s)
 pytestmark = pytest.mark.slow
-
-#: heartbeat every 0.1 s, a lease without one for 2 s is dead: the recovery takes seconds
-FAST_RECOVERY = {"PIPEFLOW_PROGRESS_INTERVAL_S": "0.1", "PIPEFLOW_STALE_AFTER_S": "2"}
 
 
 def create_app_with_test_routes() -> FastAPI:
@@ -36,17 +39,6 @@ def create_app_with_test_routes() -> FastAPI:
     app = create_app(Settings())
     app.include_router(test_router())
     return app
-
-
-def _record(data_dir: Path, key: str) -> Job:
-    """The job record as the store holds it (the HTTP document has no worker)."""
-    store = Store(Settings(data_dir=data_dir).db_url, 10**9, 0, migrate=False)
-    try:
-        job = store.get_job(key)
-    finally:
-        store.close()
-    assert job is not None
-    return job
 
 
 def _serve(data_dir: Path, log: Path) -> tuple[subprocess.Popen[bytes], str]:
@@ -87,7 +79,7 @@ def test_a_lane_job_survives_a_killed_server(tmp_path: Path) -> None:
         assert accepted.json()["status"] in ("queued", "running"), accepted.json()
         job = wait_job(url, key, lambda j: j["progress"] > 0, timeout=30)
         assert job["status"] == "running" and job["attempts"] == 1
-        record = _record(tmp_path / "data", key)
+        record = job_record(tmp_path / "data", key)
         assert record.worker is not None and record.worker.endswith(f":{proc.pid}"), record
     finally:
         kill_group(proc, signal.SIGKILL)
@@ -100,7 +92,7 @@ def test_a_lane_job_survives_a_killed_server(tmp_path: Path) -> None:
         assert job["attempts"] == 2, job
         assert "attempt 1 on" in (job["last_retry_reason"] or ""), job
         assert "stopped heartbeating" in job["last_retry_reason"], job
-        record = _record(tmp_path / "data", key)
+        record = job_record(tmp_path / "data", key)
         assert record.worker is not None and record.worker.startswith("tcp://"), record
         result = httpx.get(f"{url}/v1/results/{key}", timeout=30)
         assert result.status_code == 200 and result.json()["tag"] == "lane-restart"
