@@ -231,6 +231,7 @@ def test_checkpoint_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-
     for row in ("| plain |", "| idle |", "| memory |", "| sqlite |", "| from zero |"):
         assert row in out, row
 
+
 @pytest.mark.slow
 def test_bench_cold_paper_smoke() -> None:
     """benchmarks/bench_cold_paper.py --rounds 2 (two real servers): the rows are printed,
