@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from collections.abc import Set as AbstractSet
 from contextvars import ContextVar
 from typing import TYPE_CHECKING, Any
@@ -193,28 +193,22 @@ def _quantity_free_ids(data: dict[str, Any]) -> set[int] | None:
 
 
 def _scan(node: dict[str, Any], ids: set[int]) -> bool:
-    """Whether no dict in ``node`` has a ``"unit"``; adds their ids to ``ids``.  Written
-    for speed: it runs on every request of plain numbers."""
+    """Whether no dict in ``node`` has a ``"unit"``; adds their ids to ``ids``."""
     if "unit" in node:
         return False
     ids.add(id(node))
-    for value in node.values():
-        kind = type(value)
-        if kind is dict:
-            if not _scan(value, ids):
-                return False
-        elif kind is list and not _scan_list(value, ids):
-            return False
-    return True
+    return _scan_values(node.values(), ids)
 
 
-def _scan_list(values: list[Any], ids: set[int]) -> bool:
+def _scan_values(values: Iterable[Any], ids: set[int]) -> bool:
+    """:func:`_scan` of the dicts in ``values`` and in its lists.  Written for speed: it
+    runs on every request of plain numbers."""
     for value in values:
         kind = type(value)
         if kind is dict:
             if not _scan(value, ids):
                 return False
-        elif kind is list and not _scan_list(value, ids):
+        elif kind is list and not _scan_values(value, ids):
             return False
     return True
 
