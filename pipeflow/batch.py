@@ -8,10 +8,11 @@ loads; below) and :func:`time_variant_summaries` for flow or spin varying in tim
 ``magnus`` or ``auto``, no external loads; see that function).  The numbers:
 
 - ``peak_tip_displacement`` [m]: max |u(L, t)| over the output times;
-- ``final_sigma_1``, ``final_omega_1``: the fundamental's eigenvalue at t_end (mode 1 as
-  the single run numbers it, :func:`pipeflow.spectra.order_lowest`; at constant
-  coefficients the frozen spectrum is the same at every time, with varying ones the
-  branch of mode 1 at t = 0 followed to t_end as the single run follows it);
+- ``final_sigma_1``, ``final_omega_1``: the fundamental's eigenvalue at the end of its
+  trace, t_end or the divergence time where the run stopped (mode 1 as the single run
+  numbers it, :func:`pipeflow.spectra.order_lowest`; at constant coefficients the frozen
+  spectrum is the same at every time, with varying ones the branch of mode 1 at t = 0
+  followed to there as the single run follows it);
 - ``method_used`` (``cma`` or ``magnus``: what ``auto`` runs) and ``result_status`` (``ok``,
   ``diverged``: the tip past the divergence bound, :mod:`pipeflow.divergence`, the peak
   then taken up to that sample as the single run stops there, or ``diverging``: a growth
@@ -46,7 +47,7 @@ from numpy.typing import NDArray
 from pipeflow._types import FloatArray
 from pipeflow.divergence import default_bound
 from pipeflow.model import Loading, PipeModel, build_model
-from pipeflow.simulation import Simulation, SimulationStatus, validate
+from pipeflow.simulation import Simulation, SimulationStatus, trace_times, validate
 from pipeflow.solvers import Problem, SolverOutput
 from pipeflow.solvers.cma import _uniform_step
 from pipeflow.solvers.magnus_stack import MAX_RUNS, solve_many
@@ -293,6 +294,7 @@ class _Varying:
     sim: Simulation
     model: PipeModel
     problem: Problem
+    kept: int | None = None  # output times the single run keeps (None: all)
 
 
 def time_variant_summaries(sims: Sequence[Simulation]) -> list[CaseSummary | None]:
@@ -329,10 +331,17 @@ def time_variant_summaries(sims: Sequence[Simulation]) -> list[CaseSummary | Non
         cases.append((i, _Varying(sim, model, problem)))
     for part in _chunks(cases):
         solved = solve_many([c.problem for _, c in part])
+        tips: list[tuple[FloatArray, float] | None] = [None] * len(part)
+        for p, ((_, case), result) in enumerate(zip(part, solved, strict=True)):
+            # the overflowed ones are left to the single run (it reports the finite prefix)
+            if isinstance(result, SolverOutput) and np.all(np.isfinite(result.z)):
+                tips[p] = tip, bound = _tip(case, result)
+                over = tip > bound  # the single run's traces stop with its history
+                case.kept = int(np.argmax(over)) + 1 if over.any() else None
         finals = _final_fundamentals([c for _, c in part])
-        for (i, case), result, final in zip(part, solved, finals, strict=True):
-            if isinstance(result, SolverOutput):
-                out[i] = _varying_row(case, result, final)
+        for (i, case), result, final, history in zip(part, solved, finals, tips, strict=True):
+            if isinstance(result, SolverOutput) and history is not None:
+                out[i] = _varying_row(case, result, final, history)
     return out
 
 
@@ -353,18 +362,19 @@ def _chunks(cases: list[tuple[int, _Varying]]) -> list[list[tuple[int, _Varying]
     return out
 
 
-def _eigen_times(sim: Simulation) -> FloatArray:
-    """The single run's eigenvalue times [s]."""
-    return np.linspace(0.0, sim.t_end, max(2, min(sim.eigen_samples, sim.samples)))
+def _eigen_times(case: _Varying) -> FloatArray:
+    """The single run's eigenvalue times [s] (to where its history stops)."""
+    return trace_times(case.sim.eigen_samples, case.problem.t[: case.kept])
 
 
 def _final_fundamentals(cases: Sequence[_Varying]) -> list[tuple[complex, NDArray[np.complex128]]]:
-    """Per case: the fundamental's eigenvalue at t_end [1/s] (mode 1 at t = 0 followed
-    as :func:`pipeflow.spectra.spectrum` follows it) and the whole spectrum at t_end."""
+    """Per case: the fundamental's eigenvalue at the end of its trace [1/s] (mode 1 at
+    t = 0 followed as :func:`pipeflow.spectra.spectrum` follows it, to t_end or where the
+    run stopped) and the whole spectrum there."""
     out: list[tuple[complex, NDArray[np.complex128]] | None] = [None] * len(cases)
     groups: dict[tuple[int, int], list[int]] = defaultdict(list)
     for c, case in enumerate(cases):
-        groups[(case.model.size, _eigen_times(case.sim).size)].append(c)
+        groups[(case.model.size, _eigen_times(case).size)].append(c)
     for (m, T), group in groups.items():
         # the decompositions of a few cases at a time (complex V and W: 32 bytes an entry)
         per = max(1, SPECTRUM_ENTRIES // (T * m * m))
@@ -386,7 +396,7 @@ def _follow(
     S = np.stack(
         [
             cases[c].model.state_matrix(
-                cases[c].problem.loading.coefficients(_eigen_times(cases[c].sim))
+                cases[c].problem.loading.coefficients(_eigen_times(cases[c]))
             )
             for c in members
         ]
@@ -400,20 +410,14 @@ def _follow(
 
 
 def _varying_row(
-    case: _Varying, result: SolverOutput, final: tuple[complex, NDArray[np.complex128]]
+    case: _Varying,
+    result: SolverOutput,
+    final: tuple[complex, NDArray[np.complex128]],
+    history: tuple[FloatArray, float],
 ) -> CaseSummary | None:
-    """The row of one solved time-variant case, as :func:`~pipeflow.simulation.simulate`
-    decides it; None where it overflowed or sits at a threshold."""
-    Z = result.z
-    if not np.all(np.isfinite(Z)):
-        return None  # the single run reports the overflow and the finite prefix
-    model, sim = case.model, case.sim
-    tip = np.abs(model.from_balanced(Z)[0] @ model.tip)
-    # the linear model's range as simulate applies it (pipeflow.divergence): the history
-    # stops at the first sample past the bound, the peak taken up to there
-    bound = sim.divergence_bound
-    if bound is None:
-        bound = default_bound(sim.pipe.L, float(tip[0]))
+    """The row of one solved time-variant case (``history``: its :func:`_tip`), as
+    :func:`~pipeflow.simulation.simulate` decides it; None where it sits at a threshold."""
+    tip, bound = history
     if np.any(np.abs(tip - bound) <= THRESHOLD_RTOL * bound):
         return None
     over = tip > bound
@@ -430,3 +434,15 @@ def _varying_row(
         growing = bool(max_growth_rates(last) > 0)
         status = SimulationStatus.DIVERGING if growing else SimulationStatus.OK
     return CaseSummary(peak, float(xi.real), float(xi.imag), str(result.method), str(status))
+
+
+def _tip(case: _Varying, result: SolverOutput) -> tuple[FloatArray, float]:
+    """|u(L, t)| [m] of a solved case and the divergence bound [m] that applies to it:
+    the linear model's range as simulate applies it (pipeflow.divergence), the history
+    stopping at the first sample past it."""
+    model, sim = case.model, case.sim
+    tip = np.abs(model.from_balanced(result.z)[0] @ model.tip)
+    bound = sim.divergence_bound
+    if bound is None:
+        bound = default_bound(sim.pipe.L, float(tip[0]))
+    return tip, float(bound)

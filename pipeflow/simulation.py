@@ -76,7 +76,10 @@ class Simulation:
     positions : extra stations x [m] (0..L) whose displacement is reported.
     eigen_modes : how many of the lowest eigenvalue branches to trace (at most ``modes``);
         the least stable branch of the whole frozen spectrum is traced too, and flagged.
-    eigen_samples : number of times at which frozen eigenvalues are computed.
+    eigen_samples : number of times at which frozen eigenvalues are computed, evenly from 0
+        to t_end, or to the end of the history when the run stopped early (status
+        "diverged" or "overflow": the traces, the growth diagnostics and the status stop
+        where the history does; at most one per output time kept).
     include_modal : also return the modal coordinates d [m] and d' [m/s].
     divergence_bound : the linear model's range, a bound [m] on |u| at the tip and at every
         output station: the run stops at the first output time past it, status "diverged"
@@ -130,7 +133,7 @@ class Result:
     displacements: FloatArray  # (len(positions), N) [m]
     d: FloatArray  # (N, n) modal coordinates [m]
     ddot: FloatArray  # (N, n) [m/s]
-    eigen_t: FloatArray  # [s]
+    eigen_t: FloatArray  # [s] from 0 to the history's last time t[-1]
     frozen: Traces  # eigenvalues of S(t) [1/s]
     #: the paper's CMA exponents (:attr:`exponents`), or how to compute them on first use
     cma_exponents: Traces | Callable[[], Traces] = field(repr=False)
@@ -270,7 +273,8 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
             "samples after that are omitted"
         )
 
-    eigen_t = np.linspace(0.0, sim.t_end, max(2, min(sim.eigen_samples, sim.samples)))
+    requested_t = trace_times(sim.eigen_samples, problem.t)
+    eigen_t = trace_times(sim.eigen_samples, t)  # where the history stops (diverged)
     n_eig = min(sim.eigen_modes, sim.modes)  # more branches than modes do not exist
     spec = frozen_spectrum(model, loading, eigen_t)
     frozen = select(*spec, n_eig, least_stable=True, damped=sim.pipe.damped)
@@ -298,7 +302,7 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
             np.asarray(sim.mode_shape_times, dtype=float),
             branches,
             sim.mode_shape_points,
-            track_times=eigen_t,
+            track_times=requested_t,  # shapes may be asked past a divergence time
         )
         shapes = dataclasses.replace(shapes, mode=frozen.mode)
 
@@ -332,7 +336,7 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
         eigen_t=eigen_t,
         frozen=frozen,
         cma_exponents=exponents,
-        dimensionless=dimensionless(sim.pipe, loading, eigen_t),
+        dimensionless=dimensionless(sim.pipe, loading, requested_t),  # of the input
         diagnostics=diagnostics,
         warnings=warnings,
         status=status,
@@ -345,6 +349,13 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
         first_unstable_time=first_unstable,
         mode_shapes=shapes,
     )
+
+
+def trace_times(eigen_samples: int, history: FloatArray) -> FloatArray:
+    """The times [s] of a run's eigenvalue traces: ``eigen_samples`` evenly from 0 to the
+    last time of ``history`` (the output times [s] the run keeps: to t_end, or to where a
+    run stopped, status "diverged" or "overflow"), at most one per output time, at least 2."""
+    return np.linspace(0.0, float(history[-1]), max(2, min(eigen_samples, history.size)))
 
 
 def frozen_spectrum(

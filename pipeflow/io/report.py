@@ -67,6 +67,8 @@ def _simulation_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
     modes = r["eigenvalues"]["modes"]
     first = modes[0]
     s, w = first["sigma"][-1], first["omega"][-1]
+    # the traces end with the history: t_end, or the divergence time of a stopped run
+    end = f"t = {_g(r['eigenvalues']['t'][-1])} s"
     rows = [
         ("status", r["status"]),
         ("output times", f"{len(r['t'])} from 0 to {_g(r['t'][-1])} s"),
@@ -77,9 +79,9 @@ def _simulation_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
         ("growth rate at divergence [1/s]", _g(r.get("divergence_growth_rate"))),
         ("first unstable time [s]", _g(r.get("first_unstable_time"))),
         ("largest growth rate max sigma [1/s]", _g(r["diagnostics"].get("max_growth_rate"))),
-        (f"mode {first['mode']} at t_end: sigma [1/s], omega [rad/s]", f"{_g(s)}, {_g(w)}"),
+        (f"mode {first['mode']} at {end}: sigma [1/s], omega [rad/s]", f"{_g(s)}, {_g(w)}"),
         (
-            f"mode {first['mode']} damping ratio -sigma/|xi| at t_end [-]",
+            f"mode {first['mode']} damping ratio -sigma/|xi| at {end} [-]",
             _g(-s / math.hypot(s, w) if (s or w) else None),
         ),
     ]

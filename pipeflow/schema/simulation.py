@@ -22,6 +22,7 @@ from pydantic import (
     ConfigDict,
     Field,
     GetJsonSchemaHandler,
+    ValidatorFunctionWrapHandler,
     field_validator,
     model_validator,
 )
@@ -155,12 +156,13 @@ class StrictModel(BaseModel):
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 
-    @model_validator(mode="before")
+    @model_validator(mode="wrap")
     @classmethod
-    def _quantities(cls, data: Any) -> Any:
+    def _quantities(cls, data: Any, handler: ValidatorFunctionWrapHandler) -> Any:
         """A field in an SI unit also takes ``{"value": 3000, "unit": "rpm"}``, converted
-        here to the unit its description states (:mod:`pipeflow.schema.units`)."""
-        return units.convert_fields(cls, data)
+        here to the unit its description states (:mod:`pipeflow.schema.units`; an input
+        without a quantity anywhere is scanned once and passes through)."""
+        return units.validate(cls, data, handler)
 
     @classmethod
     def __get_pydantic_json_schema__(

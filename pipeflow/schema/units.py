@@ -26,6 +26,9 @@ from __future__ import annotations
 import functools
 import math
 import re
+from collections.abc import Callable, Iterable
+from collections.abc import Set as AbstractSet
+from contextvars import ContextVar
 from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel, ConfigDict
@@ -147,6 +150,67 @@ def to_si(value: Any, unit: str, loc: str) -> Any:
     if not math.isfinite(converted):
         raise InvalidField(f"{loc}: {number} {given} is not finite in {unit}", loc)
     return converted
+
+
+#: the ids of the dicts of the inputs being validated that hold no quantity anywhere in
+#: them (their nested models skip the conversion); set for the duration of a validation
+_QUANTITY_FREE: ContextVar[AbstractSet[int]] = ContextVar(
+    "pipeflow_quantity_free", default=frozenset()
+)
+
+
+def validate(model: type[Any], data: Any, handler: Callable[[Any], Any]) -> Any:
+    """The request models' unit hook (a wrap validator): ``data`` with its quantities
+    converted (:func:`convert_fields`), validated by ``handler``.
+
+    An input with no quantity anywhere (no object with a ``"unit"``: every request of plain
+    SI numbers) is scanned once, by its outermost model: the ids of its dicts are marked
+    quantity-free for the duration of its validation, and the nested models that receive
+    them skip the conversion at the cost of a set look-up.  A dict a validator builds
+    (not in the input) is scanned when a model receives it."""
+    if not isinstance(data, dict):
+        return handler(data)
+    free = _QUANTITY_FREE.get()
+    if id(data) in free:
+        return handler(data)
+    ids = _quantity_free_ids(data)
+    if ids is None:
+        return handler(convert_fields(model, data))
+    if len(ids) == 1:  # no dict inside (e.g. a default {}): no nested model to tell
+        return handler(data)
+    token = _QUANTITY_FREE.set(free | ids if free else ids)  # never changed once set
+    try:
+        return handler(data)
+    finally:
+        _QUANTITY_FREE.reset(token)
+
+
+def _quantity_free_ids(data: dict[str, Any]) -> set[int] | None:
+    """The ids of ``data`` and of every dict in it, or None if one of them has a
+    ``"unit"`` (a quantity, or a malformed one :func:`to_si` refuses)."""
+    ids: set[int] = set()
+    return ids if _scan(data, ids) else None
+
+
+def _scan(node: dict[str, Any], ids: set[int]) -> bool:
+    """Whether no dict in ``node`` has a ``"unit"``; adds their ids to ``ids``."""
+    if "unit" in node:
+        return False
+    ids.add(id(node))
+    return _scan_values(node.values(), ids)
+
+
+def _scan_values(values: Iterable[Any], ids: set[int]) -> bool:
+    """:func:`_scan` of the dicts in ``values`` and in its lists.  Written for speed: it
+    runs on every request of plain numbers."""
+    for value in values:
+        kind = type(value)
+        if kind is dict:
+            if not _scan(value, ids):
+                return False
+        elif kind is list and not _scan_values(value, ids):
+            return False
+    return True
 
 
 def convert_fields(model: type[Any], data: Any) -> Any:

@@ -188,9 +188,9 @@
     // the first operating point: the single point's v and ω0 as typed; then a copy of the last
     if (current.length) return current[current.length - 1];
     const num = (name) => {
-      const input = host.querySelector("input[name='" + name + "']");
-      const x = input ? Number(input.value) : NaN;
-      return Number.isFinite(x) && input.value.trim() !== "" ? x : undefined;
+      // the number as typed, with its unit (rpm: {"value", "unit"}); nothing if not a number
+      const v = SF.quantityOf(host.querySelector("input[name='" + name + "']"));
+      return typeof v === "string" ? undefined : v;
     };
     return { velocity: num("flow.velocity.value"), omega0: num("rotation.omega0.value") };
   }

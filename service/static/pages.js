@@ -1,6 +1,7 @@
 // pipeflow pages: what the pages (simulation, stability, frequency response, studies) share,
 // loaded after schemaform.js and before the page's own script.  Number formats and axis
-// ticks, result URLs, tables of rows and the server's figures, the link a page is opened
+// ticks, result URLs, tables of rows and the server's figures (their spin and frequency
+// axes in rad/s, rpm or Hz), a result's report links (HTML, PDF), the link a page is opened
 // with (?key=..., ?spec=...), the examples chooser, and a page's run: a request posted from
 // the form, a job polled with a progress bar until its result is ready (a newer run stops an
 // older one), a result opened by key, and the error shown in the status line.
@@ -95,23 +96,68 @@ window.PipeflowPages = (function () {
       items.map((item) => columns.map((c) => c[1](item))));
   }
 
-  function figures(box, key, names) {
-    // the server's figures of a result: each as SVG, captioned with a link to its PNG
+  function figures(box, key, names, units) {
+    // the server's figures of a result: each as SVG, captioned with a link to its PNG;
+    // ``units`` ({spin, frequency}: the axes' units, the API's plot query) when not rad/s
     box.textContent = "";
+    const query = new URLSearchParams();
+    for (const [q, u] of Object.entries(units || {})) if (u && u !== "rad/s") query.set(q + "_unit", u);
+    const suffix = query.toString() ? "?" + query.toString() : "";
     for (const name of names || []) {
       const fig = document.createElement("figure");
       const img = document.createElement("img");
       const base = resultUrl(key) + "/plots/" + name;
-      img.src = base + ".svg";
+      img.src = base + ".svg" + suffix;
       img.alt = name;
       img.dataset.plot = name;
       const cap = document.createElement("figcaption");
       const a = document.createElement("a");
-      a.href = base + ".png";
+      a.href = base + ".png" + suffix;
       a.textContent = name + " (PNG)";
       cap.appendChild(a);
       fig.append(img, cap);
       box.appendChild(fig);
+    }
+  }
+
+  function plotUnits(doc) {
+    // the axis units the API's figures offer, from its plot operation's query parameters:
+    // {spin: ["rad/s", "rpm", "Hz"], frequency: [...]} (rad/s when the document has none)
+    const out = { spin: ["rad/s"], frequency: ["rad/s"] };
+    const op = ((doc.paths || {})["/v1/results/{key}/plots/{name}.{fmt}"] || {}).get || {};
+    for (const p of op.parameters || []) {
+      const m = /^(spin|frequency)_unit$/.exec(p.name);
+      if (m && p.schema && Array.isArray(p.schema.enum)) out[m[1]] = p.schema.enum.slice();
+    }
+    return out;
+  }
+
+  function axisUnits(box, doc, onChange) {
+    // "spin axis [rad/s|rpm|Hz] frequency axis [rad/s|Hz|rpm]" selects in ``box``; returns
+    // a function giving the chosen {spin, frequency}; ``onChange`` redraws
+    const offered = plotUnits(doc);
+    box.textContent = "";
+    const selects = {};
+    for (const [q, units] of Object.entries(offered)) {
+      const label = document.createElement("label");
+      label.className = "inline";
+      label.textContent = q + " axis ";
+      const select = document.createElement("select");
+      select.id = q + "-axis-unit";
+      select.dataset.axis = q;
+      for (const u of units) select.add(new Option(u, u));
+      select.addEventListener("change", onChange);
+      label.appendChild(select);
+      box.appendChild(label);
+      selects[q] = select;
+    }
+    return () => Object.fromEntries(Object.entries(selects).map(([q, s]) => [q, s.value]));
+  }
+
+  function reportLinks(key) {
+    // every a[data-report="html"|"pdf"] of the page: the report of result ``key``
+    for (const a of document.querySelectorAll("a[data-report]")) {
+      a.href = resultUrl(key) + "/report." + a.dataset.report;
     }
   }
 
@@ -235,6 +281,6 @@ window.PipeflowPages = (function () {
 
   return {
     fmt, tick, tickFormat, finite, positive, chartWidth, short, resultUrl, fetchResult, table, columnTable, figures,
-    examplesChooser, page,
+    plotUnits, axisUnits, reportLinks, examplesChooser, page,
   };
 })();

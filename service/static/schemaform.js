@@ -25,6 +25,11 @@
 //   input's tooltip and are checked as it is typed; a profile's fields without a unit of
 //   their own (value, mean, amplitude, ...) show the unit of the quantity they profile
 //   ("force [N]": "amplitude [N]").
+// - a number (or list of numbers) that the API also takes as a quantity ({"value", "unit"},
+//   converted to SI at validation) in metres or rad/s gets a unit <select> beside it: m or
+//   mm; rad/s, rpm or Hz (cycles per second).  The SI unit sends the plain number; another
+//   sends {"value": 3000, "unit": "rpm"} (a polynomial's coefficient c_k in unit/s^k), so
+//   the API's cache key is the same for the same physics.
 // Inputs are named by the dotted JSON path ("flow.velocity.coefficients"), which is also
 // how the API names a bad field in problem+json errors[].field.
 "use strict";
@@ -50,7 +55,8 @@ window.SchemaForm = (function () {
       if (others.length === 1 && others.length < s.anyOf.length) {
         const own = Object.assign({}, s);
         delete own.anyOf;
-        s = Object.assign({}, deref(doc, others[0]), own, nullable ? { nullable: true } : {});
+        s = Object.assign({}, deref(doc, others[0]), own, nullable ? { nullable: true } : {},
+          s.anyOf.some(quantity) ? { quantity: true } : {});
       }
     }
     if (s.items && typeof s.items === "object" && Array.isArray(s.items.anyOf)) {
@@ -69,6 +75,54 @@ window.SchemaForm = (function () {
     const d = s.description || "";
     const m = d.match(/\[([^\]]*)\]/);
     return m ? m[1] : null;
+  }
+
+  //: the units offered beside a field that takes a quantity, by its SI unit (the first);
+  //: pint's names, as the API reads them (Hz: cycles per second, 1 Hz = 2 pi rad/s)
+  const UNIT_CHOICES = { "m": ["m", "mm"], "rad/s": ["rad/s", "rpm", "Hz"] };
+  //: each choice in its SI unit (for the bounds checked while typing; the API converts)
+  const TO_SI = { "m": 1, "mm": 1e-3, "rad/s": 1, "rpm": (2 * Math.PI) / 60, "Hz": 2 * Math.PI };
+
+  function isQuantity(v) {
+    return !!v && typeof v === "object" && !Array.isArray(v) && "value" in v && "unit" in v;
+  }
+
+  function unitChoice(s, unit, numeric) {
+    // the unit <select>'s options for this field, or null: a number (or numbers) the API
+    // also takes as a quantity, whose SI unit has alternatives; a polynomial's coefficients
+    // ("[rad/s]/s^k") in that unit per s^k
+    if (!numeric || !unit) return null;
+    const takes = s.quantity || (s.items && s.items.quantity);
+    const perPower = /\/s\^k$/.test(unit);
+    const si = unit.replace(/\/s\^k$/, "");
+    return takes && UNIT_CHOICES[si] ? { si, perPower, units: UNIT_CHOICES[si] } : null;
+  }
+
+  function unitSelect(choice, given) {
+    // given: the unit of the initial value (a quantity in a shared link), kept if unknown here
+    const select = el("select", { class: "unit", "data-unit-si": choice.si, title: "unit" });
+    const units = choice.units.includes(given) || !given ? choice.units : choice.units.concat([given]);
+    for (const u of units) {
+      select.add(new Option(u + (choice.perPower ? "/s^k" : ""), u, false, u === (given || choice.si)));
+    }
+    select.dataset.perPower = choice.perPower ? "1" : "";
+    return select;
+  }
+
+  function withUnit(input, v) {
+    // the value read from ``input`` in the unit its <select> shows: the number itself in the
+    // SI unit, else {"value", "unit"} (each element of a list; coefficient k in unit / s^k)
+    const select = input && input.unitSelect;
+    if (!select || select.value === select.dataset.unitSi || v === undefined || v === null) return v;
+    const u = select.value;
+    const q = (x, k) => (typeof x === "number"
+      ? { value: x, unit: select.dataset.perPower && k ? u + " / s ** " + k : u } : x);
+    return Array.isArray(v) ? v.map(q) : q(v, 0);
+  }
+
+  function quantityOf(input) {
+    // what a number field holds, with its unit (a page's copy of one field into another)
+    return input ? withUnit(input, numberOrRaw(input.value)) : undefined;
   }
 
   function groupUnit(s) {
@@ -160,8 +214,21 @@ window.SchemaForm = (function () {
     // (coefficients c_k: that unit per s^k, as their description says)
     const unit = unitOf(s) || (inherit && numeric
       ? inherit + (/\/s\^k/.test(s.description || "") ? "/s^k" : "") : null);
+    const choice = unitChoice(s, unit, numeric && s.type !== "integer");
+    // a quantity given (a shared link): its number in the field, its unit in the select
+    let given = null;
+    let shown = v;
+    if (choice && isQuantity(v)) {
+      given = String(v.unit);
+      shown = v.value;
+    } else if (choice && Array.isArray(v) && v.some(isQuantity)) {
+      const first = v.find(isQuantity);
+      given = String(first.unit).replace(/\s*\/\s*s\s*\*\*\s*\d+$/, "");
+      shown = v.map((x) => (isQuantity(x) ? x.value : x));
+    }
     const label = el("label", { class: "field", title: s.description || "" });
-    label.append(el("span", { class: "name" }, name + (unit && unit !== "-" ? " [" + unit + "]" : "")));
+    const nameEl = el("span", { class: "name" }, name + (unit && unit !== "-" ? " [" + unit + "]" : ""));
+    label.append(nameEl);
     let input;
     if (Array.isArray(s.enum)) {
       input = el("select", { name: path, "data-field": path, "data-type": "enum" });
@@ -173,19 +240,21 @@ window.SchemaForm = (function () {
       input.checked = v === true;
     } else {
       const kind = s.type === "array" || s.prefixItems ? "array" : s.type || "string";
-      const text = v === undefined || v === null ? "" : Array.isArray(v) ? v.map(show).join(", ") : show(v);
+      const text = shown === undefined || shown === null ? ""
+        : Array.isArray(shown) ? shown.map(show).join(", ") : show(shown);
       input = el("input", {
         name: path, "data-field": path, "data-type": kind, value: text,
         placeholder: s.nullable ? "auto (null)" : required ? "required" : "",
       });
       if (kind === "array") input.classList.add("wide");
-      const range = bounds(s);
+      const range = bounds(s) && bounds(s) + (choice ? " " + choice.si : "");
       if (range && kind !== "array") {
         input.title = "allowed: " + range;
         input.dataset.bounds = range;
         input.addEventListener("input", () => {
-          // the schema's bounds, checked while typing (the API checks them again)
-          const x = Number(input.value.trim());
+          // the schema's bounds (SI), checked while typing (the API checks them again)
+          const scale = input.unitSelect ? TO_SI[input.unitSelect.value] || NaN : 1;
+          const x = Number(input.value.trim()) * scale;
           const bad = input.value.trim() !== "" && Number.isFinite(x) && outOfRange(s, x);
           input.classList.toggle("invalid", bad);
           const slot = input.closest(".leaf").querySelector("[data-error-for]");
@@ -194,6 +263,23 @@ window.SchemaForm = (function () {
       }
     }
     label.append(input);
+    if (choice) {
+      // the unit beside the number (label.field.with-unit: a grid), named in the label too
+      const select = unitSelect(choice, given);
+      select.dataset.unitFor = path;
+      input.unitSelect = select;
+      const named = () => {
+        input.dataset.unit = select.value;
+        nameEl.textContent = name + " [" + select.selectedOptions[0].textContent + "]";
+      };
+      named();
+      select.addEventListener("change", () => {
+        named();
+        input.dispatchEvent(new Event("input"));  // the bounds, in the new unit
+      });
+      label.classList.add("with-unit");
+      label.append(select);
+    }
     if (s.description) label.append(el("small", { class: "help" }, s.description));
     const wrap = el("div", { class: "leaf" });
     wrap.append(label, el("span", { class: "error", "data-error-for": path }));
@@ -507,8 +593,8 @@ window.SchemaForm = (function () {
     }
     const text = input.value.trim();
     if (text === "") return s.nullable ? null : undefined;
-    if (type === "array") return text.split(/[,\s]+/).filter((t) => t !== "").map(numberOrRaw);
-    if (type === "number" || type === "integer") return numberOrRaw(text);
+    if (type === "array") return withUnit(input, text.split(/[,\s]+/).filter((t) => t !== "").map(numberOrRaw));
+    if (type === "number" || type === "integer") return withUnit(input, numberOrRaw(text));
     return text;
   }
 
@@ -632,6 +718,6 @@ window.SchemaForm = (function () {
 
   return {
     deref, requestSchema, render, collect, clearErrors, onNewItem, showProblem, problemOf, show, unitOf,
-    showWarnings, shareLink, post,
+    showWarnings, shareLink, post, quantityOf, UNIT_CHOICES,
   };
 })();

@@ -2,7 +2,9 @@
 // form generated from the request schemas in /openapi.json (SchemaForm).  Sweeps run as
 // jobs: progress is polled from GET /v1/jobs/{key} until the result is ready.  Results
 // show a summary, a table of every crossing (stability boundary, sigma = 0 of a tracked
-// branch, Campbell excitation lines) and the server's figures (pipeflow.io.plots, SVG).
+// branch, Campbell excitation lines) and the server's figures (pipeflow.io.plots, SVG), their
+// spin and frequency axes in the units chosen (rad/s, rpm, Hz), and links to the result's
+// report (HTML, PDF).
 "use strict";
 
 (function () {
@@ -16,7 +18,9 @@
   const progressEl = document.getElementById("progress");
   const statusEl = document.getElementById("job-status");
   const formError = document.getElementById("form-error");
-  const state = { doc: null, analyses: {}, analysis: null, key: null, result: null, history: [], run: 0 };
+  const state = {
+    doc: null, analyses: {}, analysis: null, key: null, result: null, history: [], run: 0, units: () => ({}),
+  };
   window.pipeflowStability = { state };
 
   const page = P.page({ form, formError, status: statusEl, button: runButton, state, progress: progressEl });
@@ -156,13 +160,19 @@
     const tables = document.getElementById("tables");
     tables.textContent = "";
     for (const t of view.tables) tables.appendChild(t);
-    P.figures(document.getElementById("plots"), result.key, result.plots);
+    drawFigures();
     SF.showWarnings(document.getElementById("warnings"), result.warnings);
+  }
+
+  function drawFigures() {
+    const r = state.result;
+    if (r) P.figures(document.getElementById("plots"), r.key, r.plots, state.units());
   }
 
   function share(key, spec) {
     SF.shareLink(document.getElementById("share-link"), { analysis: state.analysis, key, spec });
     document.getElementById("json-link").href = P.resultUrl(key);
+    P.reportLinks(key);
   }
 
   // ---- API calls -------------------------------------------------------------------------
@@ -181,6 +191,7 @@
 
   async function start() {
     state.doc = await (await fetch("openapi.json")).json();
+    state.units = P.axisUnits(document.getElementById("axis-units"), state.doc, drawFigures);
     loadAnalyses(state.doc);
     const link = page.link();
     const name = state.analyses[link.params.get("analysis")] ? link.params.get("analysis") : "stability";

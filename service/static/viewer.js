@@ -5,6 +5,8 @@
 // on a symmetric-log (asinh) scale with readable axis labels.  A forced run (loads) says
 // which loads were applied (the result echoes them); a start at rest (u0 = 0: zero initial
 // tip) is a forced vibration, drawn on a linear axis unless the library calls it unstable.
+// The frequency chart's axis is in rad/s, Hz or rpm (the data stay rad/s); the result links
+// to its report (HTML, PDF).
 "use strict";
 
 (function () {
@@ -38,6 +40,8 @@
   // ---- charts ----------------------------------------------------------------------------
 
   const COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"];
+  //: the frequency axis's units, each per rad/s (Hz: cycles per second, rpm: per minute)
+  const PER_RAD_S = { "rad/s": 1, Hz: 1 / (2 * Math.PI), rpm: 60 / (2 * Math.PI) };
 
   // The symmetric-log (asinh) tip scale: the data are drawn as asinh(u / u_lin) on a
   // linear axis (u_lin: the initial tip amplitude, below which the axis is linear), with
@@ -243,13 +247,16 @@
     })));
     // an unstable run: the least stable branch next to the fundamental (the flutter branch
     // is often not mode 1; at v = 40 m/s it is mode 5)
-    const freq = [{ label: "ω mode " + ev.modes[0].mode + " [rad/s]", y: ev.modes[0].omega }];
+    const unit = document.getElementById("frequency-unit").value || "rad/s";
+    const inUnit = (omega) => omega.map((w) => (typeof w === "number" ? w * PER_RAD_S[unit] : w));
+    const freq = [{ label: "ω mode " + ev.modes[0].mode + " [" + unit + "]", y: inUnit(ev.modes[0].omega) }];
     const least = instability(result).least;
     if (instability(result).unstable && least && least !== ev.modes[0]) {
-      freq.push({ label: "ω mode " + least.mode + " (least stable) [rad/s]", y: least.omega,
+      freq.push({ label: "ω mode " + least.mode + " (least stable) [" + unit + "]", y: inUnit(least.omega),
         stroke: "#c0392b", width: 2.5 });
     }
-    drawChart("chart-frequency", "t [s]", "ω [rad/s]", ev.t, freq);
+    drawChart("chart-frequency", "t [s]", "ω [" + unit + "]", ev.t, freq);
+    document.getElementById("chart-frequency").dataset.unit = unit;
     const used = document.getElementById("method-used");
     used.textContent = result.method_used
       ? "Method: " + result.method + " → " + result.method_used
@@ -300,6 +307,7 @@
     SF.shareLink(document.getElementById("share-link"), { key, spec });
     document.getElementById("csv-history").href = API.result(key) + "?format=csv";
     document.getElementById("csv-eigen").href = API.result(key) + "?format=csv&table=eigenvalues";
+    P.reportLinks(key);
   }
 
   // ---- API calls -------------------------------------------------------------------------
@@ -332,13 +340,17 @@
     const doc = await (await fetch("openapi.json")).json();
     state.doc = doc;
     state.schema = SF.requestSchema(doc, "/v1/simulations").schema;
+    // the frequency axis's units: those the API's figures offer (that this page converts)
+    const units = document.getElementById("frequency-unit");
+    for (const u of P.plotUnits(doc).frequency) if (u in PER_RAD_S) units.add(new Option(u, u));
     const link = page.link();
-    // a new load: a point force at the tip (x = pipe.L as typed), harmonic, to be filled in
-    SF.onNewItem("loads", (current) => (current.length ? current[current.length - 1] : {
-      kind: "point_force",
-      position: Number((form.querySelector("input[name='pipe.L']") || {}).value) || undefined,
-      force: { kind: "harmonic" },
-    }));
+    // a new load: a point force at the tip (x = pipe.L as typed, in its unit), harmonic,
+    // to be filled in
+    SF.onNewItem("loads", (current) => {
+      if (current.length) return current[current.length - 1];
+      const L = SF.quantityOf(form.querySelector("input[name='pipe.L']"));
+      return { kind: "point_force", position: typeof L === "string" ? undefined : L, force: { kind: "harmonic" } };
+    });
     SF.render(host, doc, state.schema, link.spec || initialValues(state.schema));
     runButton.disabled = false;
     if (!link.key) return;
@@ -350,8 +362,10 @@
   }
 
   form.addEventListener("submit", run);
-  document.getElementById("tip-scale").addEventListener("change", () => {
-    if (state.result) render(state.result);
-  });
+  for (const id of ["tip-scale", "frequency-unit"]) {
+    document.getElementById(id).addEventListener("change", () => {
+      if (state.result) render(state.result);
+    });
+  }
   window.pipeflowViewer.ready = start().catch((e) => { statusEl.textContent = String(e); });
 })();

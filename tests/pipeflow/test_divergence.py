@@ -138,3 +138,42 @@ def test_the_request_field_carries_the_bound_in_metres() -> None:
     assert spec.to_simulation().divergence_bound == 0.002
     schema = SimulationSpec.model_json_schema()["$defs"]["OutputSpec"]["properties"]
     assert "[m]" in schema["divergence_bound"]["description"]
+
+
+def test_the_eigenvalue_traces_stop_where_the_history_stops() -> None:
+    """Issue 24: a diverged run's traces covered the whole requested time (to 0.05 s
+    here) while its history stopped at the divergence time (0.0212 s); the growth
+    diagnostics read the spectrum after the stop (max_growth_rate 8087 1/s at 0.05 s).
+    Now the traces run from 0 to the history's last time, with as many samples as asked.
+
+    The flow ramps through v_cr (v = 20 + 1000 t m/s, unstable from 7.7 ms), so the
+    traces change along the run.  Checked against scipy.linalg.eigvals of S at the last
+    trace time, computed here again (1e-9 relative: two LAPACK calls on one matrix agree
+    to rounding times its condition): every traced branch at that time is an eigenvalue
+    of S(t_stop), and the least stable one (flagged) is the growth rate reported at the
+    divergence time; sigma grows along the ramp, so the run's max_growth_rate is it too.
+    """
+    sim = _flutter(flow=polynomial(20.0, 1000.0), t_end=0.05, samples=2001, eigen_samples=201)
+    r = simulate(sim)
+    assert r.status == "diverged" and r.t.size < sim.samples
+    assert r.divergence_time is not None and r.divergence_time < 0.6 * sim.t_end
+    assert r.eigen_t[0] == 0.0 and r.eigen_t[-1] == r.t[-1] == r.divergence_time
+    assert r.eigen_t.size == min(sim.eigen_samples, r.t.size)
+    np.testing.assert_allclose(np.diff(r.eigen_t), r.t[-1] / (r.eigen_t.size - 1), rtol=1e-9)
+    assert r.frozen.xi.shape[0] == r.eigen_t.size == r.exponents.xi.shape[0]
+
+    model = build_model(PAPER_PIPE, sim.modes)
+    loading = Loading(sim.flow, sim.spin)
+    S = model.state_matrix(loading.coefficients(np.array([r.eigen_t[-1]])))[0]
+    spectrum = scipy.linalg.eigvals(S)
+    for xi in r.frozen.xi[-1]:
+        assert np.min(np.abs(spectrum - xi)) <= 1e-9 * np.max(np.abs(spectrum))
+    assert r.frozen.least_stable is not None
+    end_sigma = r.frozen.sigma[-1, r.frozen.least_stable]
+    assert end_sigma == pytest.approx(spectrum.real.max(), rel=1e-9)
+    assert r.divergence_growth_rate == pytest.approx(end_sigma, rel=1e-9)
+    assert r.diagnostics["max_growth_rate"] == pytest.approx(end_sigma, rel=1e-9)
+    assert r.first_unstable_time is not None and r.first_unstable_time < r.divergence_time
+
+    doc = documents.simulation(r)
+    assert doc["eigenvalues"]["t"][-1] == doc["t"][-1] == r.divergence_time

@@ -83,3 +83,17 @@ def test_stability_report_states_the_critical_velocity() -> None:
     _, texts = _pdf_text(to_pdf(result, body))
     flat = re.sub(r"\s+", " ", " ".join(texts))
     assert f"critical velocity v_cr [m/s] {result['critical_velocity']:.6g}" in flat
+
+
+def test_the_end_values_of_a_diverged_run_are_stated_at_its_divergence_time(
+    diverged: dict[str, Any],
+) -> None:
+    """The traces of a stopped run end at its divergence time (issue 24), not at the
+    t_end asked: the report names that time with the fundamental's last values."""
+    t = diverged["divergence_time"]
+    assert diverged["eigenvalues"]["t"][-1] == t < 0.05  # 0.05 s asked
+    first = diverged["eigenvalues"]["modes"][0]
+    rows = dict(row for _, section in report(diverged).sections for row in section)
+    label = f"mode {first['mode']} at t = {t:.6g} s: sigma [1/s], omega [rad/s]"
+    assert rows[label] == f"{first['sigma'][-1]:.6g}, {first['omega'][-1]:.6g}"
+    assert not any("t_end" in name for name in rows)

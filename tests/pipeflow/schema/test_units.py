@@ -16,6 +16,7 @@ import pytest
 from pydantic import ValidationError
 
 from pipeflow.errors import InvalidField
+from pipeflow.schema import units
 from pipeflow.schema.frequency import HAMMER_EXAMPLE, FrequencyResponseSpec
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
@@ -154,3 +155,43 @@ def test_a_constant_profile_without_its_kind_is_not_a_quantity() -> None:
     assert StabilitySpec.model_validate({**body, "rotation": rpm}).rotation.omega0.value == (
         pytest.approx(955 * 2 * math.pi / 60, rel=1e-15)
     )
+
+
+def test_a_request_of_plain_numbers_is_scanned_once_and_converts_nothing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 24, item 4: the hook ran ``convert_fields`` on every model of every request
+    (11 calls for the paper's example); an input without a quantity anywhere is scanned
+    once by its outermost model and no model converts.  An input with one still converts
+    (the count shows the hook is live in this test)."""
+    calls: list[str] = []
+    real = units.convert_fields
+
+    def counting(model: type[Any], data: Any) -> Any:
+        calls.append(model.__name__)
+        return real(model, data)
+
+    monkeypatch.setattr(units, "convert_fields", counting)
+    SimulationSpec.model_validate(copy.deepcopy(PAPER_EXAMPLE))
+    assert calls == []
+    spec = SimulationSpec.model_validate(_body(pipe__L={"value": 25, "unit": "mm"}))
+    assert spec.pipe.L == pytest.approx(0.025, rel=1e-15)
+    assert "PipeSpec" in calls
+
+
+def test_the_quantity_free_marks_last_only_as_long_as_their_validation() -> None:
+    """The dicts marked quantity-free are so for the validation that scanned them: the
+    same dict given a quantity afterwards is converted, and an input validated inside
+    another validation (a validator checking further data) is scanned on its own."""
+    body = copy.deepcopy(PAPER_EXAMPLE)
+    SimulationSpec.model_validate(body)
+    body["pipe"]["L"] = {"value": 25, "unit": "mm"}
+    assert SimulationSpec.model_validate(body).pipe.L == pytest.approx(0.025, rel=1e-15)
+
+    inner = _body(rotation__omega0={"kind": "constant", "value": {"value": 3000, "unit": "rpm"}})
+
+    def handler(data: Any) -> Any:  # the outer model's validation validating other input
+        return SimulationSpec.model_validate(inner)
+
+    spec = units.validate(SimulationSpec, copy.deepcopy(PAPER_EXAMPLE), handler)
+    assert spec.rotation.omega0.value == pytest.approx(100 * math.pi, rel=1e-15)
