@@ -76,9 +76,9 @@ matrix-vector products, batched over the coarse intervals; the neglected terms a
 order in the exponent's variation over the interval.  The fill's own error is measured on
 about :data:`LOCAL_SAMPLES` coarse intervals against a march of exact sixth-order Magnus
 exponentials of the sample steps and added to the estimate; where it exceeds
-:data:`FILL_SHARE` of the tolerance the fill is redone with a quadratic polynomial, then
-with one exact exponential per sample (a low-norm one), batched over the coarse
-intervals.
+:data:`FILL_SHARE` of the tolerance (or what the coarse estimate leaves of it) the fill is
+redone with a quadratic polynomial, then with one exact exponential per sample (a low-norm
+one), batched over the coarse intervals.
 
 All exponentials of a block of steps are computed at once
 (:func:`~pipeflow.linalg.expm_stack`, scaling and squaring of a Taylor polynomial with
@@ -162,8 +162,8 @@ _WINDOW = 256
 #: estimate was above 1e-8 and it refined to 6,670; the 256-step pilot on 257 output
 #: times refined to 11,000) [-]
 DENSE_STEPS = 2000
-#: share of the tolerance the fill's own measured error may take before the fill falls
-#: back from the linearised exponents to one exact exponential per sample [-]
+#: share of the tolerance the fill's own measured error may take (less where the coarse
+#: estimate leaves less) before the fill is redone by the next, costlier form [-]
 FILL_SHARE = 0.1
 #: the fill's estimate is its largest measured difference times this: the intervals not
 #: checked may do a little worse than the checked ones, and the reference march has its
@@ -656,7 +656,7 @@ FILL_METHODS: dict[int | None, str] = {
 
 
 def dense_fill(
-    gen: MagnusGenerator, t: FloatArray, sel: NDArray[np.int64], Zc: FloatArray, tolerance: float
+    gen: MagnusGenerator, t: FloatArray, sel: NDArray[np.int64], Zc: FloatArray, allowance: float
 ) -> DenseFill:
     """The augmented states at every output time ``t`` [s] (uniform, spacing d) from those
     at the coarse times ``t[sel]`` (``Zc``, one Magnus step per coarse interval of several
@@ -671,7 +671,7 @@ def dense_fill(
     products per sample); quadratic with the step centred between them added (one more
     exponential, one more product); then one exact exponential per sample step.  Per
     sample count m all coarse intervals at once (:func:`_poly_march`); the first fill
-    whose measured error is within :data:`FILL_SHARE` of ``tolerance`` is kept.  The
+    whose estimated error is within ``allowance`` (relative [-]) is kept.  The
     error is measured on about :data:`LOCAL_SAMPLES` coarse intervals (spread over the
     run, those where the exponent varies most between the nodes and those where the first
     fill's march ends farthest from the next coarse state) against a march of exact
@@ -737,12 +737,14 @@ def dense_fill(
             states = states[:, : m - 1]
             diff = float(np.max(np.linalg.norm(states[picks, :, :N] - ref, axis=-1)))
             err = FILL_MARGIN * diff / scale if scale > 0 else (0.0 if diff == 0 else math.inf)
-            if err <= FILL_SHARE * tolerance:
+            if err <= allowance:
                 break
         Z[sel[ks][:, None] + np.arange(1, m)[None, :]] = states
-        estimate = max(estimate, err)
+        if not err <= estimate:  # (not max(): a nan, an overflowed fill, is kept)
+            estimate = err
         methods.append(FILL_METHODS[degree])
-    return DenseFill(Z, estimate, exps, ", ".join(dict.fromkeys(methods)), checked)
+    method = ", ".join(dict.fromkeys(methods)) or "none: every sample is a coarse time"
+    return DenseFill(Z, estimate, exps, method, checked)
 
 
 def load_scale(problem: Problem) -> float:
@@ -919,15 +921,22 @@ def step_control(problem: Problem, stats: SolverStats) -> StepControl:
     if sel is None:
         Z = Zaug[:, :N].copy()
     else:
-        fill = dense_fill(gen, problem.t, sel, Zaug, opts.tolerance)
+        # the fill may add what the coarse estimate leaves of the tolerance, at most
+        # FILL_SHARE of it (and that share when the coarse run is above the tolerance)
+        left = opts.tolerance - estimate
+        allowance = FILL_SHARE * opts.tolerance
+        fill = dense_fill(
+            gen, problem.t, sel, Zaug, allowance if left <= 0 else min(allowance, left)
+        )
         Z = fill.Z[:, :N]
         exps += fill.exponentials
         estimate += fill.estimate
-        fill_note = (
-            f"; dense output: plus {FILL_MARGIN:g} times the fill's largest difference from a "
-            f"march of sixth-order Magnus steps between samples on {fill.checked} coarse "
-            "intervals"
-        )
+        if fill.checked:
+            fill_note = (
+                f"; dense output: plus {FILL_MARGIN:g} times the fill's largest difference "
+                f"from a march of sixth-order Magnus steps between samples on {fill.checked} "
+                "coarse intervals"
+            )
         dense = {
             "steps": plan.steps,
             "coarse_times": int(sel.size),
@@ -936,7 +945,7 @@ def step_control(problem: Problem, stats: SolverStats) -> StepControl:
             "fill_estimated_relative_error": fill.estimate,
             "fill_exponentials": fill.exponentials,
         }
-        if estimate > opts.tolerance and not warnings:
+        if not estimate <= opts.tolerance and not warnings:
             warnings.append(
                 f"magnus could not verify the tolerance {opts.tolerance:.3g}: estimated "
                 f"relative error {estimate:.3g} with the dense output's fill"
