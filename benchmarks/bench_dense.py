@@ -89,17 +89,20 @@ def report(samples: list[int], rounds: int, data: dict[str, Any]) -> None:
     )
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for what in ("simulate", "simulate + document"):
-        first = samples[0]
-        b0 = min(wall[(what, first)])
-        m0 = statistics.median(wall[(what, first)])
-        c0 = statistics.median(cpu[(what, first)])
-        for n in samples:
-            b, m = min(wall[(what, n)]), statistics.median(wall[(what, n)])
-            c = statistics.median(cpu[(what, n)])
-            print(
-                f"| {what} | {n:,} | {b * 1e3:.1f} | {m * 1e3:.1f} | {c * 1e3:.1f} | "
-                f"{b / b0:.2f} | {m / m0:.2f} | {c / c0:.2f} |"
+        # per sample count: best wall, median wall, median CPU [s]
+        stats = {
+            n: (
+                min(wall[(what, n)]),
+                statistics.median(wall[(what, n)]),
+                statistics.median(cpu[(what, n)]),
             )
+            for n in samples
+        }
+        first = stats[samples[0]]
+        for n, row in stats.items():
+            ms = " | ".join(f"{v * 1e3:.1f}" for v in row)
+            ratios = " | ".join(f"{v / f:.2f}" for v, f in zip(row, first, strict=True))
+            print(f"| {what} | {n:,} | {ms} | {ratios} |")
 
 
 def main() -> None:

@@ -15,14 +15,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeflow.loads import PointForce, project_loads
-from pipeflow.model import Loading, build_model
-from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_SPIN
+from pipeflow.paper import PAPER_FLOWS, PAPER_SPIN
 from pipeflow.profiles import Constant, Harmonic, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem, SolverOutput, magnus
 from pipeflow.solvers.base import relative_difference
 from pipeflow.solvers.magnus import PILOT_STEPS, dense_refine, dense_selection
 from pipeflow.solvers.magnus_stack import solve_many
+from tests.pipeflow.solvers.test_magnus import _forced_problem
+from tests.pipeflow.solvers.test_magnus import _problem as _magnus_problem
 
 #: default options.tolerance [-]
 TOLERANCE = 1e-8
@@ -31,7 +31,6 @@ TOLERANCE = 1e-8
 #: comparison cannot resolve below [-]
 DOP853_FLOOR = 1e-8
 PULSATING = Harmonic(2.0, 1.0, 50.0)  # v = 2 + sin 50 t [m/s]
-TIP_FORCE = Harmonic(0.0, 1e-6, 700.0)  # [N], 700 rad/s
 
 
 def _problem(
@@ -42,18 +41,11 @@ def _problem(
     loads: bool = False,
     **opts: float,
 ) -> Problem:
-    """The paper's pipe from u0 = 1 mm; ``loads``: a 700 rad/s harmonic tip force."""
-    model = build_model(PAPER_PIPE, modes)
-    d0, v0 = model.initial_state(1e-3, 0.0)
-    forcing = project_loads(model, (PointForce(PAPER_PIPE.L, TIP_FORCE),)) if loads else None
-    return Problem(
-        model,
-        Loading(flow, spin),
-        model.to_balanced(d0, v0),
-        t,
-        Options(**opts),  # type: ignore[arg-type]
-        loads=forcing,
-    )
+    """The paper's pipe from u0 = 1 mm (test_magnus's cases); ``loads``: its 700 rad/s
+    harmonic tip force (at w0 = 100 rad/s)."""
+    if loads:
+        return _forced_problem(modes, t, 1e-3, flow, **opts)
+    return _magnus_problem(modes, flow, spin, t, **opts)
 
 
 def _converged(problem: Problem) -> np.ndarray:
