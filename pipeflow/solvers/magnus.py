@@ -167,9 +167,10 @@ DENSE_STEPS = 2000
 FILL_SHARE = 0.1
 #: the fill's estimate is its largest measured difference times this: the intervals not
 #: checked may do a little worse than the checked ones, and the reference march has its
-#: own error (measured: the largest error at a sample 1.00x the largest checked difference
-#: with the checked intervals chosen as in :func:`dense_fill`, 2.3x when they were only
-#: spread over the run) [-]
+#: own error (measured against a converged run, 4 modes, 20,001 samples over 0.2 s, a tip
+#: force: the largest error at a sample 1.00x the largest checked difference with the
+#: checked intervals chosen as in :func:`dense_fill`; with an earlier fill on the
+#: pulsating flow, 2.3x when they were only spread over the run) [-]
 FILL_MARGIN = 1.5
 #: matrix entries of the step exponentials one batch of a checking march holds [-]
 _MARCH_ENTRIES = 1_000_000

@@ -125,8 +125,8 @@ def test_steps_follow_the_physics_not_the_samples() -> None:
     """The paper's example (10 modes, 1 s, v = 0.4 t, w0 = 100 rad/s) takes the steps of
     its 2,001-sample run (2,000) at 20,001 samples; before dense output it took one step per
     sample (20,000 and a 10,000-step check).  The filled run's exponentials are below 2x the
-    2,001-sample run's (measured 5,271 against 3,000: 2,001 for the fill, ~270 for its
-    check)."""
+    2,001-sample run's (measured 5,136 against 3,000: 2,001 for the fill's nodes, 135 for
+    its check)."""
     sparse = SOLVERS["magnus"].solve(_problem(10, np.linspace(0.0, 1.0, 2001)))
     dense = SOLVERS["magnus"].solve(_problem(10, np.linspace(0.0, 1.0, 20001)))
     assert dense.stats.steps == sparse.stats.steps == 2000
