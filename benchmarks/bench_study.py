@@ -51,8 +51,10 @@ in the same run, interleaved round by round (:func:`time_variant`):
 - the floor: batched Magnus-4 written here in plain numpy (:func:`magnus_floor`): every
   case at the uniform step the library's accepted run ends with (so at the library's
   accuracy, told the step it would otherwise have to find), the step exponentials of all
-  cases with that step formed together (scaling and squaring of a Taylor polynomial
-  written here), one batched product per output interval, the peak tip and the lowest
+  cases with that step formed together (by the library's own batched exponential,
+  :func:`pipeflow.linalg.expm_stack`, so that the floor and the library pay the same per
+  exponential and the ratio measures what the library adds: its step control, spectra and
+  summaries), one batched product per output interval, the peak tip and the lowest
   eigenvalue of S(t_end); no error control, no branch tracking;
 - the library's study runner (``COMPUTATIONS["study"].execute``): the stacked magnus of
   :mod:`pipeflow.solvers.magnus_stack` through :func:`pipeflow.batch.summaries`;
@@ -86,6 +88,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 import bench_service as BENCH  # noqa: E402  (the server start-up, timers, section writer)
 
+from pipeflow.linalg import expm_stack  # noqa: E402
 from pipeflow.model import build_model  # noqa: E402
 from pipeflow.paper import PAPER_PIPE  # noqa: E402
 from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
@@ -319,26 +322,6 @@ def tv_body(side: int, modes: int, samples: int) -> dict[str, Any]:
     }
 
 
-def taylor_expm(X: np.ndarray) -> np.ndarray:
-    """exp(X) of a stack by scaling and squaring: Taylor degree 15 (Paterson-Stockmeyer,
-    6 products) of X / 2^s with |X / 2^s|_1 <= 1/2 (truncation 0.5^16 / 16! ~ 7e-19)."""
-    norm = np.abs(X).sum(axis=-2).max(axis=-1)
-    s = np.maximum(0, np.ceil(np.log2(np.maximum(norm, 1e-300) / 0.5))).astype(int)
-    Y = X * (0.5**s)[:, None, None]
-    eye = np.eye(X.shape[-1])
-    Y2 = Y @ Y
-    Y3 = Y2 @ Y
-    Y4 = Y2 @ Y2
-    f = [1.0 / math.factorial(j) for j in range(16)]
-    R = f[12] * eye + f[13] * Y + f[14] * Y2 + f[15] * Y3
-    for i in (2, 1, 0):
-        R = R @ Y4 + (f[4 * i] * eye + f[4 * i + 1] * Y + f[4 * i + 2] * Y2 + f[4 * i + 3] * Y3)
-    for k in range(int(s.max())):
-        sq = s > k
-        R[sq] = R[sq] @ R[sq]
-    return R
-
-
 def magnus_floor(
     a: np.ndarray, w0: np.ndarray, steps: np.ndarray, modes: int, samples: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -374,7 +357,7 @@ def magnus_floor(
             A = (wts @ pieces).reshape(G, 2, -1, n, n)
             A1, A2 = A[:, 0], A[:, 1]
             Om = 0.5 * h * (A1 + A2) + (math.sqrt(3) / 12 * h * h) * (A2 @ A1 - A1 @ A2)
-            E = taylor_expm(Om.reshape(-1, n, n)).reshape(G, k1 - k0, m, n, n)
+            E = expm_stack(Om.reshape(-1, n, n)).reshape(G, k1 - k0, m, n, n)
             for j in range(k1 - k0):
                 for i in range(m):
                     z = np.einsum("gij,gj->gi", E[:, j, i], z)

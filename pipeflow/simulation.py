@@ -42,6 +42,7 @@ from pipeflow.modeshapes import (
 )
 from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
+from pipeflow.solvers.checkpoint import current_checkpoints
 from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
 
 
@@ -231,7 +232,8 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
     z0 = model.to_balanced(d0, v0)
     forcing = project_loads(model, tuple(sim.loads))  # None without loads
-    problem = Problem(model, loading, z0, t, sim.options, progress, forcing)
+    # the host's checkpoints, if any (pipeflow.solvers.checkpoint.checkpointing)
+    problem = Problem(model, loading, z0, t, sim.options, progress, forcing, current_checkpoints())
     solver, reason = SOLVERS[sim.method].choose(problem)
     out = solver.solve(problem)
     add_error_estimate(solver, problem, out)  # how far to trust it (pipeflow.diagnostics)

@@ -236,7 +236,9 @@ def record_request(route: str, method: str, status: int, seconds: float, cache: 
 class EngineStats:
     """What the engine looks like now: ``workers`` processes (``ready`` once started),
     ``in_flight`` computations accepted and unfinished, ``queue_depth`` of them waiting
-    for a worker, ``capacity`` (in flight beyond it: 503), and job records by status."""
+    for a worker, ``capacity`` (in flight beyond it: 503), job records by status, and
+    ``waiting``: jobs in the store's durable queue (accepted, not yet taken by a replica;
+    over every replica sharing the store)."""
 
     workers: int
     ready: bool
@@ -244,6 +246,7 @@ class EngineStats:
     queue_depth: int
     capacity: int
     jobs: dict[str, int] = field(default_factory=dict)
+    waiting: int = 0
 
 
 def engine_stats(runner: Any, store: Any) -> EngineStats:
@@ -260,6 +263,7 @@ def engine_stats(runner: Any, store: Any) -> EngineStats:
         queue_depth=max(0, in_flight - slots),
         capacity=int(runner.capacity),
         jobs=store.job_counts(),
+        waiting=store.waiting_jobs(),
     )
 
 
@@ -281,6 +285,12 @@ class _EngineCollector(Collector):
         )
         yield GaugeMetricFamily(
             "pipeflow_capacity", "Computations that may be in flight (beyond: 503).", s.capacity
+        )
+        yield GaugeMetricFamily(
+            "pipeflow_jobs_waiting",
+            "Jobs in the durable queue, accepted and not yet taken by a replica (all "
+            "replicas sharing the store).",
+            s.waiting,
         )
         jobs = GaugeMetricFamily("pipeflow_jobs", "Job records by status.", labels=["status"])
         for status, n in sorted(s.jobs.items()):

@@ -136,6 +136,19 @@ class Settings(BaseSettings):
         description="A job whose heartbeat is older than this is taken to be dead (its "
         "worker, replica or the scheduler died) and is submitted again [s].",
     )
+    checkpoint_interval_s: float = Field(
+        5.0,
+        gt=0,
+        description="A long simulation (magnus, rk4) saves a checkpoint in the store at most "
+        "this often, the first after this long, so a computation killed with its worker or "
+        "server resumes from it instead of from zero; shorter runs never write one [s].",
+    )
+    checkpoint_max_bytes: int = Field(
+        64 << 20,
+        ge=0,
+        description="Largest checkpoint kept in the store [bytes]; a computation whose "
+        "checkpoint would be larger is not checkpointed (0: never checkpoint).",
+    )
 
     auth_required: bool = Field(
         False,

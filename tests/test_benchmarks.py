@@ -24,6 +24,16 @@ def _load():  # type: ignore[no-untyped-def]
     return module
 
 
+def _script(name: str):  # type: ignore[no-untyped-def]
+    """The benchmark script ``benchmarks/<name>.py`` as a module (not run)."""
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"pipeflow_{name}", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def test_benchmark_runs_one_tiny_case() -> None:
     """The benchmark's reference is expm(S t) z0 for constant flow (exact) and magnus at
     dt/16 for v = 0.4 t m/s; scipy's DOP853 at rtol 1e-9, an independent integrator, must
@@ -134,14 +144,7 @@ def test_fanout_benchmark_smoke(tmp_path: Path) -> None:
 def test_frequency_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-def]
     """benchmarks/bench_frequency.py --smoke (about a second): the three ways agree to 1e-9
     and every ratio row is printed with a verdict (timing is not asserted)."""
-    import importlib.util
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_frequency.py"
-    spec = importlib.util.spec_from_file_location("pipeflow_bench_frequency", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    assert module.main(["--smoke"]) == 0
+    assert _script("bench_frequency").main(["--smoke"]) == 0
     text = capsys.readouterr().out
     for row in ("frequency_response() |", "bare numpy modal sum |", "direct solves, batched |"):
         line = next(ln for ln in text.splitlines() if row in ln)
@@ -217,3 +220,13 @@ def test_bench_http_smoke() -> None:
     )
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert "CSV written again / kept:" in done.stdout and "hit with key / without:" in done.stdout
+
+
+@pytest.mark.slow  # a benchmark's smoke run, 3-10 s
+def test_checkpoint_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-def]
+    """benchmarks/bench_checkpoint.py --smoke prints its two tables (it asserts itself that
+    the resumed states equal the whole run's); no timing is asserted."""
+    assert _script("bench_checkpoint").main(["--smoke"]) == 0
+    out = capsys.readouterr().out
+    for row in ("| plain |", "| idle |", "| memory |", "| sqlite |", "| from zero |"):
+        assert row in out, row

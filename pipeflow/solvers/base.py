@@ -16,6 +16,7 @@ from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.loads import ExternalForcing
 from pipeflow.model import Coefficients, Loading, PipeModel
+from pipeflow.solvers.checkpoint import Checkpoints
 
 #: hard ceilings that no option may lift (they bound what one request can cost)
 MAX_STEPS_CEILING = 20_000_000
@@ -58,7 +59,8 @@ class Problem:
     """One linear initial-value problem z' = S(t) z + f(t) in balanced coordinates.
 
     f(t) = f_wdot dw0/dt (the spin-up load of the model) plus, with ``loads``, the external
-    loads sum_k g_k p_k(t) (:class:`pipeflow.loads.ExternalForcing`).
+    loads sum_k g_k p_k(t) (:class:`pipeflow.loads.ExternalForcing`).  ``checkpoints``: the
+    solvers that can (magnus, rk4) save their progress there and resume from it.
     """
 
     model: PipeModel
@@ -68,6 +70,8 @@ class Problem:
     options: Options = field(default_factory=Options)
     progress: Progress | None = None
     loads: ExternalForcing | None = None
+    #: where a long solve keeps checkpoints to resume from (:mod:`pipeflow.solvers.checkpoint`)
+    checkpoints: Checkpoints | None = None
 
     @property
     def forced(self) -> bool:

@@ -78,7 +78,9 @@ about :data:`LOCAL_SAMPLES` coarse intervals against a march of exact sixth-orde
 exponentials of the sample steps and added to the estimate; where it exceeds
 :data:`FILL_SHARE` of the tolerance (or what the coarse estimate leaves of it) the fill is
 redone with a quadratic polynomial, then with one exact exponential per sample (a low-norm
-one), batched over the coarse intervals.
+one), batched over the coarse intervals.  A checkpoint (:class:`MagnusCheckpoints`) holds
+the control's propagations on the coarse times; a resumed run fills again after them (the
+fill is not checkpointed: a fraction of the run, with no long sequential chain).
 
 All exponentials of a block of steps are computed at once
 (:func:`~pipeflow.linalg.expm_stack`, scaling and squaring of a Taylor polynomial with
@@ -127,6 +129,7 @@ from pipeflow.solvers.base import (
     step_budget,
     step_counts,
 )
+from pipeflow.solvers.checkpoint import Checkpointer
 
 #: fraction of the tolerance the steps are chosen for (the rest is margin for the estimate)
 SAFETY = 0.5
@@ -477,12 +480,19 @@ class Magnus(Solver):
         """Drive :func:`step_control` with :func:`propagate` (the stacked solver of
         :mod:`pipeflow.solvers.magnus_stack` drives the same control over many problems)."""
         control = step_control(problem, stats)
+        resume = MagnusCheckpoints(problem)
         run = next(control)
         try:
+            # a resume replays the deterministic control with the stored answers
+            for answer in resume.answers:
+                run = control.send(answer)
             while True:
-                run = control.send(propagate(problem, run.gen, run.t, run.plan))
+                answer = propagate(problem, run.gen, run.t, run.plan, resume)
+                resume.answered(answer)
+                run = control.send(answer)
         except StopIteration as stop:
             out: SolverOutput = stop.value
+            out.diagnostics.update(resume.diagnostics())
             return out
 
     @staticmethod
@@ -500,9 +510,14 @@ class Magnus(Solver):
 
 
 def propagate(
-    problem: Problem, gen: MagnusGenerator, t: FloatArray, plan: StepPlan
+    problem: Problem,
+    gen: MagnusGenerator,
+    t: FloatArray,
+    plan: StepPlan,
+    checkpoints: MagnusCheckpoints | None = None,
 ) -> tuple[FloatArray, int]:
-    """Augmented states at the times ``t`` [s] following ``plan``, and the exponentials used."""
+    """Augmented states at the times ``t`` [s] following ``plan``, and the exponentials used;
+    ``checkpoints``: continue from its stored window, and save one after a window when due."""
     Zaug = np.empty((t.size, gen.size))
     z = augmented_initial_state(problem, gen)
     Zaug[0] = z
@@ -524,6 +539,8 @@ def propagate(
     per = gen.exponent_size**2
     exps = 0
     k = 0
+    if checkpoints is not None:
+        k, exps = checkpoints.resume(t, Zaug)
     while k < dt.size:
         # a window of output intervals: the propagators of its intervals are formed in
         # batches of equal sub-step count and order (sized to stay in cache), whether or
@@ -553,6 +570,8 @@ def propagate(
             np.matmul(E_win[j], Zaug[k + j], out=Zaug[k + j + 1])
         k = stop
         problem.report(k / dt.size)
+        if checkpoints is not None and checkpoints.due():
+            checkpoints.save(t, k, Zaug, exps)
     return Zaug, exps
 
 
@@ -746,6 +765,68 @@ def dense_fill(
         methods.append(FILL_METHODS[degree])
     method = ", ".join(dict.fromkeys(methods)) or "none: every sample is a coarse time"
     return DenseFill(Z, estimate, exps, method, checked)
+
+
+class MagnusCheckpoints:
+    """The checkpoints of one :class:`Magnus` solve (:mod:`pipeflow.solvers.checkpoint`):
+    the answers of the step control's finished propagations (``answers``: replayed into
+    the generator on a resume) and the current propagation's augmented states up to its
+    last finished window of output intervals (:func:`propagate` continues from there)."""
+
+    def __init__(self, problem: Problem) -> None:
+        self.cp = Checkpointer("magnus", problem)
+        self.answers: list[tuple[FloatArray, int]] = []
+        self._start: tuple[int, FloatArray, int] | None = None
+        self.resumed: dict[str, Any] = {}
+        snap = self.cp.restore()
+        if snap is not None:
+            used = snap.header["exponentials"]
+            self.answers = [(snap.arrays[f"answer{i}"], int(n)) for i, n in enumerate(used)]
+            partial = snap.header["partial"]
+            self._start = (int(partial["k"]), snap.arrays["partial"], int(partial["exponentials"]))
+
+    def resume(self, t: FloatArray, Zaug: FloatArray) -> tuple[int, int]:
+        """Where the current propagation (output times ``t`` [s]) starts: ``(k, exps)``, the
+        output index reached and the exponentials used to get there, with ``Zaug[: k + 1]``
+        filled in; ``(0, 0)`` unless it is the one the checkpoint stopped in."""
+        start, self._start = self._start, None
+        if start is None:
+            return 0, 0
+        k, prefix, exps = start
+        if prefix.shape != (k + 1, Zaug.shape[1]) or k >= t.size:
+            return 0, 0  # not the propagation it was written in (cannot happen: logged)
+        Zaug[: k + 1] = prefix
+        self.resumed = {
+            "resumed_from_time": float(t[k]),
+            "resumed_run": len(self.answers) + 1,
+            "resumed_exponentials": exps + sum(n for _, n in self.answers),
+        }
+        return k, exps
+
+    def answered(self, answer: tuple[FloatArray, int]) -> None:
+        """The current propagation finished with ``answer`` (kept for the next checkpoints)."""
+        if self.cp.enabled:
+            self.answers.append(answer)
+
+    def due(self) -> bool:
+        return self.cp.due()
+
+    def save(self, t: FloatArray, k: int, Zaug: FloatArray, exps: int) -> None:
+        """A checkpoint in the current propagation after output ``k`` (``exps`` used)."""
+        arrays = {f"answer{i}": Z for i, (Z, _) in enumerate(self.answers)}
+        arrays["partial"] = Zaug[: k + 1]
+        header = {
+            "exponentials": [n for _, n in self.answers],
+            "partial": {"k": k, "exponentials": exps, "time": float(t[k])},
+        }
+        self.cp.save(header, arrays)
+
+    def diagnostics(self) -> dict[str, Any]:
+        """What the result says of a resume (nothing when it did not resume): the output
+        time [s] the resumed propagation continued from, its number among the step
+        control's propagations (1: the first attempt, then its checks and refinements),
+        and the exponentials carried over from the checkpoint instead of recomputed."""
+        return dict(self.resumed)
 
 
 def load_scale(problem: Problem) -> float:

@@ -10,7 +10,7 @@ fastest mode has |lambda| ~ 8e4 1/s, hence the tiny steps and the paper's long C
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,6 +27,7 @@ from pipeflow.solvers.base import (
     step_budget,
     step_counts,
 )
+from pipeflow.solvers.checkpoint import Checkpointer
 
 #: default fraction of the largest stable step used when the user gives none
 SAFETY = 0.9
@@ -95,7 +96,8 @@ class RK4(Solver):
         dt = np.diff(t)
         substeps = step_counts(dt, h_target, step_budget(opts), "RK4", step is not None)
         n_steps = int(substeps.sum())
-        Z = self._integrate(problem, substeps)
+        resumed: dict[str, Any] = {}
+        Z = self._integrate(problem, substeps, resumed)
         h_used = dt / substeps
         stats.steps = n_steps
         stats.rhs_evaluations = 4 * n_steps
@@ -104,10 +106,17 @@ class RK4(Solver):
             "step_min": float(h_used.min()),
             "largest_stable_step": h_stable,
             "stability_margin": float(h_stable / h_used.max()),
+            **resumed,
         }
         return SolverOutput(z=Z, diagnostics=diagnostics)
 
-    def _integrate(self, problem: Problem, substeps: NDArray[np.int64]) -> FloatArray:
+    def _integrate(
+        self, problem: Problem, substeps: NDArray[np.int64], diagnostics: dict[str, Any]
+    ) -> FloatArray:
+        """States at the output times with ``substeps`` equal steps per interval; with
+        ``problem.checkpoints``, a checkpoint (the outputs so far and the state at a
+        block boundary) when one is due, and a resume from the stored one (what it
+        carried over goes into ``diagnostics``)."""
         model, loading, t = problem.model, problem.loading, problem.t
         A = model.state_pieces
         forced = problem.forced  # varying spin or external loads
@@ -122,19 +131,33 @@ class RK4(Solver):
         block = max(16, _BLOCK_ENTRIES // (3 * model.size**2))
         if invariant:
             S_const = model.state_matrix(loading.coefficients(np.zeros(1)))[0]
-        for k in range(t.size - 1):
+        cp = Checkpointer("rk4", problem)
+        k0, b_start = 0, 0  # where to start: output interval, step within it
+        snap = cp.restore()
+        if snap is not None:
+            k0, b_start = int(snap.header["k"]), int(snap.header["step"])
+            Z[: k0 + 1] = snap.arrays["outputs"]
+            z = snap.arrays["state"].copy()
+            done = int(substeps[:k0].sum()) + b_start
+            diagnostics.update(
+                resumed_from_time=float(
+                    t[k0] + (t[k0 + 1] - t[k0]) / substeps[k0] * b_start if b_start else t[k0]
+                ),
+                resumed_steps=done,
+            )
+        for k in range(k0, t.size - 1):
             m = int(substeps[k])
             h = (t[k + 1] - t[k]) / m
-            if invariant:
-                for _ in range(m):
-                    k1 = S_const @ z
-                    k2 = S_const @ (z + 0.5 * h * k1)
-                    k3 = S_const @ (z + 0.5 * h * k2)
-                    k4 = S_const @ (z + h * k3)
-                    z = z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            else:
-                for b0 in range(0, m, block):
-                    nb = min(block, m - b0)
+            for b0 in range(b_start if k == k0 else 0, m, block):
+                nb = min(block, m - b0)
+                if invariant:
+                    for _ in range(nb):
+                        k1 = S_const @ z
+                        k2 = S_const @ (z + 0.5 * h * k1)
+                        k3 = S_const @ (z + 0.5 * h * k2)
+                        k4 = S_const @ (z + h * k3)
+                        z = z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                else:
                     starts = t[k] + h * (b0 + np.arange(nb))
                     stage_t = np.concatenate([starts, starts + 0.5 * h, starts + h])
                     c = loading.coefficients(stage_t)
@@ -152,8 +175,13 @@ class RK4(Solver):
                         k3 = S2 @ (z + 0.5 * h * k2) + fs[1, i]
                         k4 = S3 @ (z + h * k3) + fs[2, i]
                         z = z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                if b0 + nb < m and cp.due():
+                    # inside the interval: the state after b0 + nb of its m steps
+                    cp.save({"k": k, "step": b0 + nb}, {"outputs": Z[: k + 1], "state": z})
             Z[k + 1] = z
             done += m
             if done % report_every < m:
                 problem.report(done / total)
+            if k + 2 < t.size and cp.due():
+                cp.save({"k": k + 1, "step": 0}, {"outputs": Z[: k + 2], "state": z})
         return Z

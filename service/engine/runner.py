@@ -199,7 +199,10 @@ class Runner:
         # the disk bound's running total, recounted once (drift of writers of an older version)
         await asyncio.to_thread(self.store.recount_results)
         for job in await asyncio.to_thread(self.store.active_jobs):
-            if not job.waiting:  # a waiting one is the dispatcher's, in its turn
+            # a job no attempt started (waiting, or taken by a replica that has not started
+            # it) is the dispatcher's, in its turn (the monitor puts the latter back in the
+            # queue once its replica is stale): not driven here beyond this replica's slots
+            if job.status == "running":
                 await self._recover(job)
         self._spawn(self._monitor())
         self._spawn(self._dispatch())
@@ -628,6 +631,8 @@ class Runner:
             progress_interval_s=s.progress_interval_s,
             stale_after_s=s.stale_after_s,
             grace_s=max(self.watchdog_grace_s, 0.1 * s.job_timeout_s),
+            checkpoint_interval_s=s.checkpoint_interval_s,
+            checkpoint_max_bytes=s.checkpoint_max_bytes,
         )
 
     def _submit_task(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
@@ -997,6 +1002,8 @@ class Runner:
                     await asyncio.to_thread(self.store.touch, queued)
                 if now - last_recovery >= stale_after / 2:
                     last_recovery = now
+                    if await asyncio.to_thread(self.store.requeue_stale, stale_after):
+                        self._kick.set()  # back in the queue: taken as slots free up
                     for job in await asyncio.to_thread(self.store.stale_jobs, stale_after):
                         if job.key not in self._flights:
                             await self._recover(job)

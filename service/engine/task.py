@@ -45,9 +45,11 @@ from typing import TYPE_CHECKING, Any
 
 from pipeflow import parallel
 from pipeflow.errors import Cancelled, ErrorRecord, StorageError, classify
+from pipeflow.solvers.checkpoint import checkpointing
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
-from service.store import Claim, Store, worker_store
+from service.store import Claim, Job, Store, worker_store
+from service.store.checkpoints import StoreCheckpoints
 from service.store.memo import StoreMemo
 
 log = logging.getLogger("service.engine.task")
@@ -91,6 +93,8 @@ class TaskConfig:
     progress_interval_s: float  # heartbeat, progress and cancel-check period [s]
     stale_after_s: float  # a lease without heartbeat for this long is dead [s]
     grace_s: float  # past timeout_s + grace_s a silent computation is killed [s]
+    checkpoint_interval_s: float = 5.0  # a long solve's checkpoints, at most this often [s]
+    checkpoint_max_bytes: int = 64 << 20  # larger checkpoints are skipped; 0: none [bytes]
 
 
 def _store(cfg: TaskConfig) -> Store:
@@ -374,7 +378,7 @@ def _run_job(
         started = time.perf_counter()
         work_log.info("computation started", extra={"key": key, "computation": computation.name})
         try:
-            status, payload, error = _compute(computation, request, beat, cfg)
+            status, payload, error = _compute(computation, request, beat, cfg, claim.job)
         finally:
             beat.finish()
         seconds = time.perf_counter() - started
@@ -409,10 +413,12 @@ def _run_job(
 
 
 def _compute(
-    computation: Computation, request: Any, beat: _Heartbeat, cfg: TaskConfig
+    computation: Computation, request: Any, beat: _Heartbeat, cfg: TaskConfig, job: Job
 ) -> tuple[str, bytes | str | None, ErrorRecord | None]:
     """``("ok", json bytes, None)`` | ``("error", None, record)`` | ``("cancelled" | "lost",
-    why, None)``."""
+    why, None)``.  A long solve checkpoints into the store under ``job``'s key and
+    generation and resumes from an earlier attempt's checkpoint; the result's diagnostics
+    then say which attempt of the job resumed (``resumed_attempt``)."""
 
     def progress(fraction: float) -> None:
         if time.monotonic() > beat.deadline:
@@ -431,7 +437,20 @@ def _compute(
     try:
         beat.deadline = time.monotonic() + cfg.timeout_s  # the limit is on the computation
         # pieces computed before (a study's cases) come from the store, new ones go there
-        with parallel.hosting(host=host, memo=StoreMemo(beat.store)):
+        checkpoints = None
+        if cfg.checkpoint_max_bytes > 0:
+            checkpoints = StoreCheckpoints(
+                beat.store,
+                beat.key,
+                job.generation,
+                beat.owner,
+                cfg.checkpoint_interval_s,
+                cfg.checkpoint_max_bytes,
+            )
+        with (
+            parallel.hosting(host=host, memo=StoreMemo(beat.store)),
+            checkpointing(checkpoints),
+        ):
             result = computation.execute(request, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:
@@ -446,6 +465,9 @@ def _compute(
     fan_out = host.diagnostics() if host is not None else None
     if fan_out is not None and isinstance(result.get("diagnostics"), dict):
         result["diagnostics"] = {**result["diagnostics"], "fan_out": fan_out}
+    diagnostics = result.get("diagnostics")
+    if isinstance(diagnostics, dict) and "resumed_from_time" in diagnostics:
+        result["diagnostics"] = {**diagnostics, "resumed_attempt": job.attempts}
     try:
         return ("ok", encoding.dumps(result), None)  # non-finite numbers -> null (the one rule)
     except Exception as exc:

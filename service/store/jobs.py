@@ -23,7 +23,7 @@ from typing import Any, Literal, get_args
 from sqlalchemy import Connection, Row, case, delete, func, select, update
 
 from service.store.connection import StoreConnection
-from service.store.tables import jobs, results
+from service.store.tables import checkpoints, jobs, results
 
 #: a job's status: the one definition (the job record's column, the HTTP job document)
 JobState = Literal["queued", "running", "succeeded", "failed", "cancelled"]
@@ -285,6 +285,28 @@ class JobStore(StoreConnection):
             job = self._job(conn, key)
         return job, True
 
+    def requeue_stale(self, stale_after_s: float) -> list[str]:
+        """Put back into the durable queue the jobs a replica took (or accepted to drive)
+        that no attempt has started and whose replica has not been heard of for
+        ``stale_after_s`` [s] (it died between taking and starting them): they wait again
+        for a free slot of any replica, in their turn, instead of being driven by whichever
+        replica notices first, beyond its slots.  Returns their keys."""
+        cond = [
+            jobs.c.status == "queued",
+            jobs.c.dispatcher.is_not(None),
+            jobs.c.owner.is_(None),
+            jobs.c.heartbeat.is_(None) | (jobs.c.heartbeat < time.time() - stale_after_s),
+        ]
+        with self._write() as conn:
+            keys = [r.key for r in conn.execute(select(jobs.c.key).where(*cond))]
+            if keys:
+                conn.execute(
+                    update(jobs)
+                    .where(jobs.c.key.in_(keys), *cond)
+                    .values(dispatcher=None, dispatched=None, heartbeat=time.time())
+                )
+        return keys
+
     def waiting_jobs(self) -> int:
         """Jobs in the durable queue (accepted, not yet taken by a replica)."""
         with self._read() as conn:
@@ -424,6 +446,8 @@ class JobStore(StoreConnection):
                 progress=1.0 if status == "succeeded" else jobs.c.progress,
             )
         ).rowcount
+        if done:
+            conn.execute(delete(checkpoints).where(checkpoints.c.key == key))
         return bool(done)
 
     def mark_succeeded(self, key: str, kind: str, spec: dict[str, Any]) -> None:
@@ -459,6 +483,7 @@ class JobStore(StoreConnection):
                     error=json.dumps({"detail": "cancelled by request"}),
                 )
             )
+            conn.execute(delete(checkpoints).where(checkpoints.c.key == key))
             return self._job(conn, key)
 
     @staticmethod
@@ -530,8 +555,12 @@ class JobStore(StoreConnection):
             )
 
     def prune_jobs(self, older_than: float) -> int:
-        """Delete finished job records whose last update is before ``older_than`` [Unix s]."""
+        """Delete finished job records whose last update is before ``older_than`` [Unix s],
+        and the checkpoints of jobs no longer active (a finish deletes them already; this
+        catches a write that raced it)."""
         with self._write() as conn:
+            active = select(jobs.c.key).where(jobs.c.status.in_(ACTIVE))
+            conn.execute(delete(checkpoints).where(checkpoints.c.key.notin_(active)))
             return int(
                 conn.execute(
                     delete(jobs).where(jobs.c.status.notin_(ACTIVE), jobs.c.updated < older_than)
@@ -630,6 +659,49 @@ class JobStore(StoreConnection):
             conn.execute(
                 update(jobs).where(jobs.c.key == key, jobs.c.owner == owner).values(**values)
             )
+
+    def save_checkpoint(self, key: str, generation: int, owner: str, body: bytes) -> bool:
+        """Keep ``body`` as the latest checkpoint of generation ``generation`` of job ``key``
+        (replacing the previous one), if the attempt ``owner`` still holds its running
+        lease; True if kept.  The job's row is locked from the check to the write, so a
+        finish (which deletes the job's checkpoints) is never followed by a stray row."""
+        now = time.time()
+        with self._write() as conn:
+            held = conn.execute(
+                select(jobs.c.key)
+                .where(
+                    jobs.c.key == key,
+                    jobs.c.generation == generation,
+                    jobs.c.owner == owner,
+                    jobs.c.status == "running",
+                )
+                .with_for_update()
+            ).first()
+            if held is None:
+                return False
+            row = dict(body=body, size=len(body), written=now)
+            conn.execute(
+                self._insert(checkpoints)
+                .values(key=key, generation=generation, **row)
+                .on_conflict_do_update(index_elements=["key", "generation"], set_=row)
+            )
+        return True
+
+    def load_checkpoint(self, key: str, generation: int) -> bytes | None:
+        """The latest checkpoint of generation ``generation`` of job ``key``, or None."""
+        with self._read() as conn:
+            body = conn.execute(
+                select(checkpoints.c.body).where(
+                    checkpoints.c.key == key, checkpoints.c.generation == generation
+                )
+            ).scalar_one_or_none()
+        return bytes(body) if body is not None else None
+
+    def checkpoint_sizes(self) -> dict[str, int]:
+        """The stored checkpoints' sizes by job key [bytes] (tests, inspection)."""
+        with self._read() as conn:
+            rows = conn.execute(select(checkpoints.c.key, checkpoints.c.size)).all()
+        return {str(key): int(size) for key, size in rows}
 
     def expire_leases(self, worker: str, heartbeat: float) -> list[str]:
         """The worker ``worker`` left the cluster (Dask's own signal): the leases of the

@@ -80,6 +80,18 @@ Index("jobs_principal", jobs.c.principal, jobs.c.created)
 Index("jobs_queue", jobs.c.status, jobs.c.dispatcher, jobs.c.principal, jobs.c.created)
 Index("jobs_served", jobs.c.principal, jobs.c.dispatched)
 
+#: migration 0005: the latest checkpoint of a running job's computation (an opaque blob of
+#: :mod:`pipeflow.solvers.checkpoint`), by job key and generation; deleted when it finishes
+checkpoints = Table(
+    "checkpoints",
+    metadata,
+    Column("key", String(128), primary_key=True),
+    Column("generation", Integer, primary_key=True),
+    Column("body", LargeBinary, nullable=False),
+    Column("size", Integer, nullable=False),  # [bytes]
+    Column("written", Float, nullable=False),
+)
+
 #: a scratch row written by the storage probe (is there room for a write again?)
 probe = Table(
     "probe",

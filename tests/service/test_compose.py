@@ -348,7 +348,7 @@ def test_dashboard_queries_what_the_service_exports(tmp_path: Path) -> None:
     everything = set().union(*used.values())
     for family in ("http_requests_total", "http_request_duration_seconds_bucket"):
         assert f"pipeflow_{family}" in everything
-    for gauge in ("in_flight", "queue_depth", "jobs", "workers"):
+    for gauge in ("in_flight", "queue_depth", "jobs", "jobs_waiting", "workers"):
         assert f"pipeflow_{gauge}" in everything
     assert {"pipeflow_cache_lookups_total", "pipeflow_computations_total"} <= everything
 

@@ -264,3 +264,25 @@ def test_live_server_logs_and_metrics_carry_the_request_id(tmp_path: Path) -> No
         again = httpx.get(url + "/metrics", timeout=10).text
     assert sample(again, "pipeflow_http_requests_total", **route) == 2
     assert sample(again, "pipeflow_computations_total", **comp) == 1
+
+
+def test_waiting_jobs_gauge_counts_the_durable_queue(tmp_path: Path) -> None:
+    """``pipeflow_jobs_waiting``: jobs accepted into the store's durable queue and not yet
+    taken by a replica (issue 22); a job a replica took, or one driven at once, is not
+    waiting.  The engine is a stand-in (a unit seam); the store is real."""
+    from types import SimpleNamespace
+
+    from service.store import Store
+
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10_000, memory_cache_bytes=0)
+    for key in ("a", "b", "c"):
+        assert store.queue_job(key, "simulation", {"k": key}, bound=10)[1]
+    store.enqueue_job("d", "simulation", {"k": "d"})  # driven at once: not waiting
+    assert [job.key for job in store.claim_waiting("replica-1", 1)] == ["a"]
+    runner = SimpleNamespace(
+        settings=SimpleNamespace(workers=1), in_flight=0, workers=1, ready=True, capacity=17
+    )
+    text = observability.exposition(observability.engine_stats(runner, store)).decode()
+    assert sample(text, "pipeflow_jobs_waiting") == 2
+    assert sample(text, "pipeflow_jobs", status="queued") == 4
+    store.close()

@@ -202,11 +202,13 @@ def test_no_attempt_propagates_more_steps_than_the_budget(
     attempts: list[int] = []
     original = magnus.propagate
 
-    def counting(problem: Problem, gen: object, times: np.ndarray, plan: object) -> object:
+    def counting(
+        problem: Problem, gen: object, times: np.ndarray, plan: object, *rest: object
+    ) -> object:
         if times.size == t.size:  # a new attempt starts with the run on every output time
             attempts.append(0)
         attempts[-1] += plan.steps  # type: ignore[attr-defined]
-        return original(problem, gen, times, plan)  # type: ignore[arg-type]
+        return original(problem, gen, times, plan, *rest)  # type: ignore[arg-type]
 
     monkeypatch.setattr(magnus, "propagate", counting)
     p = _problem(4, polynomial(0, 0.4), Constant(100.0), t, tolerance=1e-10, max_steps=max_steps)
@@ -375,9 +377,11 @@ def test_refined_attempt_is_checked_against_the_previous_one(
     calls: list[int] = []
     original = magnus.propagate
 
-    def counting(problem: Problem, gen: object, times: np.ndarray, plan: object) -> object:
+    def counting(
+        problem: Problem, gen: object, times: np.ndarray, plan: object, *rest: object
+    ) -> object:
         calls.append(times.size)
-        return original(problem, gen, times, plan)  # type: ignore[arg-type]
+        return original(problem, gen, times, plan, *rest)  # type: ignore[arg-type]
 
     monkeypatch.setattr(magnus, "propagate", counting)
     flow = Harmonic(2.0, 1.0, 50.0)
