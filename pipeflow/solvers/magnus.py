@@ -1010,7 +1010,7 @@ def step_control(problem: Problem, stats: SolverStats) -> StepControl:
         fill = dense_fill(
             gen, problem.t, sel, Zaug, allowance if left <= 0 else min(allowance, left)
         )
-        Z = fill.Z[:, :N]
+        Z = np.ascontiguousarray(fill.Z[:, :N])  # (a copy only when the state is augmented)
         exps += fill.exponentials
         estimate += fill.estimate
         if fill.checked:
