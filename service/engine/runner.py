@@ -58,7 +58,7 @@ from pipeflow.parallel import metered
 from pipeflow.schema.registry import COMPUTATIONS
 from service import observability
 from service.engine.preload import MODULE as PRELOAD
-from service.engine.task import Accept, Outcome, TaskConfig, run_job
+from service.engine.task import HANDED_OFF, Accept, Outcome, TaskConfig, run_job
 from service.keys import Keyed
 from service.settings import Settings
 from service.store import Claim, Job, Store
@@ -125,6 +125,12 @@ class Flight:
 def _internal(message: str) -> dict[str, Any]:
     """A job record's error: the engine failed (not the computation)."""
     return ErrorRecord.internal(message).to_dict()
+
+
+def _handed_off(job: Job) -> bool:
+    """Whether the fast lane handed ``job`` off to a worker (its attempt was given back,
+    so ``job.attempts`` does not show it)."""
+    return (job.last_retry_reason or "").startswith(HANDED_OFF)
 
 
 def _run_in_lane(allowance_s: float | None, *args: Any) -> Outcome:
@@ -678,7 +684,7 @@ class Runner:
         if (
             self._lane is None
             or self._lane_busy >= self.settings.fast_lane_threads
-            or (job is not None and job.attempts > 0)
+            or (job is not None and (job.attempts > 0 or _handed_off(job)))
             or flight.resubmits > 0
         ):
             return False, None

@@ -55,6 +55,9 @@ from service.store.checkpoints import StoreCheckpoints
 from service.store.memo import StoreMemo
 
 log = logging.getLogger("service.engine.task")
+#: how the record of a job the fast lane handed off to a worker starts its retry reason
+#: (the runner sends such a job to a worker, never to the lane again)
+HANDED_OFF = "handed off to a worker by the fast lane"
 #: the computation's own lines (started, finished), with the request id
 work_log = logging.getLogger("service.worker")
 
@@ -406,9 +409,11 @@ def _run_job(
             return Outcome("succeeded", seconds=seconds, finished=done, body=body)
         if status == "handoff":
             # the lane's allowance stopped it before the work that would pass it: the record
-            # stays active, unowned, with the reason; the replica submits it to a worker
+            # stays active, unowned, with the reason, and the attempt is given back (a
+            # hand-off must not use up one of the starts a dying worker may take); the
+            # replica submits it to a worker
             why = str(payload)
-            store.release(key, owner, f"handed off to a worker by the fast lane: {why}")
+            store.release(key, owner, f"{HANDED_OFF}: {why}", refund=True)
             return Outcome("handoff", seconds=seconds, note=why)
         if status == "cancelled":
             store.release(key, owner)  # the record already says cancelled (by the request)

@@ -650,12 +650,19 @@ class JobStore(StoreConnection):
             return "cancelled"
         return "lost"
 
-    def release(self, key: str, owner: str, reason: str | None = None) -> None:
-        """Give up the lease without finishing (the job is retried; ``reason`` says why)."""
+    def release(
+        self, key: str, owner: str, reason: str | None = None, refund: bool = False
+    ) -> None:
+        """Give up the lease without finishing (the job is retried; ``reason`` says why).
+        ``refund``: the attempt stopped in good order before its work (the fast lane's
+        hand-off) and does not count against the job's attempts (:data:`MAX_ATTEMPTS` of
+        the runner bounds the starts whose process died)."""
         with self._write() as conn:
             values: dict[str, Any] = {"owner": None, "heartbeat": time.time()}
             if reason is not None:
                 values["last_retry_reason"] = reason
+            if refund:
+                values["attempts"] = jobs.c.attempts - 1
             conn.execute(
                 update(jobs).where(jobs.c.key == key, jobs.c.owner == owner).values(**values)
             )

@@ -213,7 +213,13 @@ def test_live_server_logs_and_metrics_carry_the_request_id(tmp_path: Path) -> No
     prom.mkdir()
     log = tmp_path / "server.log"
     spec = dict(SMALL, modes=2)
-    env = {"PROMETHEUS_MULTIPROC_DIR": str(prom), "PIPEFLOW_LOG_FORMAT": "json"}
+    # the time-variant run on a Dask worker (not metered in the API process's fast lane):
+    # the worker's lines must carry the request id across the process boundary
+    env = {
+        "PROMETHEUS_MULTIPROC_DIR": str(prom),
+        "PIPEFLOW_LOG_FORMAT": "json",
+        "PIPEFLOW_FAST_LANE_MAX_METERED_S": "0",
+    }
     with uvicorn_server(tmp_path / "data", log, **env) as url:
         r = httpx.post(
             url + "/v1/simulations", json=spec, headers={"X-Request-ID": "live-1"}, timeout=60
