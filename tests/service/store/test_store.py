@@ -500,3 +500,28 @@ def test_enqueue_and_claim_writes_the_record_already_leased(tmp_path: Path) -> N
         "a5",
     )
     assert fresh.job.refresh and fresh.job.finished is None and fresh.job.error is None
+
+
+def test_a_refunded_release_gives_the_attempt_back(tmp_path: Path) -> None:
+    """The fast lane's hand-off (release with refund) leaves the record active and unowned
+    with its reason and one attempt fewer; a plain release (a cancelled or lost attempt)
+    keeps the count; only the lease holder's release does anything."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10_000, memory_cache_bytes=0)
+    claim = store.enqueue_and_claim("k", "simulation", {}, "a1", "w1", refresh=False)
+    assert claim.job is not None and claim.job.attempts == 1
+    store.release("k", "someone-else", "not the holder", refund=True)
+    job = store.get_job("k")
+    assert job is not None and (job.owner, job.attempts) == ("a1", 1)
+    store.release("k", "a1", "handed off", refund=True)
+    job = store.get_job("k")
+    assert job is not None
+    assert (job.status, job.owner, job.attempts, job.last_retry_reason) == (
+        "running",
+        None,
+        0,
+        "handed off",
+    )
+    assert store.claim("k", "a2", "w2", stale_after_s=10.0).outcome == "claimed"
+    store.release("k", "a2", "lost")
+    job = store.get_job("k")
+    assert job is not None and (job.owner, job.attempts) == (None, 1)
