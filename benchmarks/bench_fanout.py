@@ -27,6 +27,16 @@ m/s x w0 in [0, 200] rad/s, 10 modes, 1 s, 201 samples; ``--smoke``: 6 x 6, 2 mo
 repetition a distinct study (v's top value moved by 1e-9 relative: the store's memo serves
 nothing, every case is computed), the library call being the serial study runner.
 
+``--timeline`` (with ``--study``) instead traces where one study job's time goes, on a
+2-worker cluster as the service's (``LocalCluster``, one thread a worker, the service's
+preload) and a fresh SQLite store: a task on a worker runs the job's path (the
+``DaskHost`` fan-out with the store's memo around the registry's ``execute``, then the
+result's encoding and its store write, as :func:`service.engine.task._compute` and
+:func:`~service.engine.task.run_job` do) and records the job's phases, when each piece
+started and ended on which worker (with its own phases: validation and keys, memo look-up,
+compute, memo write, from the piece's ``timing``), when the job received it, and the gaps
+the job waited with a worker idle.  Printed (and written to RESULTS.md) as a table.
+
 ``--sweeps`` adds the measurement behind leaving argand/campbell sweeps serial: the batched
 frozen spectra of a sweep (``pipeflow.spectra.decompose``: eigenvalues and left/right
 eigenvectors at every point) computed here against 8 pieces on a 2-worker LocalCluster
@@ -215,6 +225,173 @@ def sweep_probe() -> str:
     )
 
 
+def _traced_job(request: Any, db_url: str) -> dict[str, Any]:
+    """The study job's path on a worker (see the module docstring, ``--timeline``): the
+    job's phases [s since the epoch] and, per piece, its timing and arrival."""
+    from pipeflow import parallel
+    from pipeflow.schema import study_runner
+    from service import encoding
+    from service.engine.fanout import DaskHost
+    from service.store import worker_store
+    from service.store.memo import StoreMemo
+
+    marks: dict[str, float] = {"start": time.time()}
+    cpu0 = time.thread_time()
+    arrivals: list[dict[str, Any]] = []
+
+    class Recording:
+        """The DaskHost, with each piece's arrival in the job noted."""
+
+        def __init__(self, host: DaskHost) -> None:
+            self.host = host
+
+        @property
+        def width(self) -> int:
+            return self.host.width
+
+        def map(self, fn: Any, items: Any) -> Any:
+            marks["submit"] = time.time()
+            for i, rows in self.host.map(fn, items):
+                arrivals.append({"i": i, "arrived": time.time(), **rows.timing})
+                yield i, rows
+
+    table = study_runner._table
+
+    def timed_table(*args: Any, **kwargs: Any) -> Any:
+        marks["merged"] = time.time()
+        try:
+            return table(*args, **kwargs)
+        finally:
+            marks["table"] = time.time()
+
+    store = worker_store(db_url, 1 << 32)
+    study_runner._table = timed_table  # type: ignore[assignment]
+    try:
+        with parallel.hosting(host=Recording(DaskHost()), memo=StoreMemo(store)):
+            result = COMPUTATIONS["study"].execute(request, lambda f: None)
+    finally:
+        study_runner._table = table  # type: ignore[assignment]
+    marks["executed"] = time.time()
+    body = encoding.dumps(result)
+    marks["encoded"] = time.time()
+    store.put_result(f"timeline-{marks['start']}", "study", body)
+    marks["stored"] = time.time()
+    return {
+        "marks": marks,
+        "pieces": arrivals,
+        "bytes": len(body),
+        "job_cpu": time.thread_time() - cpu0,
+        "job_pid": os.getpid(),
+    }
+
+
+def _process_cpu() -> tuple[int, float]:
+    """(pid, CPU seconds so far) of the worker process running this."""
+    times = os.times()
+    return os.getpid(), times.user + times.system
+
+
+def timeline(spec: dict[str, Any], workers: int = 2) -> str:
+    """One traced study job (after an untraced one) on a ``workers``-worker cluster: the
+    Markdown timeline (see the module docstring, ``--timeline``)."""
+    from distributed import Client, LocalCluster
+
+    from pipeflow.schema.study import StudySpec
+    from service.engine.runner import PRELOAD
+    from service.store import Store
+
+    tmp = Path(tempfile.mkdtemp(prefix="pipeflow-bench-timeline-"))
+    db_url = f"sqlite:///{tmp / 'store.sqlite3'}"
+    Store(db_url, 1 << 32, 0).close()  # migrated once, as the service does
+    body = {k: v for k, v in spec.items() if k != "kind"}
+    with (
+        LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            preload_nanny=[PRELOAD],
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        warm = StudySpec.model_validate(variant(body, 20_000))
+        client.submit(_traced_job, warm, db_url, pure=False).result()  # untraced
+        request = StudySpec.model_validate(variant(body, 20_001))
+        before = dict(client.run(_process_cpu).values())
+        trace = client.submit(_traced_job, request, db_url, pure=False).result()
+        after = dict(client.run(_process_cpu).values())
+    trace["process_cpu"] = {pid: after[pid] - before[pid] for pid in after}
+    return timeline_table(trace)
+
+
+def timeline_table(trace: dict[str, Any]) -> str:
+    m, pieces = trace["marks"], sorted(trace["pieces"], key=lambda p: p["start"])
+    t0 = m["start"]
+    pids = {pid: n for n, pid in enumerate(sorted({p["pid"] for p in pieces}), start=1)}
+    busy = {pid: sum(p["end"] - p["start"] for p in pieces if p["pid"] == pid) for pid in pids}
+    last = max(p["arrived"] for p in pieces)
+    rows = []
+    for p in pieces:
+        rows.append(
+            f"| {p['i']} | w{pids[p['pid']]} | {(p['start'] - t0) * 1e3:.0f} | "
+            f"{(p['end'] - t0) * 1e3:.0f} | {(p['arrived'] - t0) * 1e3:.0f} | "
+            f"{p['validate'] * 1e3:.0f} | {p['memo_get'] * 1e3:.0f} | {p['compute'] * 1e3:.0f} | "
+            f"{p['memo_put'] * 1e3:.0f} | {p['memo_put_cpu'] * 1e3:.0f} | "
+            f"{p['cpu'] / (p['end'] - p['start']):.0%} |"
+        )
+    first_start = min(p["start"] for p in pieces)
+    span = max(p["end"] for p in pieces) - first_start
+    phases = [
+        ("job start to pieces submitted (expand, split)", m["submit"] - t0),
+        ("pieces submitted to the first piece started", first_start - m["submit"]),
+        ("pieces running (first start to last end)", span),
+        ("last piece ended to the job has it", last - max(p["end"] for p in pieces)),
+        ("last arrival to merge done (rows merged)", m["merged"] - last),
+        ("`_table` (rows, statistics, document)", m["table"] - m["merged"]),
+        ("to execute's return", m["executed"] - m["table"]),
+        ("result encoded (`encoding.dumps`)", m["encoded"] - m["executed"]),
+        ("result stored (compress, write)", m["stored"] - m["encoded"]),
+        ("**job total**", m["stored"] - t0),
+    ]
+    sums = {
+        k: sum(p[k] for p in pieces)
+        for k in ("validate", "memo_get", "compute", "memo_put", "cpu", "memo_put_cpu")
+    }
+    walls = sum(p["end"] - p["start"] for p in pieces)
+    own = {pid: sum(p["cpu"] for p in pieces if p["pid"] == pid) for pid in pids}
+    processes = "; ".join(
+        f"w{pids.get(float(pid), '?')}{' (runs the job)' if pid == trace['job_pid'] else ''}: "
+        f"{cpu * 1e3:.0f} ms, its pieces {own.get(float(pid), 0.0) * 1e3:.0f}"
+        for pid, cpu in sorted(trace["process_cpu"].items())
+    )
+    return "\n".join(
+        [
+            f"Timeline of one study job ({len(pieces)} pieces on {len(pids)} workers, result "
+            f"{trace['bytes'] / 1e6:.1f} MB of JSON); times in ms from the job's start.",
+            "",
+            f"CPU of each worker process during the job (all its threads): {processes}; the "
+            f"job's own thread: {trace['job_cpu'] * 1e3:.0f} ms.",
+            "",
+            "| job phase | ms |",
+            "|---|---:|",
+            *(f"| {name} | {dt * 1e3:.0f} |" for name, dt in phases),
+            "",
+            "Busy time per worker (sum of its pieces) [ms]: "
+            + ", ".join(f"w{n} {busy[pid] * 1e3:.0f}" for pid, n in pids.items())
+            + f"; over all pieces [ms]: validation and keys {sums['validate'] * 1e3:.0f}, "
+            f"memo look-up {sums['memo_get'] * 1e3:.0f}, compute {sums['compute'] * 1e3:.0f}, "
+            f"memo write {sums['memo_put'] * 1e3:.0f} (CPU {sums['memo_put_cpu'] * 1e3:.0f}); the "
+            f"pieces' CPU {sums['cpu'] * 1e3:.0f} of {walls * 1e3:.0f} wall (the rest waited: "
+            "a lock, the GIL, another process on the core).",
+            "",
+            "| piece | worker | start | end | job has it | validate+keys | memo get | compute "
+            "| memo put | its CPU | piece CPU / wall |",
+            "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+            *rows,
+        ]
+    )
+
+
 def median(values: list[float]) -> float:
     return float(statistics.median(values))
 
@@ -289,9 +466,28 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-write", action="store_true", help="print only")
     ap.add_argument("--sweeps", action="store_true", help="also the sweep-spectra probe")
     ap.add_argument("--study", action="store_true", help="the 10,000-case study, not the map")
+    ap.add_argument("--timeline", action="store_true", help="--study: trace one job instead")
+    ap.add_argument("--workers", type=int, default=2, help="--timeline: the cluster's workers")
     args = ap.parse_args(argv)
     spec = study(args.smoke) if args.study else SMOKE_MAP if args.smoke else MAP
     started = time.monotonic()
+    if args.timeline:
+        if not args.study:
+            ap.error("--timeline traces the study job: add --study")
+        text = timeline(spec, args.workers)
+        text = (
+            f"`python benchmarks/bench_fanout.py --study --timeline --workers {args.workers}"
+            f"{' --smoke' if args.smoke else ''}` "
+            f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+            f"{time.monotonic() - started:.0f} s, load average "
+            + " ".join(f"{x:.1f}" for x in os.getloadavg())
+            + f" at the end): {BENCH.machine()}.\n\n{text}"
+        )
+        print(text, flush=True)
+        if not args.no_write:
+            BENCH.write_section(args.out, args.label, text, prefix="Study job timeline (issue 19)")
+            print(f"\nwritten to {args.out}")
+        return 0
     desc = BENCH.machine()
     raw = run(spec, 1 if args.smoke else args.repeats)
     raw["machine"] = desc
