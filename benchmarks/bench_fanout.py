@@ -73,6 +73,7 @@ from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 TARGET = 1.6
+#: the benchmark's job polling period [s] (``--poll``)
 POLL_S = 0.02
 
 #: the issue's map (the registry's example): the paper's pipe, 100 x 100 points, 10 modes
@@ -124,6 +125,13 @@ def job_over_http(client: httpx.Client, url: str, spec: dict[str, Any]) -> dict[
     return {"wall": wall, "compute": t1 - t0, "fan_out": fan_out}
 
 
+def process_cpu(pid: int) -> float:
+    """CPU seconds (user + system) of process ``pid`` so far, its own threads only (the
+    API server: its requests and the embedded Dask scheduler, not its workers)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def library_call(spec: dict[str, Any]) -> float:
     computation = COMPUTATIONS[spec["kind"]]
     body = {k: v for k, v in spec.items() if k != "kind"} if spec["kind"] == "study" else spec
@@ -144,14 +152,15 @@ def run(spec: dict[str, Any], repeats: int) -> dict[str, Any]:
             ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn"))
         )
         list(pool.map(library_call, [spec, spec]))  # start-up and first use, unmeasured
-        urls = {
+        servers = {
             n: stack.enter_context(
                 BENCH.server(
                     tmp / f"data{n}", tmp / f"server{n}.log", env | {"PIPEFLOW_WORKERS": str(n)}
                 )
-            )[0]
+            )
             for n in (1, 2)
         }
+        urls = {n: url for n, (url, _) in servers.items()}
         client = stack.enter_context(httpx.Client(timeout=120))
         library_call(spec)  # first use in this process, unmeasured
         for n in (1, 2):
@@ -162,7 +171,9 @@ def run(spec: dict[str, Any], repeats: int) -> dict[str, Any]:
             list(pool.map(library_call, [spec, spec]))
             pairs.append(time.perf_counter() - started)
             for n in (1, 2):
+                cpu = process_cpu(servers[n][1])
                 runs[n].append(job_over_http(client, urls[n], variant(spec, 2 * i + n)))
+                runs[n][-1]["server_cpu"] = process_cpu(servers[n][1]) - cpu
     return {"library": library, "pairs": pairs, "runs": runs, "load_after": os.getloadavg()}
 
 
@@ -428,7 +439,7 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
          f"{fan}"],
     ]  # fmt: skip
     lines = [
-        f"`python benchmarks/bench_fanout.py{' --smoke' if smoke else ''}` "
+        f"`{' '.join(['python benchmarks/bench_fanout.py', *sys.argv[1:]])}` "
         f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
         f"{time.monotonic() - started:.0f} s): {raw['machine']}; load average "
         + " ".join(f"{x:.1f}" for x in raw["load_after"])
@@ -446,6 +457,12 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
         f"{pair * 1e3:.0f} ms for both, vs {lib * 1e3:.0f} ms for one alone): "
         f"{ceiling:.2f}x, the ceiling of the 2-vs-1 ratio under the other engineers' load.",
         "",
+        "CPU of the API server process during a job (its requests, polled every "
+        f"{POLL_S * 1e3:.0f} ms, and the embedded Dask scheduler), median: 1 worker "
+        f"{median([r['server_cpu'] for r in raw['runs'][1]]) * 1e3:.0f} ms, 2 workers "
+        f"{median([r['server_cpu'] for r in raw['runs'][2]]) * 1e3:.0f} ms (with 2 workers "
+        "it shares the 2 cores with them).",
+        "",
         "wall [ms], 1 worker: " + ", ".join(f"{r['wall'] * 1e3:.0f}" for r in raw["runs"][1]),
         "",
         "wall [ms], 2 workers: " + ", ".join(f"{r['wall'] * 1e3:.0f}" for r in raw["runs"][2]),
@@ -458,6 +475,7 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
 
 
 def main(argv: list[str] | None = None) -> int:
+    global POLL_S
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smoke", action="store_true", help="a tiny map, one repetition")
     ap.add_argument("--repeats", type=int, default=9, help="measured jobs per server")
@@ -467,8 +485,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweeps", action="store_true", help="also the sweep-spectra probe")
     ap.add_argument("--study", action="store_true", help="the 10,000-case study, not the map")
     ap.add_argument("--timeline", action="store_true", help="--study: trace one job instead")
+    ap.add_argument("--poll", type=float, default=0.02, help="job polling period [s]")
     ap.add_argument("--workers", type=int, default=2, help="--timeline: the cluster's workers")
     args = ap.parse_args(argv)
+    POLL_S = args.poll
     spec = study(args.smoke) if args.study else SMOKE_MAP if args.smoke else MAP
     started = time.monotonic()
     if args.timeline:
