@@ -37,6 +37,11 @@ started and ended on which worker (with its own phases: validation and keys, mem
 compute, memo write, from the piece's ``timing``), when the job received it, and the gaps
 the job waited with a worker idle.  Printed (and written to RESULTS.md) as a table.
 
+``--direct`` (with ``--study``) times that job path alone on a 1-worker and a 2-worker
+cluster, taking turns, ``--repeats`` times each: the fan-out's own 2-vs-1 ratio, which
+the HTTP measurement adds the API process to (its polls and scheduler share the 2 cores
+with 2 workers, not with 1).
+
 ``--sweeps`` adds the measurement behind leaving argand/campbell sweeps serial: the batched
 frozen spectra of a sweep (``pipeflow.spectra.decompose``: eigenvalues and left/right
 eigenvectors at every point) computed here against 8 pieces on a 2-worker LocalCluster
@@ -302,29 +307,44 @@ def _process_cpu() -> tuple[int, float]:
     return os.getpid(), times.user + times.system
 
 
-def timeline(spec: dict[str, Any], workers: int = 2) -> str:
-    """One traced study job (after an untraced one) on a ``workers``-worker cluster: the
-    Markdown timeline (see the module docstring, ``--timeline``)."""
-    from distributed import Client, LocalCluster
-
-    from pipeflow.schema.study import StudySpec
-    from service.engine.runner import PRELOAD
+def _study_store() -> str:
+    """The URL of a fresh SQLite store, migrated once (as the service does)."""
     from service.store import Store
 
-    tmp = Path(tempfile.mkdtemp(prefix="pipeflow-bench-timeline-"))
+    tmp = Path(tempfile.mkdtemp(prefix="pipeflow-bench-study-job-"))
     db_url = f"sqlite:///{tmp / 'store.sqlite3'}"
-    Store(db_url, 1 << 32, 0).close()  # migrated once, as the service does
-    body = {k: v for k, v in spec.items() if k != "kind"}
-    with (
+    Store(db_url, 1 << 32, 0).close()
+    return db_url
+
+
+def _study_cluster(stack: ExitStack, workers: int) -> Any:
+    """A client of a ``workers``-worker LocalCluster as the service's (one thread a worker,
+    its preload), closed with ``stack``."""
+    from distributed import Client, LocalCluster
+
+    from service.engine.runner import PRELOAD
+
+    cluster = stack.enter_context(
         LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
             preload_nanny=[PRELOAD],
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+        )
+    )
+    return stack.enter_context(Client(cluster))
+
+
+def timeline(spec: dict[str, Any], workers: int = 2) -> str:
+    """One traced study job (after an untraced one) on a ``workers``-worker cluster: the
+    Markdown timeline (see the module docstring, ``--timeline``)."""
+    from pipeflow.schema.study import StudySpec
+
+    db_url = _study_store()
+    body = {k: v for k, v in spec.items() if k != "kind"}
+    with ExitStack() as stack:
+        client = _study_cluster(stack, workers)
         warm = StudySpec.model_validate(variant(body, 20_000))
         client.submit(_traced_job, warm, db_url, pure=False).result()  # untraced
         request = StudySpec.model_validate(variant(body, 20_001))
@@ -333,6 +353,36 @@ def timeline(spec: dict[str, Any], workers: int = 2) -> str:
         after = dict(client.run(_process_cpu).values())
     trace["process_cpu"] = {pid: after[pid] - before[pid] for pid in after}
     return timeline_table(trace)
+
+
+def direct(spec: dict[str, Any], repeats: int) -> str:
+    """The study job's path (as ``--timeline`` traces it) on a 1-worker and a 2-worker
+    cluster, both up, taking turns (1, 2, 1, 2, ...): the 2-vs-1 ratio of the job alone,
+    without HTTP, polling or the API process (see the module docstring, ``--direct``)."""
+    from pipeflow.schema.study import StudySpec
+
+    db_url = _study_store()
+    body = {k: v for k, v in spec.items() if k != "kind"}
+    totals: dict[int, list[float]] = {1: [], 2: []}
+    with ExitStack() as stack:
+        clients = {n: _study_cluster(stack, n) for n in (1, 2)}
+        for n, client in clients.items():  # first use, unmeasured
+            warm = StudySpec.model_validate(variant(body, 30_000 + n))
+            client.submit(_traced_job, warm, db_url, pure=False).result()
+        for i in range(repeats):
+            for n, client in clients.items():
+                request = StudySpec.model_validate(variant(body, 31_000 + 2 * i + n))
+                m = client.submit(_traced_job, request, db_url, pure=False).result()["marks"]
+                totals[n].append(m["stored"] - m["start"])
+    one, two = median(totals[1]), median(totals[2])
+    return (
+        f"The study job alone (its task's path on a 1- and a 2-worker cluster, no HTTP), "
+        f"{repeats} repetitions each, medians: 1 worker {one * 1e3:.0f} ms, 2 workers "
+        f"{two * 1e3:.0f} ms: **{one / two:.2f}x**.\n\n1 worker [ms]: "
+        + ", ".join(f"{x * 1e3:.0f}" for x in totals[1])
+        + "\n\n2 workers [ms]: "
+        + ", ".join(f"{x * 1e3:.0f}" for x in totals[2])
+    )
 
 
 def timeline_table(trace: dict[str, Any]) -> str:
@@ -487,17 +537,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeline", action="store_true", help="--study: trace one job instead")
     ap.add_argument("--poll", type=float, default=0.02, help="job polling period [s]")
     ap.add_argument("--workers", type=int, default=2, help="--timeline: the cluster's workers")
+    ap.add_argument("--direct", action="store_true", help="--study: the job alone, 2 vs 1")
     args = ap.parse_args(argv)
     POLL_S = args.poll
     spec = study(args.smoke) if args.study else SMOKE_MAP if args.smoke else MAP
     started = time.monotonic()
-    if args.timeline:
+    if args.timeline or args.direct:
         if not args.study:
-            ap.error("--timeline traces the study job: add --study")
-        text = timeline(spec, args.workers)
+            ap.error("--timeline and --direct measure the study job: add --study")
+        text = direct(spec, args.repeats) if args.direct else timeline(spec, args.workers)
         text = (
-            f"`python benchmarks/bench_fanout.py --study --timeline --workers {args.workers}"
-            f"{' --smoke' if args.smoke else ''}` "
+            f"`{' '.join(['python benchmarks/bench_fanout.py', *sys.argv[1:]])}` "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"{time.monotonic() - started:.0f} s, load average "
             + " ".join(f"{x:.1f}" for x in os.getloadavg())
@@ -505,7 +555,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         print(text, flush=True)
         if not args.no_write:
-            BENCH.write_section(args.out, args.label, text, prefix="Study job timeline (issue 19)")
+            what = "alone, 2 vs 1 worker" if args.direct else "timeline"
+            BENCH.write_section(args.out, args.label, text, prefix=f"Study job {what} (issue 19)")
             print(f"\nwritten to {args.out}")
         return 0
     desc = BENCH.machine()
