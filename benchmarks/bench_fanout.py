@@ -18,8 +18,10 @@ so that a change of the machine's load hits both.  One unmeasured job per server
 same run, and so is the machine's own parallelism at the moment: the same call in two
 processes at once against one alone (2 x alone / both, at most 2).  Reports medians, the
 2-vs-1 ratio against the 1.6x target of the issue, the workers' own compute time (the job
-record's started..finished) and the result's ``diagnostics.fan_out`` (pieces and the
-distinct workers that ran them).
+record's started..finished), the result's ``diagnostics.fan_out`` (pieces and the
+distinct workers that ran them) and the API server process's CPU during a job (its
+requests, the polls included, and the embedded Dask scheduler: with 2 workers it shares
+their 2 cores).  ``--poll S`` sets the polling period (default 0.02 s).
 
 ``--study`` measures the same way the 10,000-case LTI design study of issue 19 instead
 of the map (``POST /v1/studies``, the grid of ``benchmarks/bench_study.py``: v in [0, 20]
