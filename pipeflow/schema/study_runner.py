@@ -18,7 +18,9 @@ cases it leaves (``None``) run one by one as above.  Pieces hold up to
 :data:`BATCH_CHUNK_CASES` cases when the base says the study's cases are ``batchable``
 (constant coefficients: microseconds a case), else :data:`CHUNK_CASES` (time-variant cases,
 tens of milliseconds each: 16 fill one stacked magnus,
-:data:`pipeflow.solvers.magnus_stack.MAX_RUNS`, and keep every worker busy).  One
+:data:`pipeflow.solvers.magnus_stack.MAX_RUNS`, and keep every worker busy).  On a host
+that ships its pieces, a large batchable study is cut by :func:`plan` instead (large
+pieces first, small ones last; each summarised :data:`BATCH_CASES` cases at a time).  One
 failing case does not fail the study: its row says ``failed`` with the problem's type,
 field and detail; a case its base model refuses (a rule across fields) is such a row too
 (``invalid-input``, no key).
@@ -52,8 +54,10 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
+import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import rfc8785
@@ -71,8 +75,17 @@ from pipeflow.schema.study import StudySpec, field_unit, get_path, set_path
 #: and bounds the cases between two progress reports) [-]
 CHUNK_CASES = 16
 #: most cases in one piece when the base summarises a chunk at once (one stacked
-#: computation: larger pieces amortise it and the dispatch; ~40 pieces for 10,000 cases) [-]
+#: computation: larger pieces amortise it and the dispatch) on the serial host [-]
 BATCH_CHUNK_CASES = 256
+#: most cases in one stacked computation (``summarize_many``) of a shipped piece: a piece
+#: of more cases runs it on consecutive runs of this many (per case, 128 took ~0.22 ms of
+#: CPU against ~0.25 for 256 and ~0.27 for 512 on the 10,000-case study: the stack's
+#: temporaries stay in cache) [-]
+BATCH_CASES = 128
+#: most cases in one shipped piece of batchable cases: the first pieces of a study are
+#: this large (fewer dispatches, each costing a worker ~5-15 ms idle between two pieces
+#: on the 2-core machine), later ones shrink, :func:`plan` [-]
+BATCH_PIECE_CASES = 1024
 #: most keys in one memo look-up [-]
 MEMO_BATCH = 500
 #: the memo's name for per-case summaries: memo key = "study_case:<case key>"
@@ -174,41 +187,83 @@ def run_case(base: BaseComputation, request: BaseModel) -> dict[str, Any]:
     return {"status": "ok", **_summarize(base, result)}
 
 
+def plan(total: int, width: int, many: bool) -> list[range]:
+    """``range(total)`` cut into the contiguous pieces a shipping host of ``width`` workers
+    runs.  Cases run one by one (not ``many``): pieces of at most :data:`CHUNK_CASES`.
+    Up to ``4 width`` x :data:`BATCH_CASES` batchable cases: :func:`parallel.split` (about
+    4 pieces a worker, at most :data:`BATCH_CHUNK_CASES` cases each).  More batchable
+    cases, guided self-scheduling: each piece a ``2 width``-th of the cases left,
+    between :data:`BATCH_CASES` and :data:`BATCH_PIECE_CASES` (the last two share a
+    remainder under 2 x :data:`BATCH_CASES`), so the first pieces are large (few
+    dispatches, during which a worker idles) and the last ones small (the workers end
+    together).  10,000 cases on 2 workers: 17 pieces, sizes never growing, the last three
+    of 128 cases (it was 40 pieces of 250)."""
+    if total <= 0:
+        return []
+    if not many:
+        return parallel.split(total, max_size=CHUNK_CASES)
+    width = max(1, width)
+    if total <= 4 * width * BATCH_CASES:
+        return parallel.split(total, max_size=BATCH_CHUNK_CASES)
+    out: list[range] = []
+    start = 0
+    while start < total:
+        left = total - start
+        size = min(left, BATCH_PIECE_CASES, max(BATCH_CASES, math.ceil(left / (2 * width))))
+        if 0 < left - size < BATCH_CASES:
+            size = math.ceil(left / 2)  # the last two share what is left
+        out.append(range(start, start + size))
+        start += size
+    return out
+
+
 @dataclass(frozen=True)
 class Piece:
-    """Cases to compute: their base computation and the validated ``requests``."""
+    """Cases to compute: their base computation and the validated ``requests``; ``batch``:
+    the most cases of one ``summarize_many`` call (None: all at once)."""
 
     base: BaseComputation
     requests: Sequence[BaseModel]
+    batch: int | None = None
 
 
 @dataclass(frozen=True)
 class Chunk:
     """A shipped piece of a study (see the module docstring): the cases ``start``,
     ``start + 1``, ... of ``spec`` with ``overrides``, looked up in and written to
-    ``memo``."""
+    ``memo``; ``batch``: as :attr:`Piece.batch`."""
 
     base: BaseComputation
     spec: StudySpec
     start: int
     overrides: Sequence[dict[str, int | float]]
     memo: parallel.Memo | None = None
+    batch: int | None = None
 
 
 @dataclass(frozen=True)
 class ChunkRows:
     """What :func:`run_piece` gives back per case of its chunk: the key (None: the case is
-    invalid), the summary, whether the memo served it; and the keys it computed."""
+    invalid), the summary, whether the memo served it; and the keys it computed.
+
+    ``timing``: where the piece's time went (diagnostics, ``benchmarks/bench_fanout.py
+    --timeline``): ``start``/``end`` [s since the epoch, the worker's clock], ``pid``, and
+    the seconds of its phases ``validate`` (validation and keys), ``memo_get``,
+    ``compute``, ``memo_put``, and the CPU seconds of this thread in the whole piece
+    (``cpu``) and in its memo write (``memo_put_cpu``): wall minus CPU is waiting (a lock,
+    the GIL, another process on the core)."""
 
     keys: list[str | None]
     summaries: list[dict[str, Any]]
     cached: list[bool]
     computed: list[str]
+    timing: dict[str, float] = field(default_factory=dict)
 
 
 def run_piece(chunk: Chunk) -> ChunkRows:
     """Every case of ``chunk``, where the piece runs: validated, keyed, served by the memo
     or computed (:func:`run_cases`, each distinct key once) and memoised."""
+    start, t0, c0 = time.time(), time.perf_counter(), time.thread_time()
     spec, base = chunk.spec, chunk.base
     keyer = CaseKeys(base.name, spec.base.spec, spec.paths())
     keys: list[str | None] = []
@@ -225,15 +280,30 @@ def run_piece(chunk: Chunk) -> ChunkRows:
         keys.append(key)
         summaries.append(None)
         first.setdefault(key, request)
+    t1 = time.perf_counter()
     found = _memoised(chunk.memo, list(first))
     todo = [k for k in first if k not in found]
-    computed = run_cases(Piece(base, requests=[first[k] for k in todo]))
+    t2 = time.perf_counter()
+    computed = run_cases(Piece(base, requests=[first[k] for k in todo], batch=chunk.batch))
     results = dict(zip(todo, computed, strict=True))
+    t3, c3 = time.perf_counter(), time.thread_time()
     _remember(chunk.memo, results)
+    t4, c4 = time.perf_counter(), time.thread_time()
     found.update(results)
     rows = [s if s is not None else found[str(k)] for s, k in zip(summaries, keys, strict=True)]
     cached = [k is not None and k not in results for k in keys]
-    return ChunkRows(keys=keys, summaries=rows, cached=cached, computed=todo)
+    timing = {
+        "start": start,
+        "end": start + (time.perf_counter() - t0),
+        "pid": float(os.getpid()),
+        "validate": t1 - t0,
+        "memo_get": t2 - t1,
+        "compute": t3 - t2,
+        "memo_put": t4 - t3,
+        "cpu": time.thread_time() - c0,
+        "memo_put_cpu": c4 - c3,
+    }
+    return ChunkRows(keys=keys, summaries=rows, cached=cached, computed=todo, timing=timing)
 
 
 def _invalid(i: int, problem: tuple[str, str]) -> dict[str, Any]:
@@ -259,7 +329,10 @@ def run_cases(piece: Piece | tuple[BaseComputation, Sequence[BaseModel]]) -> lis
         piece = Piece(piece[0], requests=piece[1])
     base, requests = piece.base, list(piece.requests)
     many = getattr(base, "summarize_many", None)
-    found: list[dict[str, Any] | None] = list(many(requests)) if many else [None] * len(requests)
+    found: list[dict[str, Any] | None] = [None] * len(requests)
+    if many:
+        step = piece.batch or len(requests) or 1
+        found = [s for i in range(0, len(requests), step) for s in many(requests[i : i + step])]
     return [s if s is not None else run_case(base, r) for s, r in zip(found, requests, strict=True)]
 
 
@@ -468,8 +541,9 @@ def _run_shipped(
     :func:`run_piece` (see the module docstring); here only the rows are merged."""
     total = len(overrides)
     memo = parallel.current_memo()
-    chunks = parallel.split(total, max_size=BATCH_CHUNK_CASES if many else CHUNK_CASES)
-    pieces = [Chunk(base, spec, c.start, overrides[c.start : c.stop], memo) for c in chunks]
+    chunks = plan(total, parallel.current_host().width, many)
+    batch = BATCH_CASES if many else None
+    pieces = [Chunk(base, spec, c.start, overrides[c.start : c.stop], memo, batch) for c in chunks]
     keys: list[str | None] = [None] * total
     summaries: dict[str, dict[str, Any]] = {}
     served: set[str] = set()

@@ -20,7 +20,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import DBAPIError
 
 from service.store.errors import StorageError
-from service.store.schema import check_sqlite_file, make_engine, sqlite_path, upgrade
+from service.store.schema import READ_ONLY, check_sqlite_file, make_engine, sqlite_path, upgrade
 from service.store.tables import probe
 
 log = logging.getLogger("service.store")
@@ -81,8 +81,9 @@ class StoreConnection:
 
     @contextlib.contextmanager
     def _read(self) -> Iterator[Connection]:
+        """A connection for reads only: no write lock taken (SQLite, :data:`READ_ONLY`)."""
         with self._guard(), self.engine.connect() as conn:
-            yield conn
+            yield conn.execution_options(**{READ_ONLY: True})
 
     def _insert(self, table: Any) -> Any:
         dialect = postgresql if self.engine.dialect.name == "postgresql" else sqlite

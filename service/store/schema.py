@@ -37,8 +37,14 @@ def sqlite_path(url: str) -> Path | None:
     return Path(parsed.database)
 
 
+#: execution option of a connection that only reads (SQLite: ``BEGIN``, not ``BEGIN
+#: IMMEDIATE``; see :func:`make_engine`)
+READ_ONLY = "pipeflow_read_only"
+
+
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite gets WAL, a 30 s busy timeout and BEGIN IMMEDIATE."""
+    """An engine for ``url``; SQLite gets WAL, a 30 s busy timeout and BEGIN IMMEDIATE (but
+    for connections with the :data:`READ_ONLY` execution option: BEGIN)."""
     if make_url(url).get_backend_name() != "sqlite":
         return create_engine(url, pool_pre_ping=True, pool_size=5, max_overflow=10)
     engine = create_engine(
@@ -53,7 +59,11 @@ def make_engine(url: str) -> Engine:
 
     @event.listens_for(engine, "begin")
     def _begin(conn: Any) -> None:
-        conn.exec_driver_sql("BEGIN IMMEDIATE")
+        # a read (a connection marked READ_ONLY) takes no write lock: in WAL mode a
+        # deferred transaction reads its snapshot while a writer works, and a job's polls
+        # then never queue the workers' writes (memo rows, heartbeats) behind them
+        read = conn.get_execution_options().get(READ_ONLY)
+        conn.exec_driver_sql("BEGIN" if read else "BEGIN IMMEDIATE")
 
     return engine
 
