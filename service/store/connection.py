@@ -20,7 +20,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import DBAPIError
 
 from service.store.errors import StorageError
-from service.store.schema import check_sqlite_file, make_engine, sqlite_path, upgrade
+from service.store.schema import READ_ONLY, check_sqlite_file, make_engine, sqlite_path, upgrade
 from service.store.tables import probe
 
 log = logging.getLogger("service.store")
@@ -81,7 +81,10 @@ class StoreConnection:
 
     @contextlib.contextmanager
     def _read(self) -> Iterator[Connection]:
+        """A connection that only reads (SQLite: a deferred transaction, which does not
+        wait for the write lock; see :func:`service.store.schema.make_engine`)."""
         with self._guard(), self.engine.connect() as conn:
+            conn.execution_options(**{READ_ONLY: True})
             yield conn
 
     def _insert(self, table: Any) -> Any:

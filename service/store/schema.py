@@ -3,7 +3,10 @@
 One code path for SQLite (the default, a WAL-mode file in ``PIPEFLOW_DATA_DIR``) and
 PostgreSQL (``postgresql+psycopg://...``).  SQLite writes take the write lock at ``BEGIN``
 (``BEGIN IMMEDIATE``), so concurrent writers queue on the busy timeout instead of failing
-to upgrade a read lock.
+to upgrade a read lock; a connection marked :data:`READ_ONLY` (the store's reads) begins a
+deferred transaction instead: in WAL mode it reads its snapshot while a writer holds the
+lock, rather than queueing behind every writer (a cold request's cache lookup used to wait
+for the previous request's result write).
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from service.store.errors import StoreRefused
 
 log = logging.getLogger("service.store")
 
+#: execution option of a connection that only reads (see :func:`make_engine`)
+READ_ONLY = "pipeflow_read_only"
 MIGRATIONS = Path(__file__).with_name("migrations")
 #: PostgreSQL advisory lock id held while migrating (replicas starting together)
 MIGRATION_LOCK = 0x70697065
@@ -38,7 +43,9 @@ def sqlite_path(url: str) -> Path | None:
 
 
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite gets WAL, a 30 s busy timeout and BEGIN IMMEDIATE."""
+    """An engine for ``url``; SQLite gets WAL, a 30 s busy timeout and BEGIN IMMEDIATE
+    (a plain, deferred BEGIN on a connection with the :data:`READ_ONLY` execution option,
+    which must then only read: a deferred transaction that writes could fail to upgrade)."""
     if make_url(url).get_backend_name() != "sqlite":
         return create_engine(url, pool_pre_ping=True, pool_size=5, max_overflow=10)
     engine = create_engine(
@@ -53,7 +60,8 @@ def make_engine(url: str) -> Engine:
 
     @event.listens_for(engine, "begin")
     def _begin(conn: Any) -> None:
-        conn.exec_driver_sql("BEGIN IMMEDIATE")
+        read_only = conn.get_execution_options().get(READ_ONLY, False)
+        conn.exec_driver_sql("BEGIN" if read_only else "BEGIN IMMEDIATE")
 
     return engine
 

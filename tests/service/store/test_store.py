@@ -500,3 +500,37 @@ def test_enqueue_and_claim_writes_the_record_already_leased(tmp_path: Path) -> N
         "a5",
     )
     assert fresh.job.refresh and fresh.job.finished is None and fresh.job.error is None
+
+
+def test_reads_do_not_queue_behind_a_writer(tmp_path: Path) -> None:
+    """The store's reads take no write lock (SQLite: a deferred BEGIN, reading the WAL
+    snapshot): a cache lookup or a job read answers while another connection holds the
+    write transaction (a cold request's lookup used to wait for the previous request's
+    result write, up to the 30 s busy timeout), and reads the last committed state.  The
+    read runs in a thread while this test holds the lock: it must have finished before the
+    lock is given up (the generous 20 s join only bounds a failing run)."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10_000, memory_cache_bytes=0)
+    store.put_result("a", "simulation", b'{"x":1}')
+    store.enqueue_job("k", "simulation", {"x": 1})
+    writer = sqlite3.connect(tmp_path / "db.sqlite3", isolation_level=None)
+    writer.execute("BEGIN IMMEDIATE")  # the write lock, as a result write holds it
+    writer.execute("DELETE FROM results")  # uncommitted: invisible to the readers
+    seen: dict[str, Any] = {}
+
+    def read() -> None:
+        seen["result"] = store.get_result("a")
+        job = store.get_job("k")
+        seen["job"] = job.status if job is not None else None
+        seen["has"] = store.has_result("a")
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(20)
+    finished_under_lock = not reader.is_alive()
+    writer.execute("ROLLBACK")
+    writer.close()
+    reader.join(40)
+    assert finished_under_lock, "a read waited for the write lock"
+    assert seen == {"result": b'{"x":1}', "job": "queued", "has": True}
+    store.put_result("b", "simulation", b"{}")  # writes still take the lock and commit
+    assert store.get_result("b") == b"{}"
