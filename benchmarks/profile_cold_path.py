@@ -3,19 +3,18 @@
     python benchmarks/profile_cold_path.py --case lti --requests 300
     python benchmarks/profile_cold_path.py --case paper --requests 60
 
-Starts ``uvicorn service.main:app`` from this tree (the default settings: the fast lane
-runs the computation in the API process, as ``benchmarks/bench_cold_paper.py``'s ``lane``
-server), warms it, then samples it with ``py-spy record --nonblocking`` (every thread, 1 kHz,
-the server not paused per sample; samples of waiting threads, told by their innermost
-frame (:data:`IDLE`), left out) while ``--requests`` cold requests of the case go one after the other
-(a fresh key each: u0 changed by 1e-9 relative).  Each sample's stack is put in the first
-span of :data:`SPANS` that one of its frames matches (most specific first); a span's ms
-per request is its samples over the requests at the sampling rate (busy time of all the
+Starts ``uvicorn service.main:app`` from this tree (the default settings: the fast lane runs
+the computation in the API process, as ``benchmarks/bench_cold_paper.py``'s ``lane``
+server), warms it, then samples it with ``py-spy record --nonblocking`` (every thread, 1
+kHz, the server not paused per sample; samples of waiting threads, told by their innermost
+frame (:data:`IDLE`), left out) while ``--requests`` cold requests of the case go one after
+the other (a fresh key each: u0 changed by 1e-9 relative). Each sample's stack is put in the
+first span of :data:`SPANS` that one of its frames matches (most specific first); a span's
+ms per request is its samples over the requests at the sampling rate (busy time of all the
 server's threads: the computation's thread and the event loop's add up; time the client
-waits on a lock or the network is not in it).  Printed: the span table (span, ms per
-request, share of the busy samples), the client's median request time, and with
-``--top`` the heaviest leaf frames of the ``other`` span (to name a new span).
-"""
+waits on a lock or the network is not in it). Printed: the span table (span, ms per request,
+share of the busy samples), the client's median request time, and with ``--top`` the
+heaviest leaf frames of the ``other`` span (to name a new span)."""
 
 from __future__ import annotations
 

@@ -327,10 +327,16 @@ class JobStore(StoreConnection):
         that many active jobs gets none (its concurrency quota; its jobs wait).  Each job
         is taken by one conditional UPDATE (still waiting?), so two replicas never both
         take one (SQLite: one writer at a time; PostgreSQL: the second UPDATE re-reads
-        the row after the first commits and matches nothing)."""
+        the row after the first commits and matches nothing).  An empty queue is seen by
+        a read first, without the write lock: the dispatcher looks each time one of the
+        replica's computations ends, and a write transaction there queued every cold
+        request's own writes behind it."""
         taken: list[Job] = []
         if n <= 0:
             return taken
+        with self._read() as conn:
+            if conn.execute(select(jobs.c.key).where(self._is_waiting()).limit(1)).first() is None:
+                return taken
         with self._write() as conn:
             who = func.coalesce(jobs.c.principal, "")
             active: dict[str, int] = dict(
