@@ -9,7 +9,7 @@ server), warms it, then samples it with ``py-spy record --nonblocking`` (every t
 kHz, the server not paused per sample; samples of waiting threads, told by their innermost
 frame (:data:`IDLE`), left out) while ``--requests`` cold requests of the case go one after
 the other (a fresh key each: u0 changed by 1e-9 relative). Each sample's stack is put in the
-first span of :data:`SPANS` that one of its frames matches (most specific first); a span's
+first span of :data:`WHOLE` / :data:`INNERMOST` (see there); a span's
 ms per request is its samples over the requests at the sampling rate (busy time of all the
 server's threads: the computation's thread and the event loop's add up; time the client
 waits on a lock or the network is not in it). Printed: the span table (span, ms per request,
@@ -37,9 +37,12 @@ import bench_cold_ab as AB  # noqa: E402  (the server start)
 import bench_service as BENCH  # noqa: E402  (cases, percentiles)
 import httpx  # noqa: E402
 
-#: (span, regular expression on one frame ``function (file:line)``): the first span one of
-#: a sample's frames matches takes the sample; most specific first
-SPANS: list[tuple[str, str]] = [
+#: (span, regular expression on one frame ``function (file:line)``).  The spans of
+#: :data:`WHOLE` take a sample if any of its frames matches (the store's operations with the
+#: SQLAlchemy and SQLite calls under them, the numerics, in this order); otherwise the
+#: innermost frame that matches one of :data:`INNERMOST` names the span (the middleware
+#: layers wrap every request: only their own code counts for them)
+WHOLE: list[tuple[str, str]] = [
     ("store: enqueue_and_claim (record + lease)", r"^JobStore\.enqueue_and_claim "),
     ("compression of the result (zlib)", r"^compress \(.*service/store/results"),
     ("store: finish_with_result (result + finish)", r"^Store\.finish_with_result "),
@@ -48,18 +51,19 @@ SPANS: list[tuple[str, str]] = [
     ("store: other (monitor, heartbeats)", r"service/store/"),
     ("JSON encode (orjson)", r"service/encoding\.py"),
     ("document (pipeflow.schema.documents)", r"pipeflow/schema/documents\.py"),
-    ("simulate (numerics)", r"pipeflow/"),
+    ("simulate (numerics)", r"pipeflow/(?!schema/keys)"),
+    ("Dask scheduler/client in the API process", r"distributed/|tornado/|psutil/"),
+]
+INNERMOST: list[tuple[str, str]] = [
     ("lane thread hop (call_soon_threadsafe)", r"^Runner\._(in_lane|lane_first)\.<locals>"),
     ("task wrapper (service/engine/task.py)", r"service/engine/task\.py"),
-    ("canonical key", r"service/keys\.py"),
+    ("canonical key", r"service/keys\.py|pipeflow/schema/keys|rfc8785"),
     ("access log / metrics", r"service/observability\.py|prometheus_client|/logging/"),
-    ("middleware: security, auth, hit path", r"service/http/(security|auth)|HitFastPath"),
-    ("response (service/http/responses.py)", r"service/http/responses\.py"),
+    ("middleware: request context, security, auth, hit path, body limit", r"service/http/"),
     ("orchestration / runner (event loop)", r"service/(orchestration|engine/runner)\.py"),
     ("body parse + validation (FastAPI, pydantic)", r"fastapi/|pydantic"),
-    ("Dask scheduler/client in the API process", r"distributed/|tornado/|psutil/|msgpack"),
     ("HTTP server (uvicorn, httptools)", r"uvicorn/|h11/|httptools"),
-    ("starlette routing / responses", r"starlette/"),
+    ("starlette routing / responses", r"starlette/|anyio/"),
     ("asyncio machinery / threads", r"asyncio/|concurrent/futures|threading\.py"),
 ]
 #: a sample whose innermost frame is one of these is a thread waiting (py-spy's own idle
@@ -71,29 +75,38 @@ IDLE = re.compile(
 
 
 def classify(stack: list[str]) -> str:
-    for span, pattern in SPANS:
-        rx = re.compile(pattern)
-        if any(rx.search(frame) for frame in stack):
+    """The span of one sample (``stack``: outermost frame first)."""
+    for span, pattern in WHOLE:
+        if any(re.search(pattern, frame) for frame in stack):
             return span
+    for frame in reversed(stack):
+        for span, pattern in INNERMOST:
+            if re.search(pattern, frame):
+                return span
     return "other"
 
 
-def read_raw(path: Path) -> tuple[Counter[str], Counter[str]]:
-    """py-spy's raw (collapsed) output: samples by span, and the ``other`` leaves."""
+def read_raw(path: Path) -> tuple[Counter[str], Counter[str], int]:
+    """py-spy's raw (collapsed) output: samples by span, the ``other`` leaves, and the
+    samples of the main thread, busy or idle (one per sampling tick: py-spy falls behind
+    its rate on a loaded machine, so the ticks it took are counted, not assumed)."""
     spans: Counter[str] = Counter()
     leaves: Counter[str] = Counter()
+    ticks = 0
     for line in path.read_text().splitlines():
         stack_text, _, count = line.rpartition(" ")
         if not stack_text:
             continue
         frames = stack_text.split(";")[1:]  # the first element is the thread
+        if "MainThread" in stack_text.split(";")[0]:
+            ticks += int(count)
         if not frames or IDLE.search(frames[-1]):
             continue
         span = classify(frames)
         spans[span] += int(count)
         if span == "other" and frames:
             leaves[" <- ".join(reversed(frames[-3:]))] += int(count)
-    return spans, leaves
+    return spans, leaves, ticks
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -102,19 +115,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--requests", type=int, default=300)
     ap.add_argument("--rate", type=int, default=1000, help="samples per second")
     ap.add_argument("--top", type=int, default=0, help="print the heaviest 'other' leaves")
+    ap.add_argument("--tree", type=Path, default=ROOT, help="the source tree of the server")
     ap.add_argument("--raw", type=Path, help="keep py-spy's collapsed stacks in this file")
     ap.add_argument("--setting", action="append", default=[], help="name=value of the server")
     args = ap.parse_args(argv)
     spec = BENCH.LTI if args.case == "lti" else BENCH.PAPER
     settings = dict(s.split("=", 1) for s in args.setting)
     with tempfile.TemporaryDirectory(prefix="pipeflow-prof-") as tmp, ExitStack() as stack:
-        url = AB.start(ROOT, settings, Path(tmp), stack)
+        url = AB.start(args.tree.resolve(), settings, Path(tmp), stack)
         pid = int(
             subprocess.check_output(["pgrep", "-n", "-f", "--", f"--port {url.rsplit(':', 1)[1]}"])
         )
         client = stack.enter_context(httpx.Client(timeout=120))
         BENCH.cold_requests(client, url, spec, 5, 10**6)  # warm: not sampled
         raw = Path(tmp) / "profile.txt"
+        sampled = time.perf_counter()
         spy = subprocess.Popen(
             [
                 *("py-spy", "record", "--pid", str(pid), "--rate", str(args.rate), "--threads"),
@@ -126,21 +141,24 @@ def main(argv: list[str] | None = None) -> int:
         time.sleep(1.0)  # py-spy attaches
         times, _ = BENCH.cold_requests(client, url, spec, args.requests, 2 * 10**6)
         spy.send_signal(signal.SIGINT)
+        sampled = time.perf_counter() - sampled
         spy.wait(30)
-        spans, leaves = read_raw(raw)
+        spans, leaves, ticks = read_raw(raw)
         if args.raw is not None:
             args.raw.write_text(raw.read_text())
     n = args.requests
     total = sum(spans.values())
+    rate = ticks / sampled  # the sampling rate py-spy achieved [1/s]
+    per = 1e3 / rate / n  # ms per request of one sample
     load = " ".join(f"{x:.1f}" for x in os.getloadavg())
     print(f"{args.case}: {n} cold requests, client p50 {BENCH.pct(times, 50) * 1e3:.2f} ms; ")
-    print(f"server busy {total / args.rate / n * 1e3:.2f} ms per request; load {load}")
+    print(f"server busy {total * per:.2f} ms per request; load {load}; py-spy took {rate:.0f}/s")
     print("| span | ms per request | share |")
     print("|---|---|---|")
     for span, count in spans.most_common():
-        print(f"| {span} | {count / args.rate / n * 1e3:.2f} | {count / total:.0%} |")
+        print(f"| {span} | {count * per:.2f} | {count / total:.0%} |")
     for leaf, count in leaves.most_common(args.top):
-        print(f"  {count / args.rate / n * 1e3:.3f} ms  {leaf}")
+        print(f"  {count * per:.3f} ms  {leaf}")
     return 0
 
 
