@@ -9,12 +9,13 @@ server), warms it, then samples it with ``py-spy record --nonblocking`` (every t
 kHz, the server not paused per sample; samples of waiting threads, told by their innermost
 frame (:data:`IDLE`), left out) while ``--requests`` cold requests of the case go one after
 the other (a fresh key each: u0 changed by 1e-9 relative). Each sample's stack is put in the
-first span of :data:`WHOLE` / :data:`INNERMOST` (see there); a span's
-ms per request is its samples over the requests at the sampling rate (busy time of all the
-server's threads: the computation's thread and the event loop's add up; time the client
-waits on a lock or the network is not in it). Printed: the span table (span, ms per request,
-share of the busy samples), the client's median request time, and with ``--top`` the
-heaviest leaf frames of the ``other`` span (to name a new span)."""
+first span of :data:`WHOLE` / :data:`INNERMOST` (see there). Printed: the client's median
+request time and the span table (span, busy samples of all the server's threads, share of
+them), with ``--top`` the heaviest leaf frames of the ``other`` span (to name a new span).
+Shares only: on this container py-spy falls far behind its rate under load (15-250 ticks
+per second measured) and its ticks are not evenly spread over the threads, so samples are
+not converted to milliseconds; the span times in ms come from ``perf_counter_ns`` marks
+(benchmarks/RESULTS.md says how)."""
 
 from __future__ import annotations
 
@@ -88,25 +89,26 @@ def classify(stack: list[str]) -> str:
 
 def read_raw(path: Path) -> tuple[Counter[str], Counter[str], int]:
     """py-spy's raw (collapsed) output: samples by span, the ``other`` leaves, and the
-    samples of the main thread, busy or idle (one per sampling tick: py-spy falls behind
-    its rate on a loaded machine, so the ticks it took are counted, not assumed)."""
+    sampling ticks py-spy took (it falls behind its rate on a loaded machine, so they are
+    counted, not assumed): the median over the threads of each one's samples, busy or
+    waiting (every thread is sampled at every tick)."""
     spans: Counter[str] = Counter()
     leaves: Counter[str] = Counter()
-    ticks = 0
+    per_thread: Counter[str] = Counter()
     for line in path.read_text().splitlines():
         stack_text, _, count = line.rpartition(" ")
         if not stack_text:
             continue
         frames = stack_text.split(";")[1:]  # the first element is the thread
-        if "MainThread" in stack_text.split(";")[0]:
-            ticks += int(count)
+        per_thread[stack_text.split(";")[0]] += int(count)
         if not frames or IDLE.search(frames[-1]):
             continue
         span = classify(frames)
         spans[span] += int(count)
         if span == "other" and frames:
             leaves[" <- ".join(reversed(frames[-3:]))] += int(count)
-    return spans, leaves, ticks
+    totals = sorted(per_thread.values())
+    return spans, leaves, totals[len(totals) // 2] if totals else 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -149,16 +151,15 @@ def main(argv: list[str] | None = None) -> int:
     n = args.requests
     total = sum(spans.values())
     rate = ticks / sampled  # the sampling rate py-spy achieved [1/s]
-    per = 1e3 / rate / n  # ms per request of one sample
     load = " ".join(f"{x:.1f}" for x in os.getloadavg())
     print(f"{args.case}: {n} cold requests, client p50 {BENCH.pct(times, 50) * 1e3:.2f} ms; ")
-    print(f"server busy {total * per:.2f} ms per request; load {load}; py-spy took {rate:.0f}/s")
-    print("| span | ms per request | share |")
+    print(f"{total} busy samples; load {load}; py-spy took ~{rate:.0f} ticks/s")
+    print("| span | busy samples | share |")
     print("|---|---|---|")
     for span, count in spans.most_common():
-        print(f"| {span} | {count * per:.2f} | {count / total:.0%} |")
+        print(f"| {span} | {count} | {count / total:.1%} |")
     for leaf, count in leaves.most_common(args.top):
-        print(f"  {count * per:.3f} ms  {leaf}")
+        print(f"  {count} samples  {leaf}")
     return 0
 
 

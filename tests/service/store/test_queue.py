@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from service.store import Store
+from tests.service.store.locks import finishes_under_write_lock
 
 
 def _store(url: str | Path) -> Store:
@@ -162,23 +163,14 @@ def test_an_empty_queue_is_claimed_without_the_write_lock(tmp_path: Path) -> Non
     """The dispatcher claims each time one of the replica's computations ends: with
     nothing waiting, the claim is a read and does not wait for (or hold) the write lock
     that the next request's record and result need.  It runs in a thread while this test
-    holds SQLite's write lock: it must have returned before the lock is given up (the 20 s
-    join only bounds a failing run); with a job waiting it still takes the lock and the job."""
-    import sqlite3
-
+    holds SQLite's write lock (:func:`finishes_under_write_lock`); with a job waiting it
+    still takes the lock and the job."""
     store = _store(tmp_path / "db.sqlite3")
     store.enqueue_job("running", "test-sleep", {"k": 1})  # active, driven: not waiting
-    writer = sqlite3.connect(tmp_path / "db.sqlite3", isolation_level=None)
-    writer.execute("BEGIN IMMEDIATE")
     got: list[object] = []
-    claim = threading.Thread(target=lambda: got.append(store.claim_waiting("r", 2)), daemon=True)
-    claim.start()
-    claim.join(20)
-    returned_under_lock = not claim.is_alive()
-    writer.execute("ROLLBACK")
-    writer.close()
-    claim.join(40)
-    assert returned_under_lock, "a claim of an empty queue waited for the write lock"
+    claim = lambda: got.append(store.claim_waiting("r", 2))  # noqa: E731
+    returned = finishes_under_write_lock(tmp_path / "db.sqlite3", claim)
+    assert returned, "a claim of an empty queue waited for the write lock"
     assert got == [[]]
     assert _queue(store, "w1")
     assert [j.key for j in store.claim_waiting("r", 2)] == ["w1"]

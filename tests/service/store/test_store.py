@@ -16,6 +16,7 @@ from sqlalchemy import event, text
 
 from service.store import MemoryLRU as _MemoryLRU
 from service.store import StorageError, Store, StoreRefused
+from tests.service.store.locks import finishes_under_write_lock
 
 
 def test_results_survive_reopening(tmp_path: Path) -> None:
@@ -506,15 +507,11 @@ def test_reads_do_not_queue_behind_a_writer(tmp_path: Path) -> None:
     """The store's reads take no write lock (SQLite: a deferred BEGIN, reading the WAL
     snapshot): a cache lookup or a job read answers while another connection holds the
     write transaction (a cold request's lookup used to wait for the previous request's
-    result write, up to the 30 s busy timeout), and reads the last committed state.  The
-    read runs in a thread while this test holds the lock: it must have finished before the
-    lock is given up (the generous 20 s join only bounds a failing run)."""
+    result write, up to the 30 s busy timeout), and reads the last committed state
+    (:func:`finishes_under_write_lock`)."""
     store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10_000, memory_cache_bytes=0)
     store.put_result("a", "simulation", b'{"x":1}')
     store.enqueue_job("k", "simulation", {"x": 1})
-    writer = sqlite3.connect(tmp_path / "db.sqlite3", isolation_level=None)
-    writer.execute("BEGIN IMMEDIATE")  # the write lock, as a result write holds it
-    writer.execute("DELETE FROM results")  # uncommitted: invisible to the readers
     seen: dict[str, Any] = {}
 
     def read() -> None:
@@ -523,14 +520,9 @@ def test_reads_do_not_queue_behind_a_writer(tmp_path: Path) -> None:
         seen["job"] = job.status if job is not None else None
         seen["has"] = store.has_result("a")
 
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    reader.join(20)
-    finished_under_lock = not reader.is_alive()
-    writer.execute("ROLLBACK")
-    writer.close()
-    reader.join(40)
-    assert finished_under_lock, "a read waited for the write lock"
+    # the writer's uncommitted delete is invisible to the readers
+    finished = finishes_under_write_lock(tmp_path / "db.sqlite3", read, "DELETE FROM results")
+    assert finished, "a read waited for the write lock"
     assert seen == {"result": b'{"x":1}', "job": "queued", "has": True}
     store.put_result("b", "simulation", b"{}")  # writes still take the lock and commit
     assert store.get_result("b") == b"{}"
