@@ -150,6 +150,7 @@ class Runner:
     def __init__(self, settings: Settings, store: Store) -> None:
         self.settings = settings
         self.store = store
+        self._db_url = settings.db_url  # resolved once (a path resolution per task config)
         self.capacity = settings.workers + settings.queue_size
         self.computations = 0  # Dask tasks this replica submitted (tests check single flight)
         self.ready = False
@@ -644,7 +645,7 @@ class Runner:
     def _config(self) -> TaskConfig:
         s = self.settings
         return TaskConfig(
-            db_url=s.db_url,
+            db_url=self._db_url,
             cache_max_bytes=s.cache_max_bytes,
             timeout_s=s.job_timeout_s,
             progress_interval_s=s.progress_interval_s,

@@ -16,7 +16,9 @@ from fastapi import Request
 ANONYMOUS = "anonymous"
 
 
-def principal(request: Request) -> str:
-    """The client identity of ``request`` (usable as a FastAPI dependency)."""
+async def principal(request: Request) -> str:
+    """The client identity of ``request`` (a FastAPI dependency; ``async`` so that FastAPI
+    runs it on the event loop: a plain ``def`` dependency is sent to its thread pool, a
+    thread hop per request for an attribute read)."""
     who = getattr(request.state, "principal", None)
     return str(who) if who else ANONYMOUS

@@ -81,9 +81,11 @@ class StoreConnection:
 
     @contextlib.contextmanager
     def _read(self) -> Iterator[Connection]:
-        """A connection for reads only: no write lock taken (SQLite, :data:`READ_ONLY`)."""
+        """A connection that only reads (SQLite: a deferred transaction, which does not
+        wait for the write lock; see :func:`service.store.schema.make_engine`)."""
         with self._guard(), self.engine.connect() as conn:
-            yield conn.execution_options(**{READ_ONLY: True})
+            conn.execution_options(**{READ_ONLY: True})
+            yield conn
 
     def _insert(self, table: Any) -> Any:
         dialect = postgresql if self.engine.dialect.name == "postgresql" else sqlite

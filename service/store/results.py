@@ -6,6 +6,7 @@ process by a bounded in-memory LRU (``memory_cache_bytes``, :class:`MemoryLRU`).
 from __future__ import annotations
 
 import contextlib
+import functools
 import threading
 import time
 import zlib
@@ -28,6 +29,23 @@ ZLIB_LEVEL = 1
 STATS_ROW = 1
 #: least-recently-used rows read per eviction query (rows are deleted one by one)
 EVICT_BATCH = 64
+
+# a result write's statements, built once (see service.store.jobs: an inline statement is
+# built and keyed on every call)
+_BODY = select(results.c.body, results.c.codec).where(results.c.key == bindparam("b_key"))
+_SIZES = select(results.c.key, results.c.size).where(
+    results.c.key.in_(bindparam("b_keys", expanding=True))
+)
+_STATS = (
+    select(store_stats.c.result_bytes, store_stats.c.result_rows)
+    .where(store_stats.c.id == STATS_ROW)
+    .with_for_update()
+)
+_SET_STATS = (
+    update(store_stats)
+    .where(store_stats.c.id == STATS_ROW)
+    .values(result_bytes=bindparam("b_bytes"), result_rows=bindparam("b_rows"))
+)
 
 
 class ResultStore(StoreConnection):
@@ -74,9 +92,7 @@ class ResultStore(StoreConnection):
                 self._touched[key] = time.time()
                 return body
         with self._read() as conn:
-            row = conn.execute(
-                select(results.c.body, results.c.codec).where(results.c.key == key)
-            ).first()
+            row = conn.execute(_BODY, {"b_key": key}).first()
             if row is None:
                 return None
             body = _decode(bytes(row.body), row.codec)
@@ -139,9 +155,7 @@ class ResultStore(StoreConnection):
         total, count = self._lock_stats(conn)
         self._write_touched(conn)
         keys = list(packed)
-        old = dict(
-            conn.execute(select(results.c.key, results.c.size).where(results.c.key.in_(keys))).all()
-        )
+        old = dict(conn.execute(_SIZES, {"b_keys": keys}).all())
         written: list[dict[str, Any]] = [
             {
                 "key": key,
@@ -156,14 +170,7 @@ class ResultStore(StoreConnection):
         ]
         # one upsert statement executed for every row (a study chunk's 256 summaries: one
         # compiled statement, not 256; 10,000 single upserts cost ~2-4 s on the 2 cores)
-        ins = self._insert(results)
-        conn.execute(
-            ins.on_conflict_do_update(
-                index_elements=["key"],
-                set_={c: ins.excluded[c] for c in written[0] if c != "key"},
-            ),
-            written,
-        )
+        conn.execute(self._upsert_results, written)
         for key, (_, stored) in packed.items():
             total += len(stored) - int(old.get(key, 0))
             count += 0 if key in old else 1
@@ -188,22 +195,23 @@ class ResultStore(StoreConnection):
                 excess -= int(row.size)
                 total -= int(row.size)
                 count -= 1
-        conn.execute(
-            update(store_stats)
-            .where(store_stats.c.id == STATS_ROW)
-            .values(result_bytes=total, result_rows=count)
-        )
+        conn.execute(_SET_STATS, {"b_bytes": total, "b_rows": count})
         return evicted
+
+    @functools.cached_property
+    def _upsert_results(self) -> Any:
+        """The upsert of result rows (every column of :meth:`_put_results`' rows)."""
+        ins = self._insert(results)
+        columns = ("kind", "body", "size", "created", "accessed", "codec")
+        return ins.on_conflict_do_update(
+            index_elements=["key"], set_={c: ins.excluded[c] for c in columns}
+        )
 
     def _lock_stats(self, conn: Connection) -> tuple[int, int]:
         """The running totals (bytes, rows), their row locked until the end of ``conn``'s
         transaction; a missing row (a database written past the migrations' back) is
         recounted once."""
-        query = (
-            select(store_stats.c.result_bytes, store_stats.c.result_rows)
-            .where(store_stats.c.id == STATS_ROW)
-            .with_for_update()
-        )
+        query = _STATS
         row = conn.execute(query).first()
         if row is None:
             conn.execute(

@@ -3,7 +3,10 @@
 One code path for SQLite (the default, a WAL-mode file in ``PIPEFLOW_DATA_DIR``) and
 PostgreSQL (``postgresql+psycopg://...``).  SQLite writes take the write lock at ``BEGIN``
 (``BEGIN IMMEDIATE``), so concurrent writers queue on the busy timeout instead of failing
-to upgrade a read lock.
+to upgrade a read lock; a connection marked :data:`READ_ONLY` (the store's reads) begins a
+deferred transaction instead: in WAL mode it reads its snapshot while a writer holds the
+lock, rather than queueing behind every writer (a cold request's cache lookup used to wait
+for the previous request's result write).
 """
 
 from __future__ import annotations
@@ -43,8 +46,9 @@ READ_ONLY = "pipeflow_read_only"
 
 
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite gets WAL, a 30 s busy timeout and BEGIN IMMEDIATE (but
-    for connections with the :data:`READ_ONLY` execution option: BEGIN)."""
+    """An engine for ``url``; SQLite gets WAL, a 30 s busy timeout and BEGIN IMMEDIATE
+    (a plain, deferred BEGIN on a connection with the :data:`READ_ONLY` execution option,
+    which must then only read: a deferred transaction that writes could fail to upgrade)."""
     if make_url(url).get_backend_name() != "sqlite":
         return create_engine(url, pool_pre_ping=True, pool_size=5, max_overflow=10)
     engine = create_engine(
@@ -59,11 +63,8 @@ def make_engine(url: str) -> Engine:
 
     @event.listens_for(engine, "begin")
     def _begin(conn: Any) -> None:
-        # a read (a connection marked READ_ONLY) takes no write lock: in WAL mode a
-        # deferred transaction reads its snapshot while a writer works, and a job's polls
-        # then never queue the workers' writes (memo rows, heartbeats) behind them
-        read = conn.get_execution_options().get(READ_ONLY)
-        conn.exec_driver_sql("BEGIN" if read else "BEGIN IMMEDIATE")
+        read_only = conn.get_execution_options().get(READ_ONLY, False)
+        conn.exec_driver_sql("BEGIN" if read_only else "BEGIN IMMEDIATE")
 
     return engine
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from service.store import Store
+from tests.service.store.locks import finishes_under_write_lock
 
 
 def _store(url: str | Path) -> Store:
@@ -156,3 +157,20 @@ def test_four_replicas_on_postgresql_take_each_job_once(postgres: str) -> None:
     _check_taken_once(store, taken, 60)
     usage = store.usage("c0")
     assert usage.waiting == 0 and usage.active == 20
+
+
+def test_an_empty_queue_is_claimed_without_the_write_lock(tmp_path: Path) -> None:
+    """The dispatcher claims each time one of the replica's computations ends: with
+    nothing waiting, the claim is a read and does not wait for (or hold) the write lock
+    that the next request's record and result need.  It runs in a thread while this test
+    holds SQLite's write lock (:func:`finishes_under_write_lock`); with a job waiting it
+    still takes the lock and the job."""
+    store = _store(tmp_path / "db.sqlite3")
+    store.enqueue_job("running", "test-sleep", {"k": 1})  # active, driven: not waiting
+    got: list[object] = []
+    claim = lambda: got.append(store.claim_waiting("r", 2))  # noqa: E731
+    returned = finishes_under_write_lock(tmp_path / "db.sqlite3", claim)
+    assert returned, "a claim of an empty queue waited for the write lock"
+    assert got == [[]]
+    assert _queue(store, "w1")
+    assert [j.key for j in store.claim_waiting("r", 2)] == ["w1"]

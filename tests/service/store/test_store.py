@@ -16,6 +16,7 @@ from sqlalchemy import event, text
 
 from service.store import MemoryLRU as _MemoryLRU
 from service.store import StorageError, Store, StoreRefused
+from tests.service.store.locks import finishes_under_write_lock
 
 
 def test_results_survive_reopening(tmp_path: Path) -> None:
@@ -525,3 +526,28 @@ def test_a_refunded_release_gives_the_attempt_back(tmp_path: Path) -> None:
     store.release("k", "a2", "lost")
     job = store.get_job("k")
     assert job is not None and (job.owner, job.attempts) == (None, 1)
+
+
+def test_reads_do_not_queue_behind_a_writer(tmp_path: Path) -> None:
+    """The store's reads take no write lock (SQLite: a deferred BEGIN, reading the WAL
+    snapshot): a cache lookup or a job read answers while another connection holds the
+    write transaction (a cold request's lookup used to wait for the previous request's
+    result write, up to the 30 s busy timeout), and reads the last committed state
+    (:func:`finishes_under_write_lock`)."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10_000, memory_cache_bytes=0)
+    store.put_result("a", "simulation", b'{"x":1}')
+    store.enqueue_job("k", "simulation", {"x": 1})
+    seen: dict[str, Any] = {}
+
+    def read() -> None:
+        seen["result"] = store.get_result("a")
+        job = store.get_job("k")
+        seen["job"] = job.status if job is not None else None
+        seen["has"] = store.has_result("a")
+
+    # the writer's uncommitted delete is invisible to the readers
+    finished = finishes_under_write_lock(tmp_path / "db.sqlite3", read, "DELETE FROM results")
+    assert finished, "a read waited for the write lock"
+    assert seen == {"result": b'{"x":1}', "job": "queued", "has": True}
+    store.put_result("b", "simulation", b"{}")  # writes still take the lock and commit
+    assert store.get_result("b") == b"{}"
