@@ -95,3 +95,23 @@ def test_the_step_cost_grows_with_the_exponent_size() -> None:
     measured_us = {6: 5.0, 10: 6.5, 20: 12.5, 40: 66.0, 60: 190.0, 80: 362.0}
     for size, us in measured_us.items():
         assert magnus.step_seconds(size) * 1e6 == pytest.approx(us, rel=0.3), size
+
+
+def test_the_dense_fill_is_charged_before_it_is_paid() -> None:
+    """A run with dense output (8,001 samples: the step control on every m-th sample, the
+    rest filled) charges the fill's stages too, each before it runs: so the fast lane's
+    allowance bounds the whole run, not only its propagations.  With an allowance that
+    covers the propagations and not the fill, the fill is refused; metering leaves the
+    states bit-identical."""
+    case = paper_sim(PAPER_FLOWS["v=0.4t"], method="magnus", samples=8001)
+    plain = simulate(case)
+    assert plain.diagnostics["dense_output"]["samples_filled"] > 0
+    with parallel.metered(1e9) as allowance:
+        metered = simulate(case)
+    assert np.array_equal(metered.tip_displacement, plain.tip_displacement)
+    fills = [(what, s) for what, s in allowance.charges if what.startswith("the dense fill")]
+    assert fills, allowance.charges
+    propagations = sum(s for what, s in allowance.charges if "propagation" in what)
+    with pytest.raises(OverAllowance, match="the dense fill"):
+        with parallel.metered(propagations + 0.5 * fills[0][1]):
+            simulate(case)
