@@ -459,6 +459,8 @@ def _compute(
                 beat.owner,
                 cfg.checkpoint_interval_s,
                 cfg.checkpoint_max_bytes,
+                # retried or handed off: an earlier attempt may have saved one
+                resumable=job.attempts > 1 or job.last_retry_reason is not None,
             )
         with (
             parallel.hosting(host=host, memo=StoreMemo(beat.store)),

@@ -22,7 +22,9 @@ class StoreCheckpoints:
     """Checkpoints of the attempt ``owner`` at generation ``generation`` of job ``key``.
 
     ``interval_s`` [s] and ``max_bytes`` [bytes] are the service's settings
-    (``checkpoint_interval_s``, ``checkpoint_max_bytes``).  :meth:`load` reads the store
+    (``checkpoint_interval_s``, ``checkpoint_max_bytes``); ``resumable``: an earlier
+    attempt at this generation may have left one (else :meth:`load` reads nothing: the
+    first attempt of a cold request pays no query).  :meth:`load` reads the store
     once per attempt (the checkpoint left by an earlier attempt), however many solves of
     the computation ask (a study's cases run here each ask), and returns it until this
     attempt saves its own.
@@ -36,11 +38,13 @@ class StoreCheckpoints:
         owner: str,
         interval_s: float,
         max_bytes: int,
+        resumable: bool = True,
     ) -> None:
         self.store, self.key, self.generation, self.owner = store, key, generation, owner
         self.interval_s = interval_s
         self.max_bytes = max_bytes
-        self._read = False
+        # a job's first attempt at a generation cannot find a checkpoint: no read
+        self._read = not resumable
         self._blob: bytes | None = None
         self.saved = 0  # checkpoints written by this attempt
 

@@ -115,3 +115,15 @@ def test_task_side_reads_once_and_survives_a_failing_store(
     monkeypatch.setattr(store, "load_checkpoint", broken)
     fresh = StoreCheckpoints(store, key, 1, "attempt-1", interval_s=5.0, max_bytes=1000)
     assert fresh.load() is None
+
+
+def test_a_first_attempt_reads_no_checkpoint(store: Store) -> None:
+    """A job's first attempt at a generation cannot find a checkpoint, so it asks the store
+    nothing (a cold request pays no query); a retried attempt reads the one left."""
+    key = "k-first"
+    store.enqueue_and_claim(key, "simulation", {}, "attempt-1", "w1", refresh=False)
+    assert store.save_checkpoint(key, 1, "attempt-1", b"progress")
+    first = StoreCheckpoints(store, key, 1, "attempt-1", 5.0, 1000, resumable=False)
+    assert first.load() is None
+    retried = StoreCheckpoints(store, key, 1, "attempt-1", 5.0, 1000, resumable=True)
+    assert retried.load() == b"progress"
