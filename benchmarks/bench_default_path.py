@@ -2,6 +2,7 @@
 
     python benchmarks/bench_default_path.py [--repeats 7]
     python benchmarks/bench_default_path.py --ab main=/work/main branch=. [--rounds 15]
+    python benchmarks/bench_default_path.py --parts [--rounds 15]
 
 On the paper's example (10 modes, 1 s, 2001 samples, w0 = 100 rad/s, default method
 ``auto``) for v = 0.4 m/s (constant: ``auto`` runs ``cma``) and v = 0.4 t m/s (``auto``
@@ -18,11 +19,21 @@ of the paper example (the service's request example: v = 0.4 t, w0 = 100 rad/s, 
 1 s, 2001 samples, default method), one call per round, the trees in rotating order within
 each round, so that the load of the shared machine hits every side alike; it prints each
 tree's best and median and the ratios to the first tree's.
+
+``--parts``: where the paper example's document time goes, in this tree (one process,
+CPU time, the parts in rotating order within each of ``--rounds`` rounds, medians): the
+whole ``documents.simulation(simulate())``; the magnus solve's matrix exponentials
+(``expm_stack`` on the very stacks the solve passed it, recorded once); their batched
+20 x 20 products alone (the same blocks, 5 + s products each, s the block's squarings:
+the floor of the scaling-and-squaring Taylor scheme); the two eigenvalue stacks (the
+frozen spectrum and the CMA exponents, ``numpy.linalg.eigvals`` on the recorded stacks);
+and the rest (the whole minus exponentials and eigenvalues).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import subprocess
@@ -139,6 +150,77 @@ def ab(trees: list[str], rounds: int, what: str = "document") -> None:
         )
 
 
+def parts(rounds: int) -> None:
+    """--parts: the paper example's document time by part (module docstring)."""
+    import pipeflow.solvers.magnus as magnus
+    from pipeflow.linalg import TAYLOR_THETA, expm_stack
+    from pipeflow.schema import documents
+    from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
+
+    spec = {k: v for k, v in PAPER_EXAMPLE.items() if k != "method"}
+    sim = SimulationSpec.model_validate(spec).to_simulation()
+    blocks: list[np.ndarray] = []
+    stacks: list[np.ndarray] = []
+    real_expm, real_eigvals = magnus.expm_stack, np.linalg.eigvals
+
+    def recording_expm(X: np.ndarray) -> np.ndarray:
+        blocks.append(np.array(X))
+        return real_expm(X)
+
+    def recording_eigvals(S: np.ndarray) -> np.ndarray:
+        stacks.append(np.array(S))
+        return real_eigvals(S)
+
+    magnus.expm_stack = recording_expm  # type: ignore[assignment]
+    np.linalg.eigvals = recording_eigvals  # type: ignore[assignment]
+    try:
+        documents.simulation(simulate(sim))
+    finally:
+        magnus.expm_stack = real_expm  # type: ignore[assignment]
+        np.linalg.eigvals = real_eigvals  # type: ignore[assignment]
+    # the products of each block: 5 for the polynomial (Y^2, Y^3, Y^6, A9, R) and s
+    # squarings, s from its largest 1-norm as expm_stack chooses it
+    squarings = [
+        max(0, math.ceil(math.log2(max(np.abs(X).sum(axis=-2).max(), 1e-300) / TAYLOR_THETA)))
+        for X in blocks
+    ]
+    work = [np.empty_like(X) for X in blocks]
+
+    def products() -> None:
+        for X, s, out in zip(blocks, squarings, work, strict=True):
+            for _ in range(5 + s):
+                np.matmul(X, X, out=out)
+
+    jobs: dict[str, Callable[[], Any]] = {
+        "document": lambda: documents.simulation(simulate(sim)),
+        "exponentials": lambda: [expm_stack(X) for X in blocks],
+        "their products alone": products,
+        "eigenvalues": lambda: [np.linalg.eigvals(S) for S in stacks],
+    }
+    cpu: dict[str, list[float]] = {name: [] for name in jobs}
+    names = list(jobs)
+    for r in range(rounds):
+        for name in names[r % len(names) :] + names[: r % len(names)]:
+            c0 = time.process_time()
+            jobs[name]()
+            cpu[name].append(time.process_time() - c0)
+    med = {name: statistics.median(v) for name, v in cpu.items()}
+    count = sum(X.shape[0] for X in blocks)
+    n_products = sum((5 + s) * X.shape[0] for X, s in zip(blocks, squarings, strict=True))
+    print(
+        f"paper example by part: load average {os.getloadavg()[0]:.2f} (1 min), {rounds} "
+        f"rounds, CPU medians; {count} exponentials in {len(blocks)} blocks ({n_products} "
+        f"20 x 20 products), eigenvalue stacks {[S.shape[0] for S in stacks]}"
+    )
+    print("| part | CPU median [ms] | share of the document |")
+    print("|---|---:|---:|")
+    whole = med["document"]
+    rows = [*jobs, "rest (document - exponentials - eigenvalues)"]
+    med[rows[-1]] = whole - med["exponentials"] - med["eigenvalues"]
+    for name in rows:
+        print(f"| {name} | {med[name] * 1e3:.1f} | {med[name] / whole:.2f} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=7)
@@ -151,7 +233,13 @@ def main() -> None:
         help="--ab times simulate() + the document, the magnus solver alone, or the solver "
         "on the pulsating flow v = 2 + sin 50 t m/s",
     )
+    parser.add_argument(
+        "--parts", action="store_true", help="the paper example's document time by part"
+    )
     args = parser.parse_args()
+    if args.parts:
+        parts(args.rounds)
+        return
     if args.ab:
         ab(args.ab, args.rounds, args.what)
         return

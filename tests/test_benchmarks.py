@@ -263,3 +263,21 @@ def test_bench_cold_paper_smoke() -> None:
     lane = {"api/ok": 8, "api/handoff": 3, "worker/ok": 3}
     assert counts["server lane"] == lane, counts
     assert counts["server worker"] == {"worker/ok": 4 + 3, "api/ok": 2}, counts
+
+
+def test_default_path_parts_smoke(capsys) -> None:  # type: ignore[no-untyped-def]
+    """``bench_default_path.py --parts`` records the paper example's exponential stacks and
+    eigenvalue stacks from a real run (3,000 exponentials of 20 x 20, two stacks of 201)
+    and prints one row per part; and the recording leaves numpy and the solver unpatched.
+    No time is asserted."""
+    import numpy as np
+
+    import pipeflow.solvers.magnus as magnus
+
+    expm, eigvals = magnus.expm_stack, np.linalg.eigvals
+    _script("bench_default_path").parts(1)
+    out = capsys.readouterr().out
+    assert "3000 exponentials" in out and "eigenvalue stacks [201, 201]" in out
+    for part in ("document", "exponentials", "their products alone", "eigenvalues", "rest"):
+        assert f"| {part}" in out
+    assert magnus.expm_stack is expm and np.linalg.eigvals is eigvals

@@ -271,35 +271,47 @@ class MagnusGenerator:
         w = self.coefficients(np.concatenate([starts + g * h for g in nodes]))
         return w.reshape(len(nodes), starts.size, w.shape[-1])
 
+    def omega4_coefficients(self, h: FloatArray, weights: FloatArray) -> FloatArray:
+        """The rows of Omega4 on the pieces and their commutators (order 4 without loads):
+        Omega4 = h/2 (A_1 + A_2) + sqrt(3)/12 h^2 [A_2, A_1] = c @ (pieces, [B_i, B_j]),
+        for steps of lengths ``h`` [s] whose :meth:`node_weights` are ``weights``; shape
+        (steps, P + P(P-1)/2) [-].  Computed once for many steps and sliced per block of
+        steps (:meth:`omega`'s ``coefficients``)."""
+        w1, w2 = weights[0], weights[1]
+        hh = np.broadcast_to(np.asarray(h, dtype=float), (w1.shape[0],))[:, None]
+        i, j = self._pairs
+        return np.concatenate(
+            [
+                (0.5 * hh) * (w1 + w2),
+                (COMMUTATOR_FACTOR * hh * hh) * (w2[:, i] * w1[:, j] - w2[:, j] * w1[:, i]),
+            ],
+            axis=1,
+        )
+
     def omega(
         self,
         starts: FloatArray,
         h: FloatArray,
         order: int = 4,
         weights: FloatArray | None = None,
+        coefficients: FloatArray | None = None,
     ) -> FloatArray:
         """Omega of ``order`` (4 or 6) for steps [starts, starts + h] (equal lengths) [-];
-        ``weights``: their :meth:`node_weights`, when already computed.
+        ``weights``: their :meth:`node_weights`, when already computed; ``coefficients``:
+        their :meth:`omega4_coefficients` (order 4 without loads), when already computed.
 
         With loads, the generator of the step's exponential-integrator form
         (:func:`forced_omega`), of size N + FORCING_NODES[order]."""
         k = starts.size
-        if weights is None:
-            weights = self.node_weights(starts, h, order)
         n = self.model.size if self.jordan else self.size
         if order == 4 and not self.jordan:
-            # Omega4 = h/2 (A_1 + A_2) + sqrt(3)/12 h^2 [A_2, A_1], on the pieces
-            w1, w2 = weights[0], weights[1]
-            hh = np.broadcast_to(np.asarray(h, dtype=float), (k,))[:, None]
-            i, j = self._pairs
-            c = np.concatenate(
-                [
-                    (0.5 * hh) * (w1 + w2),
-                    (COMMUTATOR_FACTOR * hh * hh) * (w2[:, i] * w1[:, j] - w2[:, j] * w1[:, i]),
-                ],
-                axis=1,
-            )
-            return np.asarray(c @ self._omega4_basis).reshape(k, n, n)
+            if coefficients is None:
+                if weights is None:
+                    weights = self.node_weights(starts, h, order)
+                coefficients = self.omega4_coefficients(h, weights)
+            return np.asarray(coefficients @ self._omega4_basis).reshape(k, n, n)
+        if weights is None:
+            weights = self.node_weights(starts, h, order)
         A = (weights.reshape(-1, weights.shape[-1]) @ self.basis).reshape(-1, n, n)
         if self.jordan:
             return forced_omega(self, A, starts, h, order)
@@ -587,15 +599,25 @@ def propagate(
             starts_all = t[members][:, None] + np.arange(m)[None, :] * (dt[members] / m)[:, None]
             starts_all = starts_all.ravel()
             weights = gen.node_weights(starts_all, h_all, q)
+            # order 4 without loads: Omega's rows on the pieces, for the group at once
+            coeffs = gen.omega4_coefficients(h_all, weights) if q == 4 and not gen.jordan else None
             for b in range(0, members.size, limit):
                 idx = members[b : b + limit]
                 rows = slice(b * m, (b + idx.size) * m)
-                E = gen.propagators(gen.omega(starts_all[rows], h_all[rows], q, weights[:, rows]))
+                omega = gen.omega(
+                    starts_all[rows],
+                    h_all[rows],
+                    q,
+                    weights[:, rows],
+                    None if coeffs is None else coeffs[rows],
+                )
+                E = gen.propagators(omega)
                 exps += E.shape[0]
                 E_win[idx - k] = product_of_steps(E.reshape(idx.size, m, gen.size, gen.size))
-        for j in range(window.size):
-            # written in place: no temporary per output time
-            np.matmul(E_win[j], Zaug[k + j], out=Zaug[k + j + 1])
+        # written in place, no temporary per output time; ndarray.dot (BLAS gemv, as
+        # matmul) costs half of np.matmul's per-call dispatch on 20 x 20 (~0.7 vs ~1.6 us)
+        for E_j, z_j, z_next in zip(E_win, Zaug[k:stop], Zaug[k + 1 : stop + 1], strict=True):
+            E_j.dot(z_j, out=z_next)
         k = stop
         problem.report(k / dt.size)
         if checkpoints is not None and checkpoints.due():

@@ -16,7 +16,7 @@ import pytest
 from scipy.linalg import expm
 
 from pipeflow.errors import BudgetExceeded, InvalidInput
-from pipeflow.linalg import expm_stack, magnus4_omega, product_of_steps
+from pipeflow.linalg import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
 from pipeflow.model import Loading, build_model
 from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_SPIN
 from pipeflow.profiles import Constant, Harmonic, Profile, polynomial
@@ -266,6 +266,43 @@ def test_step_helpers_accept_leading_batch_dimensions() -> None:
         one = magnus4_omega(A1[b, k][None], A2[b, k][None], h[b, k : k + 1])[0]
         np.testing.assert_array_equal(omega[b, k], one)
     np.testing.assert_allclose(magnus4_omega(A1, A1, 0.3), 0.3 * A1, rtol=1e-15, atol=1e-15)
+
+
+def test_expm_stack_of_a_non_finite_matrix_is_nan() -> None:
+    """A nan or an inf in a block makes that block's exponentials nan (the solver reports
+    the overflow), whether it is the first block of a stack or a later one."""
+    X = np.zeros((70, 4, 4))
+    X[45, 1, 2] = np.inf
+    X[3, 0, 0] = np.nan
+    E = expm_stack(X)
+    bad = np.isnan(E).all(axis=(1, 2))
+    # blocks of expm_stack's work size: the ones holding 3 and 45 are nan, the others exact
+    assert bad[3] and bad[45]
+    np.testing.assert_array_equal(E[~bad], np.broadcast_to(np.eye(4), E[~bad].shape))
+
+
+def test_omega_from_coefficients_of_a_larger_group_is_the_same() -> None:
+    """propagate computes Omega4's rows on the pieces once for a group of steps and
+    slices them per block (:meth:`MagnusGenerator.omega4_coefficients`): each block's
+    Omega equals the one computed from its own node weights, bit for bit."""
+    model = build_model(PAPER_PIPE, 4)
+    gen = MagnusGenerator(model, Loading(Harmonic(0.4, 0.2, 40.0), Constant(100.0)), 1.0)
+    starts = np.linspace(0.0, 0.2, 101)
+    h = np.full(starts.size, 0.002)
+    coeffs = gen.omega4_coefficients(h, gen.node_weights(starts, h))
+    for rows in (slice(0, 30), slice(30, 60), slice(90, 101)):
+        alone = gen.omega(starts[rows], h[rows])
+        sliced = gen.omega(starts[rows], h[rows], 4, None, coeffs[rows])
+        np.testing.assert_array_equal(sliced, alone)
+    # and Omega4 is the generator's definition: h/2 (A1 + A2) + sqrt(3)/12 h^2 [A2, A1]
+    A1 = gen.matrices(starts[:5] + GAUSS_NODES[0] * h[:5])
+    A2 = gen.matrices(starts[:5] + GAUSS_NODES[1] * h[:5])
+    np.testing.assert_allclose(
+        gen.omega(starts[:5], h[:5], 4, None, coeffs[:5]),
+        magnus4_omega(A1, A2, h[:5]),
+        rtol=0,
+        atol=1e-13 * np.abs(magnus4_omega(A1, A2, h[:5])).max(),
+    )
 
 
 #: the paper's example (10 modes, 1 s, 2001 samples, w0 = 100 rad/s) on the four
