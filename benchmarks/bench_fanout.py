@@ -8,8 +8,9 @@ The user's path: two servers started the README's way (``uvicorn service.main:ap
 P`` from the repo root, a fresh data directory each), one with ``PIPEFLOW_WORKERS=1`` and
 one with ``PIPEFLOW_WORKERS=2``, both up for the whole run.  Each repetition submits the
 issue's map (the paper's pipe, 100 x 100 (v, w0) points on [0, 60] m/s x [0, 2000]
-rad/s, 10 modes) to ``POST /v1/sweeps``, polls ``GET /v1/jobs/{key}`` every 20 ms until it
-succeeded and fetches ``GET /v1/results/{key}``: the time from the POST to the result's
+rad/s, 10 modes) to ``POST /v1/sweeps``, waits with long polls (``GET
+/v1/jobs/{key}?wait=60``, answered when the job has ended) until it succeeded and fetches
+``GET /v1/results/{key}``: the time from the POST to the result's
 last byte.  Every repetition is a distinct key (the spin range's upper end moved by
 1e-9 relative), so the cache never answers; the two servers take turns (1, 2, 1, 2, ...)
 so that a change of the machine's load hits both.  One unmeasured job per server first
@@ -21,7 +22,8 @@ processes at once against one alone (2 x alone / both, at most 2).  Reports medi
 record's started..finished), the result's ``diagnostics.fan_out`` (pieces and the
 distinct workers that ran them) and the API server process's CPU during a job (its
 requests, the polls included, and the embedded Dask scheduler: with 2 workers it shares
-their 2 cores).  ``--poll S`` sets the polling period (default 0.02 s).
+their 2 cores).  ``--poll S`` polls every S seconds instead (the old way; 0.02 s was its
+default).
 
 ``--study`` measures the same way the 10,000-case LTI design study of issue 19 instead
 of the map (``POST /v1/studies``, the grid of ``benchmarks/bench_study.py``: v in [0, 20]
@@ -80,8 +82,10 @@ from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 TARGET = 1.6
-#: the benchmark's job polling period [s] (``--poll``)
-POLL_S = 0.02
+#: the benchmark's job polling period [s] (``--poll``); None: long polls of LONG_POLL_S
+POLL_S: float | None = None
+#: how long one long poll (``GET /v1/jobs/{key}?wait=``) may be held [s]
+LONG_POLL_S = 60.0
 
 #: the issue's map (the registry's example): the paper's pipe, 100 x 100 points, 10 modes
 MAP: dict[str, Any] = COMPUTATIONS["spin_map"].examples["spin_map"]["value"]
@@ -116,13 +120,16 @@ def job_over_http(client: httpx.Client, url: str, spec: dict[str, Any]) -> dict[
     r = client.post(f"{url}/v1/{path}", json=body)
     r.raise_for_status()
     key = r.json()["key"]
+    # a long poll (the service answers once the job ended), or ``--poll``'s polling
+    params = {"wait": f"{LONG_POLL_S:g}"} if POLL_S is None else None
     while True:
-        job = client.get(f"{url}/v1/jobs/{key}").json()
+        job = client.get(f"{url}/v1/jobs/{key}", params=params).json()
         if job["status"] == "succeeded":
             break
         if job["status"] in ("failed", "cancelled"):
             raise RuntimeError(f"job {key} {job['status']}: {job.get('error')}")
-        time.sleep(POLL_S)
+        if POLL_S is not None:
+            time.sleep(POLL_S)
     doc = client.get(f"{url}/v1/results/{key}").json()
     wall = time.perf_counter() - started
     t0, t1 = (datetime.fromisoformat(job[k]).timestamp() for k in ("started", "finished"))
@@ -509,8 +516,9 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
         f"{pair * 1e3:.0f} ms for both, vs {lib * 1e3:.0f} ms for one alone): "
         f"{ceiling:.2f}x, the ceiling of the 2-vs-1 ratio under the other engineers' load.",
         "",
-        "CPU of the API server process during a job (its requests, polled every "
-        f"{POLL_S * 1e3:.0f} ms, and the embedded Dask scheduler), median: 1 worker "
+        "CPU of the API server process during a job (its requests, "
+        + ("long-polled" if POLL_S is None else f"polled every {POLL_S * 1e3:.0f} ms")
+        + ", and the embedded Dask scheduler), median: 1 worker "
         f"{median([r['server_cpu'] for r in raw['runs'][1]]) * 1e3:.0f} ms, 2 workers "
         f"{median([r['server_cpu'] for r in raw['runs'][2]]) * 1e3:.0f} ms (with 2 workers "
         "it shares the 2 cores with them).",
@@ -537,7 +545,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweeps", action="store_true", help="also the sweep-spectra probe")
     ap.add_argument("--study", action="store_true", help="the 10,000-case study, not the map")
     ap.add_argument("--timeline", action="store_true", help="--study: trace one job instead")
-    ap.add_argument("--poll", type=float, default=0.02, help="job polling period [s]")
+    ap.add_argument(
+        "--poll",
+        type=float,
+        default=None,
+        help="poll the job every POLL s (the old way; default: long polls, ?wait=)",
+    )
     ap.add_argument("--workers", type=int, default=2, help="--timeline: the cluster's workers")
     ap.add_argument("--direct", action="store_true", help="--study: the job alone, 2 vs 1")
     args = ap.parse_args(argv)
