@@ -885,6 +885,15 @@ class Runner:
             pure=False,
         )
         fire_and_forget(fut)  # runs to the end even if this replica goes away
+        # its long polls wake when the scheduler says the task ended (its record is final
+        # by then), not once its Outcome has been fetched from the worker
+        loop = asyncio.get_running_loop()
+
+        def ended(_: Any) -> None:  # in Dask's callback thread
+            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
+                loop.call_soon_threadsafe(self.job_changed, job.key)
+
+        fut.add_done_callback(ended)
         awaitable: Awaitable[Outcome] = fut
         return awaitable
 
