@@ -8,8 +8,9 @@ The user's path: two servers started the README's way (``uvicorn service.main:ap
 P`` from the repo root, a fresh data directory each), one with ``PIPEFLOW_WORKERS=1`` and
 one with ``PIPEFLOW_WORKERS=2``, both up for the whole run.  Each repetition submits the
 issue's map (the paper's pipe, 100 x 100 (v, w0) points on [0, 60] m/s x [0, 2000]
-rad/s, 10 modes) to ``POST /v1/sweeps``, polls ``GET /v1/jobs/{key}`` every 20 ms until it
-succeeded and fetches ``GET /v1/results/{key}``: the time from the POST to the result's
+rad/s, 10 modes) to ``POST /v1/sweeps``, waits with long polls (``GET
+/v1/jobs/{key}?wait=60``, answered when the job has ended) until it succeeded and fetches
+``GET /v1/results/{key}``: the time from the POST to the result's
 last byte.  Every repetition is a distinct key (the spin range's upper end moved by
 1e-9 relative), so the cache never answers; the two servers take turns (1, 2, 1, 2, ...)
 so that a change of the machine's load hits both.  One unmeasured job per server first
@@ -21,7 +22,8 @@ processes at once against one alone (2 x alone / both, at most 2).  Reports medi
 record's started..finished), the result's ``diagnostics.fan_out`` (pieces and the
 distinct workers that ran them) and the API server process's CPU during a job (its
 requests, the polls included, and the embedded Dask scheduler: with 2 workers it shares
-their 2 cores).  ``--poll S`` sets the polling period (default 0.02 s).
+their 2 cores).  ``--poll S`` polls every S seconds instead (the old way; 0.02 s was its
+default).
 
 ``--study`` measures the same way the 10,000-case LTI design study of issue 19 instead
 of the map (``POST /v1/studies``, the grid of ``benchmarks/bench_study.py``: v in [0, 20]
@@ -38,6 +40,11 @@ result's encoding and its store write, as :func:`service.engine.task._compute` a
 started and ended on which worker (with its own phases: validation and keys, memo look-up,
 compute, memo write, from the piece's ``timing``), when the job received it, and the gaps
 the job waited with a worker idle.  Printed (and written to RESULTS.md) as a table.
+
+``--ab-poll`` adds, in every round and on each server, a job waited for by polling every
+20 ms (the way before long polls), in alternating order with the long-polled one: the
+two ways' medians, 2-vs-1 ratios and API-process CPU side by side (the main table stays
+the long-polled jobs').
 
 ``--direct`` (with ``--study``) times that job path alone on a 1-worker and a 2-worker
 cluster, taking turns, ``--repeats`` times each: the fan-out's own 2-vs-1 ratio, which
@@ -80,8 +87,13 @@ from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 TARGET = 1.6
-#: the benchmark's job polling period [s] (``--poll``)
-POLL_S = 0.02
+#: the benchmark's job polling period [s] (``--poll``); None: long polls of LONG_POLL_S
+POLL_S: float | None = None
+#: how long one long poll (``GET /v1/jobs/{key}?wait=``) may be held [s]
+LONG_POLL_S = 60.0
+#: ``--ab-poll``: each round also waits for a job per server by polling every AB_POLL_S [s]
+AB_POLL = False
+AB_POLL_S = 0.02
 
 #: the issue's map (the registry's example): the paper's pipe, 100 x 100 points, 10 modes
 MAP: dict[str, Any] = COMPUTATIONS["spin_map"].examples["spin_map"]["value"]
@@ -107,8 +119,11 @@ def study(smoke: bool) -> dict[str, Any]:
     return {"kind": "study", **bench_study.study_body(side, modes)}
 
 
-def job_over_http(client: httpx.Client, url: str, spec: dict[str, Any]) -> dict[str, Any]:
-    """POST, poll to success, GET the result: wall time [s], compute time [s], fan_out."""
+def job_over_http(
+    client: httpx.Client, url: str, spec: dict[str, Any], poll: float | None = None
+) -> dict[str, Any]:
+    """POST, wait for success (long polls; ``poll`` [s]: polling at that period), GET the
+    result: wall time [s], compute time [s], fan_out."""
     path, body = "sweeps", spec
     if spec.get("kind") == "study":
         path, body = "studies", {k: v for k, v in spec.items() if k != "kind"}
@@ -116,13 +131,16 @@ def job_over_http(client: httpx.Client, url: str, spec: dict[str, Any]) -> dict[
     r = client.post(f"{url}/v1/{path}", json=body)
     r.raise_for_status()
     key = r.json()["key"]
+    # a long poll (the service answers once the job ended), or ``--poll``'s polling
+    params = {"wait": f"{LONG_POLL_S:g}"} if poll is None else None
     while True:
-        job = client.get(f"{url}/v1/jobs/{key}").json()
+        job = client.get(f"{url}/v1/jobs/{key}", params=params).json()
         if job["status"] == "succeeded":
             break
         if job["status"] in ("failed", "cancelled"):
             raise RuntimeError(f"job {key} {job['status']}: {job.get('error')}")
-        time.sleep(POLL_S)
+        if poll is not None:
+            time.sleep(poll)
     doc = client.get(f"{url}/v1/results/{key}").json()
     wall = time.perf_counter() - started
     t0, t1 = (datetime.fromisoformat(job[k]).timestamp() for k in ("started", "finished"))
@@ -172,16 +190,26 @@ def run(spec: dict[str, Any], repeats: int) -> dict[str, Any]:
         library_call(spec)  # first use in this process, unmeasured
         for n in (1, 2):
             job_over_http(client, urls[n], variant(spec, 10_000 + n))  # warm-up, unmeasured
+        # --ab-poll: every round also a job waited for by polling every 20 ms (the old way)
+        polled: dict[int, list[dict[str, Any]]] = {1: [], 2: []}
         for i in range(repeats):
             library.append(library_call(spec))
             started = time.perf_counter()
             list(pool.map(library_call, [spec, spec]))
             pairs.append(time.perf_counter() - started)
+            ways = [(runs, POLL_S), (polled, AB_POLL_S)] if AB_POLL else [(runs, POLL_S)]
+            if AB_POLL and i % 2:
+                ways.reverse()
             for n in (1, 2):
-                cpu = process_cpu(servers[n][1])
-                runs[n].append(job_over_http(client, urls[n], variant(spec, 2 * i + n)))
-                runs[n][-1]["server_cpu"] = process_cpu(servers[n][1]) - cpu
-    return {"library": library, "pairs": pairs, "runs": runs, "load_after": os.getloadavg()}
+                for out, poll in ways:
+                    cpu = process_cpu(servers[n][1])
+                    k = 4 * i + 2 * n + (out is polled)
+                    out[n].append(job_over_http(client, urls[n], variant(spec, k), poll))
+                    out[n][-1]["server_cpu"] = process_cpu(servers[n][1]) - cpu
+    raw = {"library": library, "pairs": pairs, "runs": runs, "load_after": os.getloadavg()}
+    if AB_POLL:
+        raw["polled"] = polled
+    return raw
 
 
 def _sweep_piece(args: tuple[int, Any]) -> Any:
@@ -509,12 +537,14 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
         f"{pair * 1e3:.0f} ms for both, vs {lib * 1e3:.0f} ms for one alone): "
         f"{ceiling:.2f}x, the ceiling of the 2-vs-1 ratio under the other engineers' load.",
         "",
-        "CPU of the API server process during a job (its requests, polled every "
-        f"{POLL_S * 1e3:.0f} ms, and the embedded Dask scheduler), median: 1 worker "
+        "CPU of the API server process during a job (its requests, "
+        + ("long-polled" if POLL_S is None else f"polled every {POLL_S * 1e3:.0f} ms")
+        + ", and the embedded Dask scheduler), median: 1 worker "
         f"{median([r['server_cpu'] for r in raw['runs'][1]]) * 1e3:.0f} ms, 2 workers "
         f"{median([r['server_cpu'] for r in raw['runs'][2]]) * 1e3:.0f} ms (with 2 workers "
         "it shares the 2 cores with them).",
         "",
+        *(_ab_poll(raw) if "polled" in raw else []),
         "wall [ms], 1 worker: " + ", ".join(f"{r['wall'] * 1e3:.0f}" for r in raw["runs"][1]),
         "",
         "wall [ms], 2 workers: " + ", ".join(f"{r['wall'] * 1e3:.0f}" for r in raw["runs"][2]),
@@ -526,8 +556,35 @@ def report(spec: dict[str, Any], raw: dict[str, Any], started: float, smoke: boo
     return "\n".join(lines)
 
 
+def _ab_poll(raw: dict[str, Any]) -> list[str]:
+    """``--ab-poll``'s table: the same rounds' jobs, long-polled against polled."""
+    rows = []
+    for name, runs in (
+        ("long poll (`?wait=60`)", raw["runs"]),
+        (f"polled every {AB_POLL_S * 1e3:.0f} ms", raw["polled"]),
+    ):
+        one = median([r["wall"] for r in runs[1]])
+        two = median([r["wall"] for r in runs[2]])
+        cpu1 = median([r["server_cpu"] for r in runs[1]])
+        cpu2 = median([r["server_cpu"] for r in runs[2]])
+        rows.append(
+            f"| {name} | {one * 1e3:.0f} | {two * 1e3:.0f} | {one / two:.2f}x | "
+            f"{cpu1 * 1e3:.0f} | {cpu2 * 1e3:.0f} |"
+        )
+    return [
+        "Waiting by long poll against polling, the same rounds (interleaved, the order "
+        "alternating), medians:",
+        "",
+        "| wait | 1 worker [ms] | 2 workers [ms] | 2 vs 1 | API CPU/job, 1 w [ms] "
+        "| API CPU/job, 2 w [ms] |",
+        "|---|---:|---:|---:|---:|---:|",
+        *rows,
+        "",
+    ]
+
+
 def main(argv: list[str] | None = None) -> int:
-    global POLL_S
+    global POLL_S, AB_POLL
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smoke", action="store_true", help="a tiny map, one repetition")
     ap.add_argument("--repeats", type=int, default=9, help="measured jobs per server")
@@ -537,11 +594,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweeps", action="store_true", help="also the sweep-spectra probe")
     ap.add_argument("--study", action="store_true", help="the 10,000-case study, not the map")
     ap.add_argument("--timeline", action="store_true", help="--study: trace one job instead")
-    ap.add_argument("--poll", type=float, default=0.02, help="job polling period [s]")
+    ap.add_argument(
+        "--poll",
+        type=float,
+        default=None,
+        help="poll the job every POLL s (the old way; default: long polls, ?wait=)",
+    )
     ap.add_argument("--workers", type=int, default=2, help="--timeline: the cluster's workers")
     ap.add_argument("--direct", action="store_true", help="--study: the job alone, 2 vs 1")
+    ap.add_argument(
+        "--ab-poll",
+        action="store_true",
+        help="each round also a job polled every 20 ms: long poll against polling, same run",
+    )
     args = ap.parse_args(argv)
     POLL_S = args.poll
+    AB_POLL = args.ab_poll
     spec = study(args.smoke) if args.study else SMOKE_MAP if args.smoke else MAP
     started = time.monotonic()
     if args.timeline or args.direct:

@@ -152,6 +152,15 @@ class Call:
     params: dict[str, str] | None = None
     json: Any = None
     headers: dict[str, str] = field(default_factory=dict)
+    #: this request's own timeout [s] (a long poll's, longer than its wait); None: the client's
+    timeout: float | None = None
+
+
+#: how long one request of :meth:`_Operations.wait_raw` asks the service to hold it [s]
+#: (``GET /v1/jobs/{key}?wait=``, at most 60 s there)
+LONG_POLL_S = 30.0
+#: a long poll's own timeout is its wait plus this [s]
+LONG_POLL_MARGIN_S = 15.0
 
 
 @dataclass(frozen=True)
@@ -313,9 +322,16 @@ class _Operations:
         return (yield from _Operations.submit_job("simulation", spec, refresh=refresh))
 
     @staticmethod
-    def job(key: str) -> Steps[dict[str, Any]]:
-        """The job document: status, progress [0..1], timestamps, error."""
-        doc: dict[str, Any] = yield from _json(Call("GET", f"/v1/jobs/{key}"))
+    def job(key: str, *, wait: float = 0.0) -> Steps[dict[str, Any]]:
+        """The job document: status, progress [0..1], timestamps, error.  ``wait`` > 0 [s,
+        at most 60]: a long poll, answered once the job has ended or after ``wait``."""
+        if wait <= 0:
+            doc: dict[str, Any] = yield from _json(Call("GET", f"/v1/jobs/{key}"))
+            return doc
+        call = Call(
+            "GET", f"/v1/jobs/{key}", {"wait": f"{wait:g}"}, timeout=wait + LONG_POLL_MARGIN_S
+        )
+        doc = yield from _json(call)
         return doc
 
     @staticmethod
@@ -332,14 +348,23 @@ class _Operations:
         poll: float = 0.2,
         timeout: float | None = None,
     ) -> Steps[dict[str, Any]]:
-        """Poll job ``key`` every ``poll`` [s] until it ends; return the result JSON.
+        """Wait for job ``key`` to end; return the result JSON.
 
+        Each request is a long poll (``GET /v1/jobs/{key}?wait=``): the service answers as
+        soon as the job ends, or after :data:`LONG_POLL_S` [s] (``poll`` [s] when
+        ``progress`` is given, so ``progress(fraction)`` is called that often), with no
+        sleeping here in between.  A service that answers a running job at once (an older
+        one, or one holding its limit of long polls) is asked again after ``poll`` [s].
         Raises :class:`JobFailed` for a failed or cancelled job and :class:`TimeoutError`
         after ``timeout`` [s].
         """
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
-            job = yield from _Operations.job(key)
+            wait = LONG_POLL_S if progress is None else max(poll, 0.0)
+            if deadline is not None:
+                wait = max(0.0, min(wait, deadline - time.monotonic()))
+            asked = time.monotonic()
+            job = yield from _Operations.job(key, wait=wait)
             if progress is not None:
                 progress(float(job.get("progress", 0.0)))
             status = job["status"]
@@ -351,7 +376,8 @@ class _Operations:
                 raise JobFailed(409, job.get("error") or {"title": f"job {status}"})
             if deadline is not None and time.monotonic() > deadline:
                 raise TimeoutError(f"job {key} still {status} after {timeout} s")
-            yield Pause(poll)
+            if time.monotonic() - asked < wait / 2:
+                yield Pause(poll)  # not held: do not ask again at once
 
     @staticmethod
     def wait(
@@ -636,13 +662,16 @@ class _Base:
         raise NotImplementedError
 
     def _kwargs(self, call: Call) -> dict[str, Any]:
-        return {
+        kwargs = {
             "method": call.method,
             "url": self.base_url + call.path,
             "params": call.params,
             "json": call.json,
             "headers": {**self.headers, **call.headers},
         }
+        if call.timeout is not None:
+            kwargs["timeout"] = call.timeout
+        return kwargs
 
     compute = _operation(_Operations.compute)
     submit_job = _operation(_Operations.submit_job)

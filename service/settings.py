@@ -109,6 +109,14 @@ class Settings(BaseSettings):
         "goes to a Dask worker (the record re-queued, computed once). 0: such runs always "
         "go to a worker.",
     )
+    max_job_waiters: int = Field(
+        1000,
+        ge=0,
+        le=100_000,
+        description="Long polls (GET /v1/jobs/{key}?wait=) held open at once per replica; "
+        "past it such a request is answered at once with the job's current status, as "
+        "without wait (0: never hold one).",
+    )
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest accepted request body [bytes]; larger: 413."
     )

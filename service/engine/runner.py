@@ -122,6 +122,14 @@ class Flight:
         return self.job.key
 
 
+@dataclass
+class _Watch:
+    """The long polls waiting for one job's end: set once, by :meth:`Runner.job_changed`."""
+
+    ended: asyncio.Event = field(default_factory=asyncio.Event)
+    waiters: int = 0
+
+
 def _internal(message: str) -> dict[str, Any]:
     """A job record's error: the engine failed (not the computation)."""
     return ErrorRecord.internal(message).to_dict()
@@ -180,6 +188,9 @@ class Runner:
         self._kick = asyncio.Event()  # wakes the dispatcher (a job queued, a flight ended)
         self._dispatching = asyncio.Lock()
         self.dispatched = 0  # jobs this replica took from the durable queue (tests)
+        # long polls (GET /v1/jobs/{key}?wait=): per watched key, the event its end sets
+        self._watches: dict[str, _Watch] = {}
+        self.waiting = 0  # long polls held open now (bounded by max_job_waiters)
 
     # -- lifecycle -----------------------------------------------------------------------
 
@@ -549,8 +560,54 @@ class Runner:
         if self._flights.get(flight.key) is flight:
             del self._flights[flight.key]
             self._kick.set()  # a slot is free: the dispatcher may take a waiting job
+        self.job_changed(flight.key)
         if not task.cancelled():
             task.exception()  # retrieved here so an unobserved job failure is not logged twice
+
+    # -- long polls: waiting for a job's end ------------------------------------------------
+
+    def job_changed(self, key: str) -> None:
+        """Wake the long polls of job ``key`` (its record may have ended): a flight of this
+        replica ended or saw its task finish, a DELETE cancelled it, or the monitor read it
+        ended (another replica's run, or a job nobody here drives)."""
+        watch = self._watches.pop(key, None)
+        if watch is not None:
+            watch.ended.set()
+
+    async def wait_job(self, job: Job, wait_s: float) -> Job:
+        """``job``'s record once it is no longer active (succeeded, failed, cancelled), or as
+        it is after ``wait_s`` [s]: ``GET /v1/jobs/{key}?wait=``.  No busy loop and no
+        thread held: the wait is an event set by :meth:`job_changed`, after which the record
+        is read again (a spurious wake-up waits on for the rest of ``wait_s``).  At most
+        ``max_job_waiters`` such waits at once; past it ``job`` is returned as it is.  A
+        vanished record (pruned) returns the last one read."""
+        if not job.active or wait_s <= 0 or self.waiting >= self.settings.max_job_waiters:
+            return job
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + wait_s
+        key = job.key
+        self.waiting += 1
+        try:
+            while True:
+                watch = self._watches.get(key)
+                if watch is None:
+                    watch = self._watches[key] = _Watch()
+                watch.waiters += 1
+                try:
+                    with contextlib.suppress(TimeoutError):
+                        await asyncio.wait_for(watch.ended.wait(), deadline - loop.time())
+                finally:
+                    watch.waiters -= 1
+                    if watch.waiters == 0 and self._watches.get(key) is watch:
+                        del self._watches[key]
+                read = await asyncio.to_thread(self.store.get_job, key)
+                if read is None:
+                    return job
+                job = read
+                if not job.active or loop.time() >= deadline:
+                    return job
+        finally:
+            self.waiting -= 1
 
     # -- the durable queue ---------------------------------------------------------------
 
@@ -828,6 +885,15 @@ class Runner:
             pure=False,
         )
         fire_and_forget(fut)  # runs to the end even if this replica goes away
+        # its long polls wake when the scheduler says the task ended (its record is final
+        # by then), not once its Outcome has been fetched from the worker
+        loop = asyncio.get_running_loop()
+
+        def ended(_: Any) -> None:  # in Dask's callback thread
+            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
+                loop.call_soon_threadsafe(self.job_changed, job.key)
+
+        fut.add_done_callback(ended)
         awaitable: Awaitable[Outcome] = fut
         return awaitable
 
@@ -907,6 +973,7 @@ class Runner:
                 # of the record; the fast lane's answer even carries the body
                 outcome = waiter.result()
                 flight.seconds = outcome.seconds
+                self.job_changed(key)  # the record is final: long polls answer now
                 return outcome.body if outcome.body is not None else await self._body(key)
             try:
                 job = (
@@ -1034,7 +1101,14 @@ class Runner:
                     del self._pending_failures[key]
                 now = time.time()
                 keys = list(self._flights)
-                records = await asyncio.to_thread(self.store.jobs_by_key, keys)
+                # jobs long-polled here that no flight of this replica drives (queued, or
+                # run by another replica): their end is seen in the same read
+                watched = [k for k in self._watches if k not in self._flights]
+                records = await asyncio.to_thread(self.store.jobs_by_key, keys + watched)
+                for key in watched:
+                    job = records.pop(key, None)
+                    if job is None or not job.active:
+                        self.job_changed(key)
                 for key in keys:
                     job = records.get(key)
                     flight = self._flights.get(key)

@@ -94,7 +94,8 @@ def router_for(endpoint: Endpoint) -> APIRouter:
     costs = cost_note(endpoint)
     job_description = (
         f"The same computation as ``POST /v1/{endpoint.path}``, answered at once with its job "
-        "(202, ``Location: /v1/jobs/{key}``); poll the job, then ``GET /v1/results/{key}``.  "
+        "(202, ``Location: /v1/jobs/{key}``); wait for the job (``GET /v1/jobs/{key}?wait=30``: "
+        "a long poll, answered when it has ended), then ``GET /v1/results/{key}``.  "
         "The job id is the parameter hash: resubmitting is idempotent, a finished result is "
         "reused, and a failed or cancelled job is run again." + costs
     )

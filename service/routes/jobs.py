@@ -8,7 +8,7 @@ from __future__ import annotations
 import asyncio
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Path
+from fastapi import APIRouter, Depends, Path, Query
 from fastapi.responses import JSONResponse
 
 from service.deps import RunnerDep, StoreDep
@@ -21,6 +21,20 @@ router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[Depends(accep
 
 Key = Annotated[str, Path(pattern=KEY_PATTERN, description="Job id = parameter hash.")]
 
+#: longest long poll a request may ask for [s] (``GET /v1/jobs/{key}?wait=``)
+MAX_WAIT_S = 60.0
+
+Wait = Annotated[
+    float,
+    Query(
+        ge=0,
+        le=MAX_WAIT_S,
+        description="Long poll [s]: answer as soon as the job has ended (succeeded, failed, "
+        f"cancelled) or after this long with its current status; 0 <= wait <= {MAX_WAIT_S:g}. "
+        "0 (default): at once.  A server holding too many long polls answers at once.",
+    ),
+]
+
 
 @router.get(
     "/{key}",
@@ -29,11 +43,13 @@ Key = Annotated[str, Path(pattern=KEY_PATTERN, description="Job id = parameter h
     response_model=JobStatus,
     responses=responses(404, 406, 422),
 )
-async def get_job(key: Key, store: StoreDep) -> JSONResponse:
+async def get_job(key: Key, store: StoreDep, runner: RunnerDep, wait: Wait = 0.0) -> JSONResponse:
+    """The job's record; with ``wait`` > 0 a long poll: the answer comes when the job has
+    ended or ``wait`` seconds have passed, whichever is first (instead of polling)."""
     job = await asyncio.to_thread(store.get_job, key)
     if job is None:
         raise ProblemError(404, f"no job {key}", slug="unknown-key")
-    return job_response(job)
+    return job_response(await runner.wait_job(job, wait))
 
 
 @router.delete(
@@ -49,6 +65,7 @@ async def cancel_job(key: Key, store: StoreDep, runner: RunnerDep) -> JSONRespon
     cancelled job is a no-op; a finished one is a 409."""
     runner.cancel(key)  # before the record: a POST from now on starts a new run
     job = await asyncio.to_thread(store.request_cancel, key)
+    runner.job_changed(key)  # its long polls answer (cancelled, or its final status)
     if job is None:
         raise ProblemError(404, f"no job {key}", slug="unknown-key")
     if job.status in ("succeeded", "failed"):

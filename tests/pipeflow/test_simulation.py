@@ -248,6 +248,13 @@ def _element_wise_reference(data: Any) -> Any:
         [1e308, 1e308, -1e308],  # finite values whose sum overflows: element-wise path
         [1.0, np.float64(2.0), np.float64("nan")],  # numpy scalars are not Python floats
         [1.0, 2, True, None, "x"],
+        # a study's rows: plain scalars copied at once unless a float is not finite
+        [3, "a" * 64, "ok", False, 0.5, None, -1.25, 7],
+        [3, None, "ok", True, math.nan, 2.0],
+        [0, "k", 1e308, 1e308],  # finite floats whose sum overflows: element-wise path
+        [1, np.int64(2), 3.0],  # a numpy integer: walked (item())
+        [1, [2.0, math.inf], "x"],  # a nested list: walked
+        [[1, "a", 0.5], [2, "b", math.nan], [3, "c", -math.inf]],
         ([0.5, math.nan], (1.0, 2.0)),
         {"a": [[1.0, 2.0], [math.nan, 3.0]], "b": (np.float32(1.5), 4.0)},
     ],
@@ -257,9 +264,19 @@ def test_json_safe_float_lists_fast_path_matches_the_rule(data: Any) -> None:
     the element-wise rule: every non-finite float null, finite floats unchanged (==, so no
     tolerance), numpy scalars as Python numbers, tuples as lists; the input is not shared."""
     out = json_safe(data)
-    assert out == _element_wise_reference(data)
+    expected = _element_wise_reference(data)
+    assert out == expected
+    assert _types(out) == _types(expected)  # == alone takes True for 1 and 1 for 1.0
     if isinstance(data, list):
         assert out is not data
+
+
+def _types(data: Any) -> Any:
+    if isinstance(data, dict):
+        return {k: _types(v) for k, v in data.items()}
+    if isinstance(data, list):
+        return [_types(v) for v in data]
+    return type(data)
 
 
 def test_cma_exponents_are_computed_only_when_asked(monkeypatch: pytest.MonkeyPatch) -> None:
