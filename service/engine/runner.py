@@ -116,6 +116,12 @@ class Flight:
     #: who asked, and the estimated cost: written on the record this flight creates
     principal: str | None = None
     cost: float = 0.0
+    #: the request's cache lookup is this flight's first step (:meth:`Runner.look_up_or_run`)
+    look_up: bool = False
+    #: ... and it found the result stored: the body is a hit, no record was written
+    hit: bool = False
+    #: another request joined this flight (its record may have been written by it)
+    joined: bool = False
 
     @property
     def key(self) -> str:
@@ -467,6 +473,21 @@ class Runner:
         task checks the flag at its next heartbeat), then starts a new run.
         Raises :class:`QueueFull`, or :class:`StorageError` when the store is failing.
         """
+        flight = await self._flight(job, force, recover, principal, cost)
+        assert flight.task is not None
+        return flight.task
+
+    async def _flight(
+        self,
+        job: Keyed,
+        force: bool,
+        recover: bool,
+        principal: str | None,
+        cost: float,
+        look_up: bool = False,
+    ) -> Flight:
+        """:meth:`submit`: the flight of ``job.key`` (``look_up``: a new one looks the
+        result up first, see :meth:`look_up_or_run`)."""
         key = job.key
         if not recover and not self.store.healthy:
             raise self.store.unavailable()  # its result could not be stored either
@@ -483,14 +504,16 @@ class Runner:
         if flight is None:
             if not recover and self.saturated:
                 raise QueueFull(f"{self.in_flight} computations in flight")
-            flight = Flight(job, principal=principal, cost=cost)
+            flight = Flight(job, principal=principal, cost=cost, look_up=look_up)
             self._flights[key] = flight
             flight.task = asyncio.create_task(self._drive(flight, force, recover))
             flight.task.add_done_callback(functools.partial(self._done, flight))
-        elif not recover:
+        elif not recover and not flight.hit:
+            # (a flight that found its result stored answers from it: nothing to write)
             # joining: a finished record is accepted again (a new generation), but for a
             # run that has just stored its result (a request that missed the store a moment
             # before it was written: the flight answers it; resetting would compute twice)
+            flight.joined = True
             name = job.computation.name
             await asyncio.to_thread(
                 functools.partial(
@@ -512,7 +535,37 @@ class Runner:
             exc = flight.task.exception()
             if isinstance(exc, StorageError):
                 raise exc
-        return flight.task
+        return flight
+
+    def looks_up_in_lane(self, job: Keyed) -> bool:
+        """Whether a synchronous request's cache lookup of ``job`` can be the first step of
+        its fast-lane run (:meth:`look_up_or_run`): the engine is up with a worker, the
+        store healthy, a slot free, no flight of the key here, and the lane would take a
+        new record of it now (:meth:`_lane_takes`).  Any of these false, the lookup is
+        its own thread hop as before (a hit must be answered whatever the engine's state,
+        and a miss goes the ordinary way)."""
+        return (
+            self._connected.is_set()
+            and not self.no_worker
+            and self.store.healthy
+            and not self.saturated
+            and job.key not in self._flights
+            and self._lane_takes(job, None)[0]
+        )
+
+    async def look_up_or_run(
+        self, job: Keyed, *, principal: str | None = None, cost: float = 0.0
+    ) -> tuple[bytes, bool]:
+        """The body of ``job`` and whether it was stored already (a hit): the store's
+        lookup and, on a miss, the record and the computation, in one thread hop of the
+        fast lane (:class:`service.engine.task.Accept` ``look_up``) instead of a hop for
+        the lookup, then one for the lane.  A hit writes nothing (no record), as the
+        route's own lookup.  Call only when :meth:`looks_up_in_lane` (the lane may still
+        be taken meanwhile: the lookup then runs in its own hop first)."""
+        flight = await self._flight(job, False, False, principal, cost, look_up=True)
+        assert flight.task is not None
+        body = await self.result(flight.task)
+        return body, flight.hit
 
     async def _release_finished(self, wait_s: float = 1.0) -> None:
         """Free the slots of flights whose job record has already ended (e.g. failed by a
@@ -661,11 +714,14 @@ class Runner:
         self.computations += 1
         return self._execute(flight, job)
 
-    def _lane_takes(self, flight: Flight, job: Job | None) -> tuple[bool, float | None]:
+    def _lane_takes(
+        self, request: Keyed, job: Job | None, resubmits: int = 0
+    ) -> tuple[bool, float | None]:
         """Whether the fast lane runs this attempt, and the allowance [s] of its metered
         work (None: not metered).  The lane must be on and have a free thread, and it must
         be the job's first attempt here (a recovered, retried or handed-off job goes to a
-        worker; ``job`` None: a new record, see :meth:`_lane_first`).  Then either
+        worker; ``job`` None: a new record, see :meth:`_lane_first`; ``resubmits``: the
+        flight's resubmissions of an abnormally ended task).  Then either
 
         - the computation estimates its whole run time (:attr:`Computation.run_time`) at
           most ``fast_lane_max_s``: below ~50 ms the cross-process round trip of a Dask
@@ -681,23 +737,23 @@ class Runner:
           job then goes to a worker (:meth:`_drive_once`: the lease given up with the
           reason, the record still active, submitted again).  An overrun is therefore
           bounded by the allowance plus the estimated rest, not only advised."""
-        computation = flight.job.computation
+        computation = request.computation
         if (
             self._lane is None
             or self._lane_busy >= self.settings.fast_lane_threads
             or (job is not None and (job.attempts > 0 or _handed_off(job)))
-            or flight.resubmits > 0
+            or resubmits > 0
         ):
             return False, None
         limit = self.settings.fast_lane_max_s
         try:  # an estimate is advice: never fail a request over it
-            whole = computation.run_time(flight.job.request) if computation.run_time else None
+            whole = computation.run_time(request.request) if computation.run_time else None
             if whole is not None and whole <= limit:
                 return True, None
             allowance = self.settings.fast_lane_max_metered_s
             if computation.metered_run_time is None or allowance <= 0:
                 return False, None
-            rest = computation.metered_run_time(flight.job.request)
+            rest = computation.metered_run_time(request.request)
         except Exception:
             log.exception("estimate of %s", computation.name)
             return False, None
@@ -715,10 +771,16 @@ class Runner:
         there first, or the result was stored: the ordinary path goes on from it);
         ``(None, None)`` when the lane does not take it or did not start.  Raises the
         :class:`StorageError` that refused the write."""
-        taken, allowance = self._lane_takes(flight, None)
-        if not taken:
-            return None, None
+        taken, allowance = self._lane_takes(flight.job, None)
         loop = asyncio.get_running_loop()
+        if not taken:
+            if flight.look_up:  # the lane was taken meanwhile: the lookup in its own hop
+                body = await asyncio.to_thread(self.store.get_result, flight.key)
+                if body is not None:
+                    found: asyncio.Future[Outcome] = loop.create_future()
+                    found.set_result(Outcome("hit", body=body))
+                    return None, found
+            return None, None
         claimed: asyncio.Future[Claim] = loop.create_future()
 
         def settle(result: Claim | StorageError) -> None:
@@ -740,6 +802,7 @@ class Runner:
             principal=flight.principal,
             cost=flight.cost,
             dispatcher=self.replica,
+            look_up=flight.look_up,
         )
         try:
             run = self._in_lane(flight, flight.key, accept, allowance)
@@ -752,6 +815,9 @@ class Runner:
             claimed.cancel()
             return None, None
         claim = claimed.result()  # raises the StorageError
+        if claim.outcome == "hit":  # found stored: nothing written, nothing computed
+            self.lane_runs -= 1
+            return None, waiter
         if claim.outcome != "claimed":
             # it computed nothing: its thread is released before the ordinary path asks
             # for the lane again (a request joining this flight may have written the
@@ -810,7 +876,7 @@ class Runner:
     def _execute(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
         from distributed import fire_and_forget
 
-        taken, allowance = self._lane_takes(flight, job)
+        taken, allowance = self._lane_takes(flight.job, job, flight.resubmits)
         if taken:
             return self._in_lane(flight, job.key, allowance=allowance)
 
@@ -902,6 +968,29 @@ class Runner:
         while True:
             if flight.cancelled:
                 await self._stopped(flight, waiter)
+            if waiter is not None and waiter.done() and waiter.result().status == "hit":
+                # the lookup found the result stored and wrote nothing; a request that
+                # joined meanwhile writes a record (its own lookup missed: an eviction in
+                # between), which the ordinary path below finishes from the stored result
+                # (written here too, as the joiner does: either write may come first)
+                outcome, waiter = waiter.result(), None
+                assert outcome.body is not None
+                if not flight.joined:
+                    flight.hit = True
+                    return outcome.body
+                known = await asyncio.to_thread(
+                    functools.partial(
+                        self.store.enqueue_job,
+                        key,
+                        job_in.computation.name,
+                        job_in.canonical,
+                        keep_stored=True,
+                        principal=flight.principal,
+                        cost=flight.cost,
+                        dispatcher=self.replica,
+                    )
+                )
+                continue
             if waiter is not None and waiter.done() and waiter.result().finished:
                 # our task stored the result and finished the record with it: no re-read
                 # of the record; the fast lane's answer even carries the body
