@@ -773,14 +773,8 @@ class Runner:
         :class:`StorageError` that refused the write."""
         taken, allowance = self._lane_takes(flight.job, None)
         loop = asyncio.get_running_loop()
-        if not taken:
-            if flight.look_up:  # the lane was taken meanwhile: the lookup in its own hop
-                body = await asyncio.to_thread(self.store.get_result, flight.key)
-                if body is not None:
-                    found: asyncio.Future[Outcome] = loop.create_future()
-                    found.set_result(Outcome("hit", body=body))
-                    return None, found
-            return None, None
+        if not taken:  # (a look-up flight: the lane was taken meanwhile)
+            return None, await self._look_up(flight)
         claimed: asyncio.Future[Claim] = loop.create_future()
 
         def settle(result: Claim | StorageError) -> None:
@@ -791,7 +785,15 @@ class Runner:
             else:
                 claimed.set_result(result)
 
+        # a look-up flight's request waits for the answer only (look_up_or_run): its
+        # claim is read once the run has ended, not sent to the loop mid-run (a wake-up of
+        # the event loop, contending for the GIL with the computation)
+        quiet: list[Claim | StorageError] | None = [] if flight.look_up else None
+
         def on_claim(result: Claim | StorageError) -> None:  # in the lane's thread
+            if quiet is not None:
+                quiet.append(result)
+                return
             with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
                 loop.call_soon_threadsafe(settle, result)
 
@@ -808,12 +810,22 @@ class Runner:
             run = self._in_lane(flight, flight.key, accept, allowance)
             waiter = asyncio.ensure_future(self._result_of(run))
         except RuntimeError:  # the lane is shut down (the replica is stopping)
-            return None, None
-        pending: set[asyncio.Future[Any]] = {claimed, waiter}
-        await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
+            return None, await self._look_up(flight)
+        if quiet is None:
+            pending: set[asyncio.Future[Any]] = {claimed, waiter}
+            await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
+        else:
+            # until the run ends, or the monitor flags its record once written (the lane's
+            # watchdog failed an overrun: answered now, its thread abandoned)
+            while not waiter.done() and not quiet:
+                await self._wait(flight, waiter)
+            if not waiter.done():
+                flight.changed.set()  # the flag is the driving loop's to act on
+        if quiet:
+            settle(quiet[0])
         if not claimed.done():  # the lane's run ended before writing anything
             claimed.cancel()
-            return None, None
+            return None, await self._look_up(flight)
         claim = claimed.result()  # raises the StorageError
         if claim.outcome == "hit":  # found stored: nothing written, nothing computed
             self.lane_runs -= 1
@@ -827,6 +839,19 @@ class Runner:
             return claim.job, None
         self.computations += 1
         return None, waiter
+
+    async def _look_up(self, flight: Flight) -> asyncio.Future[Outcome] | None:
+        """A look-up flight (:meth:`look_up_or_run`) the lane did not take: its lookup in a
+        thread hop of its own, a ``hit`` outcome if found (None: not a look-up flight, or
+        not stored: the ordinary path writes the record)."""
+        if not flight.look_up:
+            return None
+        body = await asyncio.to_thread(self.store.get_result, flight.key)
+        if body is None:
+            return None
+        found: asyncio.Future[Outcome] = asyncio.get_running_loop().create_future()
+        found.set_result(Outcome("hit", body=body))
+        return found
 
     def _in_lane(
         self,

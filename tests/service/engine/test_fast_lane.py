@@ -177,3 +177,31 @@ def test_the_lookup_and_the_lane_run_share_one_thread_hop(
     assert [name.startswith("fast-lane") for k, name in lookups if k == other] == [True]
     assert store.get_job(other) is None  # a hit is no write
     assert runner.lane_runs == lane_runs + 1 and not runner.is_active(other)
+
+
+def test_a_look_up_run_wakes_the_event_loop_only_when_it_ends(
+    lane: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The lane's thread of a cold request that looked the store up in it does not send its
+    claim to the event loop mid-run (the request waits for the answer only): the loop is
+    called from the lane's thread twice per run, the future's result and the thread's
+    release, not a third time for the claim."""
+    import asyncio
+    import threading
+
+    calls: list[str] = []
+    original = asyncio.BaseEventLoop.call_soon_threadsafe
+
+    def spy(self: Any, *args: Any, **kw: Any) -> Any:
+        calls.append(threading.current_thread().name)
+        return original(self, *args, **kw)
+
+    monkeypatch.setattr(asyncio.BaseEventLoop, "call_soon_threadsafe", spy)
+    runner = _runner(lane)
+    lane_runs = runner.lane_runs
+    resp = lane.post("/v1/simulations", json={**LTI, "initial": {"u0": 0.0033}})
+    assert resp.status_code == 200 and resp.headers["x-cache"] == "MISS"
+    assert runner.lane_runs == lane_runs + 1
+    assert sum(name.startswith("fast-lane") for name in calls) == 2, calls
+    job = runner.store.get_job(resp.json()["key"])
+    assert job.status == "succeeded" and job.attempts == 1 and job.owner is None
