@@ -184,6 +184,9 @@ class Runner:
         #: this replica's id in the job records it drives (``dispatcher``)
         self.replica = uuid.uuid4().hex
         self._kick = asyncio.Event()  # wakes the dispatcher (a job queued, a flight ended)
+        #: the dispatcher's last look found no job it could take waiting (it had slots to
+        #: spare): a flight that ends does not wake it (see :meth:`_done`)
+        self._drained = False
         self._dispatching = asyncio.Lock()
         self.dispatched = 0  # jobs this replica took from the durable queue (tests)
 
@@ -601,7 +604,8 @@ class Runner:
     def _done(self, flight: Flight, task: asyncio.Task[bytes]) -> None:
         if self._flights.get(flight.key) is flight:
             del self._flights[flight.key]
-            self._kick.set()  # a slot is free: the dispatcher may take a waiting job
+            if not self._drained:  # a slot is free: the dispatcher may take a waiting job
+                self._kick.set()
         if not task.cancelled():
             task.exception()  # retrieved here so an unobserved job failure is not logged twice
 
@@ -666,14 +670,19 @@ class Runner:
         a time: two rounds would both count the same free slots)."""
         async with self._dispatching:
             free = self.free_slots
+            self._drained = False  # unknown until the read below says otherwise
             if free <= 0 or not self.store.healthy or not self._connected.is_set():
                 return
+            per_principal = self.settings.quota_concurrent_jobs
             taken = await asyncio.to_thread(
-                self.store.claim_waiting,
-                self.replica,
-                free,
-                self.settings.quota_concurrent_jobs,
+                self.store.claim_waiting, self.replica, free, per_principal
             )
+            # fewer than it could take, and no client's quota held one back: nothing
+            # waited beyond these.  A flight that ends then leaves the dispatcher asleep
+            # (its read after every computation, each cold request's, was a thread hop
+            # and a query); a job queued later wakes it (enqueue), or, from another
+            # replica, its next poll (poll_s) takes it
+            self._drained = len(taken) < free and per_principal is None
             for job in taken:
                 self.dispatched += 1
                 await self._recover(job, "dispatching")
