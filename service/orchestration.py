@@ -17,9 +17,11 @@ identity of :func:`service.http.identity.principal`.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import math
 import time
+from collections.abc import Iterator
 from typing import Annotated
 
 from fastapi import Query, Response
@@ -142,6 +144,36 @@ async def check_request(job: Keyed) -> None:
         raise RequestValidationError(errors, body=body) from None
 
 
+def _looks_up_in_lane(runner: Runner, job: Keyed) -> bool:
+    """Whether the cache lookup of a synchronous request can go with its fast-lane run in one
+    thread hop (:meth:`Runner.look_up_or_run`): nothing must run between the lookup and
+    the computation (no :func:`check_request` of the kind, no quota of a synchronous
+    computation, see :func:`check_quotas`) and the runner must take it
+    (:meth:`Runner.looks_up_in_lane`)."""
+    s = runner.settings
+    return (
+        job.computation.check is None
+        and s.quota_concurrent_jobs is None
+        and s.quota_cost_per_minute is None
+        and runner.looks_up_in_lane(job)
+    )
+
+
+@contextlib.contextmanager
+def _engine_errors(runner: Runner) -> Iterator[None]:
+    """The engine's refusals and a computation's failure as problem documents."""
+    try:
+        yield
+    except NoWorker as exc:
+        raise _no_worker(runner, exc) from None
+    except QueueFull as exc:
+        raise _saturated(runner, exc) from None
+    except ComputationFailed as exc:
+        raise ProblemError.from_document(stored_problem(exc.error)) from None
+    except ComputationCancelled as exc:
+        raise ProblemError(409, f"the computation was cancelled: {exc}", slug="cancelled") from None
+
+
 async def run_sync(
     runner: Runner,
     store: Store,
@@ -154,13 +186,22 @@ async def run_sync(
     ``principal`` (:func:`check_quotas` first).
 
     With ``hit`` (the app's hit cache, see :class:`Hit`), a hit is answered from memory as
-    its pre-encoded bytes, gzip when the client accepts it."""
+    its pre-encoded bytes, gzip when the client accepts it.  A request the fast lane will
+    run looks the store up in the lane's thread hop (:func:`_looks_up_in_lane`)."""
     key = job.key
     cache = hit.cache if hit is not None else None
     if not refresh:
         encoded = cache.get(key) if cache is not None else None
         if encoded is not None:
             return result_response(key, True, encoded, hit is not None and hit.gzip)
+        if _looks_up_in_lane(runner, job):
+            with _engine_errors(runner):
+                answer, found = await runner.look_up_or_run(
+                    job, principal=principal, cost=job_cost(job)
+                )
+            if found:
+                return await hit_response(key, answer, hit)
+            return result_response(key, False, answer)
         body = await asyncio.to_thread(store.get_result, key)
         if body is not None:
             return await hit_response(key, body, hit)
@@ -171,18 +212,10 @@ async def run_sync(
         await check_request(job)
         cost = job_cost(job)
         await check_quotas(runner, store, principal, cost, queued=False)
-    try:
+    with _engine_errors(runner):
         await runner.admit()
         task = await runner.submit(job, force=refresh, principal=principal, cost=cost)
         body = await runner.result(task)
-    except NoWorker as exc:
-        raise _no_worker(runner, exc) from None
-    except QueueFull as exc:
-        raise _saturated(runner, exc) from None
-    except ComputationFailed as exc:
-        raise ProblemError.from_document(stored_problem(exc.error)) from None
-    except ComputationCancelled as exc:
-        raise ProblemError(409, f"the computation was cancelled: {exc}", slug="cancelled") from None
     return result_response(key, False, body)
 
 

@@ -116,6 +116,12 @@ class Flight:
     #: who asked, and the estimated cost: written on the record this flight creates
     principal: str | None = None
     cost: float = 0.0
+    #: the request's cache lookup is this flight's first step (:meth:`Runner.look_up_or_run`)
+    look_up: bool = False
+    #: ... and it found the result stored: the body is a hit, no record was written
+    hit: bool = False
+    #: another request joined this flight (its record may have been written by it)
+    joined: bool = False
 
     @property
     def key(self) -> str:
@@ -186,6 +192,9 @@ class Runner:
         #: this replica's id in the job records it drives (``dispatcher``)
         self.replica = uuid.uuid4().hex
         self._kick = asyncio.Event()  # wakes the dispatcher (a job queued, a flight ended)
+        #: the dispatcher's last look found no job it could take waiting (it had slots to
+        #: spare): a flight that ends does not wake it (see :meth:`_done`)
+        self._drained = False
         self._dispatching = asyncio.Lock()
         self.dispatched = 0  # jobs this replica took from the durable queue (tests)
         # long polls (GET /v1/jobs/{key}?wait=): per watched key, the event its end sets
@@ -478,6 +487,21 @@ class Runner:
         task checks the flag at its next heartbeat), then starts a new run.
         Raises :class:`QueueFull`, or :class:`StorageError` when the store is failing.
         """
+        flight = await self._flight(job, force, recover, principal, cost)
+        assert flight.task is not None
+        return flight.task
+
+    async def _flight(
+        self,
+        job: Keyed,
+        force: bool,
+        recover: bool,
+        principal: str | None,
+        cost: float,
+        look_up: bool = False,
+    ) -> Flight:
+        """:meth:`submit`: the flight of ``job.key`` (``look_up``: a new one looks the
+        result up first, see :meth:`look_up_or_run`)."""
         key = job.key
         if not recover and not self.store.healthy:
             raise self.store.unavailable()  # its result could not be stored either
@@ -494,14 +518,16 @@ class Runner:
         if flight is None:
             if not recover and self.saturated:
                 raise QueueFull(f"{self.in_flight} computations in flight")
-            flight = Flight(job, principal=principal, cost=cost)
+            flight = Flight(job, principal=principal, cost=cost, look_up=look_up)
             self._flights[key] = flight
             flight.task = asyncio.create_task(self._drive(flight, force, recover))
             flight.task.add_done_callback(functools.partial(self._done, flight))
-        elif not recover:
+        elif not recover and not flight.hit:
+            # (a flight that found its result stored answers from it: nothing to write)
             # joining: a finished record is accepted again (a new generation), but for a
             # run that has just stored its result (a request that missed the store a moment
             # before it was written: the flight answers it; resetting would compute twice)
+            flight.joined = True
             name = job.computation.name
             await asyncio.to_thread(
                 functools.partial(
@@ -523,7 +549,37 @@ class Runner:
             exc = flight.task.exception()
             if isinstance(exc, StorageError):
                 raise exc
-        return flight.task
+        return flight
+
+    def looks_up_in_lane(self, job: Keyed) -> bool:
+        """Whether a synchronous request's cache lookup of ``job`` can be the first step of
+        its fast-lane run (:meth:`look_up_or_run`): the engine is up with a worker, the
+        store healthy, a slot free, no flight of the key here, and the lane would take a
+        new record of it now (:meth:`_lane_takes`).  Any of these false, the lookup is
+        its own thread hop as before (a hit must be answered whatever the engine's state,
+        and a miss goes the ordinary way)."""
+        return (
+            self._connected.is_set()
+            and not self.no_worker
+            and self.store.healthy
+            and not self.saturated
+            and job.key not in self._flights
+            and self._lane_takes(job, None)[0]
+        )
+
+    async def look_up_or_run(
+        self, job: Keyed, *, principal: str | None = None, cost: float = 0.0
+    ) -> tuple[bytes, bool]:
+        """The body of ``job`` and whether it was stored already (a hit): the store's
+        lookup and, on a miss, the record and the computation, in one thread hop of the
+        fast lane (:class:`service.engine.task.Accept` ``look_up``) instead of a hop for
+        the lookup, then one for the lane.  A hit writes nothing (no record), as the
+        route's own lookup.  Call only when :meth:`looks_up_in_lane` (the lane may still
+        be taken meanwhile: the lookup then runs in its own hop first)."""
+        flight = await self._flight(job, False, False, principal, cost, look_up=True)
+        assert flight.task is not None
+        body = await self.result(flight.task)
+        return body, flight.hit
 
     async def _release_finished(self, wait_s: float = 1.0) -> None:
         """Free the slots of flights whose job record has already ended (e.g. failed by a
@@ -559,7 +615,8 @@ class Runner:
     def _done(self, flight: Flight, task: asyncio.Task[bytes]) -> None:
         if self._flights.get(flight.key) is flight:
             del self._flights[flight.key]
-            self._kick.set()  # a slot is free: the dispatcher may take a waiting job
+            if not self._drained:  # a slot is free: the dispatcher may take a waiting job
+                self._kick.set()
         self.job_changed(flight.key)
         if not task.cancelled():
             task.exception()  # retrieved here so an unobserved job failure is not logged twice
@@ -670,14 +727,19 @@ class Runner:
         a time: two rounds would both count the same free slots)."""
         async with self._dispatching:
             free = self.free_slots
+            self._drained = False  # unknown until the read below says otherwise
             if free <= 0 or not self.store.healthy or not self._connected.is_set():
                 return
+            per_principal = self.settings.quota_concurrent_jobs
             taken = await asyncio.to_thread(
-                self.store.claim_waiting,
-                self.replica,
-                free,
-                self.settings.quota_concurrent_jobs,
+                self.store.claim_waiting, self.replica, free, per_principal
             )
+            # fewer than it could take, and no client's quota held one back: nothing
+            # waited beyond these.  A flight that ends then leaves the dispatcher asleep
+            # (its read after every computation, each cold request's, was a thread hop
+            # and a query); a job queued later wakes it (enqueue), or, from another
+            # replica, its next poll (poll_s) takes it
+            self._drained = len(taken) < free and per_principal is None
             for job in taken:
                 self.dispatched += 1
                 await self._recover(job, "dispatching")
@@ -718,11 +780,14 @@ class Runner:
         self.computations += 1
         return self._execute(flight, job)
 
-    def _lane_takes(self, flight: Flight, job: Job | None) -> tuple[bool, float | None]:
+    def _lane_takes(
+        self, request: Keyed, job: Job | None, resubmits: int = 0
+    ) -> tuple[bool, float | None]:
         """Whether the fast lane runs this attempt, and the allowance [s] of its metered
         work (None: not metered).  The lane must be on and have a free thread, and it must
         be the job's first attempt here (a recovered, retried or handed-off job goes to a
-        worker; ``job`` None: a new record, see :meth:`_lane_first`).  Then either
+        worker; ``job`` None: a new record, see :meth:`_lane_first`; ``resubmits``: the
+        flight's resubmissions of an abnormally ended task).  Then either
 
         - the computation estimates its whole run time (:attr:`Computation.run_time`) at
           most ``fast_lane_max_s``: below ~50 ms the cross-process round trip of a Dask
@@ -738,23 +803,23 @@ class Runner:
           job then goes to a worker (:meth:`_drive_once`: the lease given up with the
           reason, the record still active, submitted again).  An overrun is therefore
           bounded by the allowance plus the estimated rest, not only advised."""
-        computation = flight.job.computation
+        computation = request.computation
         if (
             self._lane is None
             or self._lane_busy >= self.settings.fast_lane_threads
             or (job is not None and (job.attempts > 0 or _handed_off(job)))
-            or flight.resubmits > 0
+            or resubmits > 0
         ):
             return False, None
         limit = self.settings.fast_lane_max_s
         try:  # an estimate is advice: never fail a request over it
-            whole = computation.run_time(flight.job.request) if computation.run_time else None
+            whole = computation.run_time(request.request) if computation.run_time else None
             if whole is not None and whole <= limit:
                 return True, None
             allowance = self.settings.fast_lane_max_metered_s
             if computation.metered_run_time is None or allowance <= 0:
                 return False, None
-            rest = computation.metered_run_time(flight.job.request)
+            rest = computation.metered_run_time(request.request)
         except Exception:
             log.exception("estimate of %s", computation.name)
             return False, None
@@ -772,10 +837,10 @@ class Runner:
         there first, or the result was stored: the ordinary path goes on from it);
         ``(None, None)`` when the lane does not take it or did not start.  Raises the
         :class:`StorageError` that refused the write."""
-        taken, allowance = self._lane_takes(flight, None)
-        if not taken:
-            return None, None
+        taken, allowance = self._lane_takes(flight.job, None)
         loop = asyncio.get_running_loop()
+        if not taken:  # (a look-up flight: the lane was taken meanwhile)
+            return None, await self._look_up(flight)
         claimed: asyncio.Future[Claim] = loop.create_future()
 
         def settle(result: Claim | StorageError) -> None:
@@ -786,7 +851,15 @@ class Runner:
             else:
                 claimed.set_result(result)
 
+        # a look-up flight's request waits for the answer only (look_up_or_run): its
+        # claim is read once the run has ended, not sent to the loop mid-run (a wake-up of
+        # the event loop, contending for the GIL with the computation)
+        quiet: list[Claim | StorageError] | None = [] if flight.look_up else None
+
         def on_claim(result: Claim | StorageError) -> None:  # in the lane's thread
+            if quiet is not None:
+                quiet.append(result)
+                return
             with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
                 loop.call_soon_threadsafe(settle, result)
 
@@ -797,18 +870,32 @@ class Runner:
             principal=flight.principal,
             cost=flight.cost,
             dispatcher=self.replica,
+            look_up=flight.look_up,
         )
         try:
             run = self._in_lane(flight, flight.key, accept, allowance)
             waiter = asyncio.ensure_future(self._result_of(run))
         except RuntimeError:  # the lane is shut down (the replica is stopping)
-            return None, None
-        pending: set[asyncio.Future[Any]] = {claimed, waiter}
-        await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
+            return None, await self._look_up(flight)
+        if quiet is None:
+            pending: set[asyncio.Future[Any]] = {claimed, waiter}
+            await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
+        else:
+            # until the run ends, or the monitor flags its record once written (the lane's
+            # watchdog failed an overrun: answered now, its thread abandoned)
+            while not waiter.done() and not quiet:
+                await self._wait(flight, waiter)
+            if not waiter.done():
+                flight.changed.set()  # the flag is the driving loop's to act on
+        if quiet:
+            settle(quiet[0])
         if not claimed.done():  # the lane's run ended before writing anything
             claimed.cancel()
-            return None, None
+            return None, await self._look_up(flight)
         claim = claimed.result()  # raises the StorageError
+        if claim.outcome == "hit":  # found stored: nothing written, nothing computed
+            self.lane_runs -= 1
+            return None, waiter
         if claim.outcome != "claimed":
             # it computed nothing: its thread is released before the ordinary path asks
             # for the lane again (a request joining this flight may have written the
@@ -818,6 +905,19 @@ class Runner:
             return claim.job, None
         self.computations += 1
         return None, waiter
+
+    async def _look_up(self, flight: Flight) -> asyncio.Future[Outcome] | None:
+        """A look-up flight (:meth:`look_up_or_run`) the lane did not take: its lookup in a
+        thread hop of its own, a ``hit`` outcome if found (None: not a look-up flight, or
+        not stored: the ordinary path writes the record)."""
+        if not flight.look_up:
+            return None
+        body = await asyncio.to_thread(self.store.get_result, flight.key)
+        if body is None:
+            return None
+        found: asyncio.Future[Outcome] = asyncio.get_running_loop().create_future()
+        found.set_result(Outcome("hit", body=body))
+        return found
 
     def _in_lane(
         self,
@@ -867,7 +967,7 @@ class Runner:
     def _execute(self, flight: Flight, job: Job) -> Awaitable[Outcome]:
         from distributed import fire_and_forget
 
-        taken, allowance = self._lane_takes(flight, job)
+        taken, allowance = self._lane_takes(flight.job, job, flight.resubmits)
         if taken:
             return self._in_lane(flight, job.key, allowance=allowance)
 
@@ -968,6 +1068,29 @@ class Runner:
         while True:
             if flight.cancelled:
                 await self._stopped(flight, waiter)
+            if waiter is not None and waiter.done() and waiter.result().status == "hit":
+                # the lookup found the result stored and wrote nothing; a request that
+                # joined meanwhile writes a record (its own lookup missed: an eviction in
+                # between), which the ordinary path below finishes from the stored result
+                # (written here too, as the joiner does: either write may come first)
+                outcome, waiter = waiter.result(), None
+                assert outcome.body is not None
+                if not flight.joined:
+                    flight.hit = True
+                    return outcome.body
+                known = await asyncio.to_thread(
+                    functools.partial(
+                        self.store.enqueue_job,
+                        key,
+                        job_in.computation.name,
+                        job_in.canonical,
+                        keep_stored=True,
+                        principal=flight.principal,
+                        cost=flight.cost,
+                        dispatcher=self.replica,
+                    )
+                )
+                continue
             if waiter is not None and waiter.done() and waiter.result().finished:
                 # our task stored the result and finished the record with it: no re-read
                 # of the record; the fast lane's answer even carries the body

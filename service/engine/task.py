@@ -19,7 +19,8 @@ The return value is small (the body goes to the store): an :class:`Outcome`, who
 already) | ``elsewhere`` (a live attempt holds the lease) | ``lost`` (another attempt took
 the lease) | ``storage`` (the store refused a write) | ``handoff`` (the fast lane's
 metered computation would pass its allowance: stopped, its lease given up with the reason,
-the job left for a worker).  Errors travel as neutral
+the job left for a worker) | ``hit`` (the fast lane looked the result up first and found it
+stored: nothing written, the body answered).  Errors travel as neutral
 :class:`pipeflow.errors.ErrorRecord` values (made by :func:`pipeflow.errors.classify`),
 never as pickled exceptions, and the job record stores them as such: only the HTTP layer
 turns a record into a problem document.  A computation that fans out
@@ -314,6 +315,10 @@ class Accept:
     principal: str | None = None  # who asked (service.http.identity)
     cost: float = 0.0  # the estimate the quotas count [s]
     dispatcher: str | None = None  # the replica that drives the job
+    #: look the result up first (the request's cache lookup, in the same thread hop): a
+    #: stored result is answered as it is (``claimed`` gets a ``"hit"`` claim, the outcome
+    #: is ``hit`` with the body) and nothing is written; only a miss writes the record
+    look_up: bool = False
 
 
 def run_job(
@@ -354,6 +359,9 @@ def _run_job(
     try:
         if accept is None:
             claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
+        elif accept.look_up and (stored := store.get_result(key)) is not None:
+            accept.claimed(Claim("hit", None))
+            return Outcome("hit", body=stored)
         else:
             claim = store.enqueue_and_claim(
                 key,

@@ -4,11 +4,12 @@ One implementation for both databases and for both sides of a computation: the A
 replicas (accept jobs, serve results, cancel) and the Dask tasks on the workers (claim the
 job's lease, heartbeat and progress, store the result, finish the record).
 
-Results are JSON bytes keyed by the parameter hash, stored zlib-compressed, bounded in
-total stored size with least-recently-used eviction, and fronted per replica by a bounded
-in-memory LRU.  A job row is written before a computation is accepted; the attempt that
-computes it holds a lease (``owner`` + ``heartbeat``), so a job whose heartbeat went stale
-can be taken over by any live replica, and two replicas never compute one job at once.
+Results are JSON bytes keyed by the parameter hash, stored zlib-compressed (up to 128 KiB
+as they are), bounded in total stored size with least-recently-used eviction, and fronted
+per replica by a bounded in-memory LRU.  A job row is written before a computation is
+accepted; the attempt that computes it holds a lease (``owner`` + ``heartbeat``), so a job
+whose heartbeat went stale can be taken over by any live replica, and two replicas never
+compute one job at once.
 
 Every database error surfaces as :class:`StorageError` (the service answers 503/507 and
 reports not ready) and flips :attr:`Store.healthy` until a probe write succeeds again.
@@ -31,11 +32,12 @@ from service.store.jobs import (
     Usage,
 )
 from service.store.memory import MemoryLRU
-from service.store.results import ZLIB_LEVEL, ResultStore, compress
+from service.store.results import IDENTITY_MAX_BYTES, ZLIB_LEVEL, ResultStore
 
 __all__ = [
     "ACTIVE",
     "COST_WINDOW_S",
+    "IDENTITY_MAX_BYTES",
     "PROBE_BYTES",
     "STATUSES",
     "ZLIB_LEVEL",
@@ -68,7 +70,7 @@ class Store(ResultStore, JobStore):
         the record.  ``remember=False`` leaves the body out of the memory front (see
         :meth:`get_result`)."""
         items = {key: (kind, body)}
-        packed = compress(items)  # before the transaction: not while holding the write lock
+        packed = self.pack(items)  # before the transaction: not while holding the write lock
         with self._write() as conn:
             evicted = self._put_results(conn, packed)
             done = self._finish(conn, key, "succeeded", None, owner)

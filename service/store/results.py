@@ -1,6 +1,7 @@
-"""The results half of the store: result bodies by key, zlib-compressed, bounded in total
-stored size (``cache_max_bytes``) with least-recently-used eviction, and fronted per
-process by a bounded in-memory LRU (``memory_cache_bytes``, :class:`MemoryLRU`).
+"""The results half of the store: result bodies by key, zlib-compressed above
+:data:`IDENTITY_MAX_BYTES`, bounded in total stored size (``cache_max_bytes``) with
+least-recently-used eviction, and fronted per process by a bounded in-memory LRU
+(``memory_cache_bytes``, :class:`MemoryLRU`).
 """
 
 from __future__ import annotations
@@ -25,10 +26,23 @@ from service.store.tables import results, store_stats
 #: 0.6 ms for 29.7 kB, level 6 7.2 ms for 27.4 kB (8% smaller): the compression is paid on
 #: every cold request, the space only bounds the cache
 ZLIB_LEVEL = 1
+#: result bodies of at most this many bytes are stored as they are (codec ``identity``),
+#: larger ones zlib-compressed.  Below it zlib buys disk only, at a cost paid on every cold
+#: request: in-process on the 2-core machine (load ~7, interleaved, 40 rounds)
+#: ``finish_with_result`` of the 125 kB LTI document (2,001 samples, 10 modes) took 1.1 ms
+#: CPU stored as it is and 2.0 ms compressed (to 30 kB), and a hit read from the store
+#: skips the decompression (0.3 ms).  The price is disk: up to ~4x the bytes of such a
+#: result (the bound counts the stored bytes, so ``cache_max_bytes`` holds fewer such
+#: results).  Larger bodies (the paper example's
+#: 143 kB compresses to 61 kB; studies, 1e5 samples: megabytes) stay compressed.
+IDENTITY_MAX_BYTES = 128 << 10
 #: the one row of ``store_stats``
 STATS_ROW = 1
 #: least-recently-used rows read per eviction query (rows are deleted one by one)
 EVICT_BATCH = 64
+
+#: a result as written: (kind, the stored bytes, their codec: ``identity`` | ``zlib``)
+Packed = tuple[str, bytes, str]
 
 # a result write's statements, built once (see service.store.jobs: an inline statement is
 # built and keyed on every call)
@@ -58,9 +72,12 @@ class ResultStore(StoreConnection):
         memory_cache_bytes: int,
         *,
         migrate: bool = True,
+        identity_max_bytes: int = IDENTITY_MAX_BYTES,
     ) -> None:
         super().__init__(url, migrate=migrate)
         self.cache_max_bytes = cache_max_bytes
+        #: bodies up to this size are stored uncompressed (see :data:`IDENTITY_MAX_BYTES`)
+        self.identity_max_bytes = identity_max_bytes
         self._lock = threading.Lock()
         self._memory = MemoryLRU(memory_cache_bytes)
         # memory hits not yet written to results.accessed: written before evicting
@@ -128,22 +145,36 @@ class ResultStore(StoreConnection):
         return found
 
     def put_result(self, key: str, kind: str, body: bytes) -> None:
-        """Store ``body`` compressed; evict least-recently-used results beyond the bound."""
+        """Store ``body`` (compressed above :attr:`identity_max_bytes`); evict
+        least-recently-used results beyond the bound."""
         self.put_results({key: (kind, body)})
 
     def put_results(self, items: Mapping[str, tuple[str, bytes]]) -> None:
-        """Store each ``key: (kind, body)`` compressed, in one transaction; then evict
-        least-recently-used results beyond the bound (never those just written)."""
+        """Store each ``key: (kind, body)`` as :meth:`pack` encodes it, in one transaction;
+        then evict least-recently-used results beyond the bound (never those just
+        written)."""
         if not items:
             return
-        packed = compress(items)  # before the transaction: not while holding the write lock
+        packed = self.pack(items)  # before the transaction: not while holding the write lock
         with self._write() as conn:
             evicted = self._put_results(conn, packed)
         self._remember_put(items, evicted)
 
-    def _put_results(self, conn: Connection, packed: Mapping[str, tuple[str, bytes]]) -> list[str]:
-        """:meth:`put_results` of ``packed`` (``key: (kind, body compressed by
-        :func:`compress`)``) inside the transaction ``conn``: the evicted keys.
+    def pack(self, items: Mapping[str, tuple[str, bytes]]) -> dict[str, Packed]:
+        """``key: (kind, body)`` as stored: ``key: (kind, stored bytes, codec)``, the body
+        as it is up to :attr:`identity_max_bytes` (codec ``identity``), else zlib at
+        :data:`ZLIB_LEVEL` (call it before the write transaction: not under the lock)."""
+        limit = self.identity_max_bytes
+        return {
+            key: (kind, body, "identity")
+            if len(body) <= limit
+            else (kind, zlib.compress(body, ZLIB_LEVEL), "zlib")
+            for key, (kind, body) in items.items()
+        }
+
+    def _put_results(self, conn: Connection, packed: Mapping[str, Packed]) -> list[str]:
+        """:meth:`put_results` of ``packed`` (as :meth:`pack` made it) inside the
+        transaction ``conn``: the evicted keys.
 
         The bound is checked against the running total of ``store_stats``, not a scan of
         the table.  Every write that changes the results' sizes locks that one row first
@@ -164,14 +195,14 @@ class ResultStore(StoreConnection):
                 "size": len(stored),
                 "created": now,
                 "accessed": now,
-                "codec": "zlib",
+                "codec": codec,
             }
-            for key, (kind, stored) in packed.items()
+            for key, (kind, stored, codec) in packed.items()
         ]
         # one upsert statement executed for every row (a study chunk's 256 summaries: one
         # compiled statement, not 256; 10,000 single upserts cost ~2-4 s on the 2 cores)
         conn.execute(self._upsert_results, written)
-        for key, (_, stored) in packed.items():
+        for key, (_, stored, _codec) in packed.items():
             total += len(stored) - int(old.get(key, 0))
             count += 0 if key in old else 1
         evicted = []
@@ -266,11 +297,6 @@ class ResultStore(StoreConnection):
                 select(store_stats.c.result_bytes).where(store_stats.c.id == STATS_ROW)
             ).scalar()
         return int(total or 0)
-
-
-def compress(items: Mapping[str, tuple[str, bytes]]) -> dict[str, tuple[str, bytes]]:
-    """``key: (kind, body)`` with each body compressed as stored (zlib, :data:`ZLIB_LEVEL`)."""
-    return {key: (kind, zlib.compress(body, ZLIB_LEVEL)) for key, (kind, body) in items.items()}
 
 
 def _decode(body: bytes, codec: str) -> bytes:

@@ -136,3 +136,72 @@ def test_identical_lane_requests_compute_once(lane: TestClient) -> None:
     assert all(d["tip_displacement"] == docs[0]["tip_displacement"] for d in docs)
     job = runner.store.get_job(docs[0]["key"])
     assert job.status == "succeeded" and job.attempts == 1 and job.generation == 1
+
+
+def test_the_lookup_and_the_lane_run_share_one_thread_hop(
+    lane: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A cold request the lane will run looks the store up in the lane's thread, not in a
+    thread hop of its own; a result found stored there is a HIT that writes nothing (no
+    job record, nothing computed), as the route's own lookup was."""
+    import threading
+
+    from service.keys import keyed
+
+    runner = _runner(lane)
+    store = runner.store
+    lookups: list[tuple[str, str]] = []
+    get_result = store.get_result
+
+    def spy(key: str, **kw: Any) -> bytes | None:
+        lookups.append((key, threading.current_thread().name))
+        return get_result(key, **kw)
+
+    monkeypatch.setattr(store, "get_result", spy)
+    lane_runs = runner.lane_runs
+    miss = lane.post("/v1/simulations", json={**LTI, "initial": {"u0": 0.0031}})
+    assert miss.status_code == 200 and miss.headers["x-cache"] == "MISS"
+    key = miss.json()["key"]
+    assert runner.lane_runs == lane_runs + 1
+    assert [name.startswith("fast-lane") for k, name in lookups if k == key] == [True]
+    # a result stored by someone else (another replica, a worker), not in the hit cache
+    spec = {**LTI, "initial": {"u0": 0.0032}}
+    computation = COMPUTATIONS["simulation"]
+    other = keyed(computation, computation.request.model_validate(spec)).key
+    stored = get_result(key)
+    assert stored is not None
+    store.put_result(other, "simulation", stored)
+    hit = lane.post("/v1/simulations", json=spec)
+    assert hit.status_code == 200 and hit.headers["x-cache"] == "HIT"
+    assert hit.json() == {**miss.json(), "key": other, "cached": True}
+    assert [name.startswith("fast-lane") for k, name in lookups if k == other] == [True]
+    assert store.get_job(other) is None  # a hit is no write
+    assert runner.lane_runs == lane_runs + 1 and not runner.is_active(other)
+
+
+def test_a_look_up_run_wakes_the_event_loop_only_when_it_ends(
+    lane: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The lane's thread of a cold request that looked the store up in it does not send its
+    claim to the event loop mid-run (the request waits for the answer only): the loop is
+    called from the lane's thread twice per run, the future's result and the thread's
+    release, not a third time for the claim."""
+    import asyncio
+    import threading
+
+    calls: list[str] = []
+    original = asyncio.BaseEventLoop.call_soon_threadsafe
+
+    def spy(self: Any, *args: Any, **kw: Any) -> Any:
+        calls.append(threading.current_thread().name)
+        return original(self, *args, **kw)
+
+    monkeypatch.setattr(asyncio.BaseEventLoop, "call_soon_threadsafe", spy)
+    runner = _runner(lane)
+    lane_runs = runner.lane_runs
+    resp = lane.post("/v1/simulations", json={**LTI, "initial": {"u0": 0.0033}})
+    assert resp.status_code == 200 and resp.headers["x-cache"] == "MISS"
+    assert runner.lane_runs == lane_runs + 1
+    assert sum(name.startswith("fast-lane") for name in calls) == 2, calls
+    job = runner.store.get_job(resp.json()["key"])
+    assert job.status == "succeeded" and job.attempts == 1 and job.owner is None

@@ -14,6 +14,7 @@ import re
 import signal
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -292,3 +293,44 @@ def test_two_replicas_sharing_one_store_never_both_run_a_queued_job(tmp_path: Pa
         for m in re.finditer(r"dispatching simulation job ([0-9a-f]{64})", log.read_text())
     ]
     assert sorted(dispatched) == sorted(keys)
+
+
+def test_a_computation_that_ends_leaves_a_drained_queue_unread(tmp_path: Path) -> None:
+    """Once the dispatcher found nothing waiting (with slots to spare), a computation that
+    ends does not make it read the queue again (a thread hop and a query per cold
+    request); a job that waited for the slot is still taken the moment a computation
+    ends, without waiting for the dispatcher's poll."""
+    with make_client(tmp_path, workers=1, queue_size=2, fast_lane_threads=0) as c:
+        wait_ready(c)
+        runner = c.app.state.runner  # type: ignore[attr-defined]
+        store = runner.store
+        runner.poll_s = 120.0  # after its current wait, the dispatcher sleeps past the test
+        deadline = time.monotonic() + 30
+        while not runner._drained:
+            assert time.monotonic() < deadline, "the dispatcher never found the queue drained"
+            time.sleep(0.05)
+        time.sleep(1.0)  # the wait begun with the old poll interval (<= 0.5 s) has ended
+        reads: list[int] = []
+        claim_waiting = store.claim_waiting
+
+        def spy(*args: Any, **kw: Any) -> Any:
+            reads.append(1)
+            return claim_waiting(*args, **kw)
+
+        store.claim_waiting = spy
+        assert c.post("/test/sleep", json={"seconds": 0.01, "tag": "drained"}).status_code == 200
+        time.sleep(0.3)
+        assert reads == []  # without the drained queue: one read when the computation ended
+        # the slot taken by a synchronous run: a job queued now waits, and is taken when
+        # that run ends (the poll is 120 s away)
+        with ThreadPoolExecutor(1) as pool:
+            busy = pool.submit(c.post, "/test/sleep", json={"seconds": 1.0, "tag": "busy"})
+            while not runner.in_flight:
+                time.sleep(0.01)
+            queued = c.post("/test/sleep-jobs", json={"seconds": 0.01, "tag": "waits"})
+            assert queued.status_code == 202
+            key = queued.json()["key"]
+            assert store.get_job(key).waiting
+            assert busy.result().status_code == 200
+        assert wait_job(c, key, timeout=20)["status"] == "succeeded"
+        assert reads  # the queue was read again once the slot was free

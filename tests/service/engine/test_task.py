@@ -102,3 +102,23 @@ def test_accept_writes_the_record_and_reports_the_claim(tmp_path: Path) -> None:
     outcome = run_job(SLEEP, SleepSpec(seconds=0.01), "b", _cfg(store), None, store, accept)
     assert outcome.status == "storage"
     assert len(got) == 1 and isinstance(got[0], StorageError)
+
+
+def test_a_look_up_attempt_answers_a_stored_result_without_writing(tmp_path: Path) -> None:
+    """``Accept(look_up=True)`` (a cold request's lookup in the lane's thread): a stored
+    result is the outcome ``hit`` with its body, the claim callback gets a ``hit`` claim,
+    and no record is written; a miss goes on as an ordinary accepted attempt."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**7, memory_cache_bytes=0)
+    store.put_result("stored", "sleep", b'{"slept":0.01}')
+    got: list[Claim | StorageError] = []
+    accept = Accept({"seconds": 0.01}, False, got.append, look_up=True)
+    outcome = run_job(SLEEP, SleepSpec(seconds=0.01), "stored", _cfg(store), None, store, accept)
+    assert outcome.status == "hit" and outcome.body == b'{"slept":0.01}'
+    assert len(got) == 1 and isinstance(got[0], Claim) and got[0].outcome == "hit"
+    assert store.get_job("stored") is None
+    got.clear()
+    outcome = run_job(SLEEP, SleepSpec(seconds=0.01), "new", _cfg(store), None, store, accept)
+    assert outcome.status == "succeeded" and outcome.finished and outcome.body is not None
+    assert isinstance(got[0], Claim) and got[0].outcome == "claimed"
+    job = store.get_job("new")
+    assert job is not None and (job.status, job.attempts) == ("succeeded", 1)

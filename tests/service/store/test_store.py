@@ -14,8 +14,8 @@ from typing import Any
 import pytest
 from sqlalchemy import event, text
 
+from service.store import IDENTITY_MAX_BYTES, StorageError, Store, StoreRefused
 from service.store import MemoryLRU as _MemoryLRU
-from service.store import StorageError, Store, StoreRefused
 from tests.service.store.locks import finishes_under_write_lock
 
 
@@ -85,12 +85,52 @@ def test_job_records(tmp_path: Path) -> None:
     assert store.get_job("k") is None
 
 
+def _time_axis(n: int) -> bytes:
+    """A JSON time axis of ``n`` samples (9 bytes each): compresses well over 2x."""
+    return b'{"t":[' + b",".join(b"%.6f" % (i * 1e-3) for i in range(n)) + b"]}"
+
+
+def _codecs(store: Store) -> dict[str, tuple[str, int]]:
+    with store.engine.connect() as conn:
+        rows = conn.execute(text("SELECT key, codec, size FROM results")).all()
+    return {key: (codec, size) for key, codec, size in rows}
+
+
 def test_results_are_stored_compressed(tmp_path: Path) -> None:
-    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**6, memory_cache_bytes=0)
-    body = b'{"t":[' + b",".join(b"%.6f" % (i * 1e-3) for i in range(2000)) + b"]}"
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**7, memory_cache_bytes=0)
+    body = _time_axis(20_000)
+    assert len(body) > IDENTITY_MAX_BYTES
     store.put_result("a", "simulation", body)
     assert store.get_result("a") == body  # byte-exact round trip through zlib
     assert store.result_bytes() < len(body) / 2  # a time axis compresses well over 2x
+    assert _codecs(store)["a"][0] == "zlib"
+
+
+def test_small_results_are_stored_as_they_are(tmp_path: Path) -> None:
+    """Bodies up to IDENTITY_MAX_BYTES are written with the ``identity`` codec (zlib's time
+    is paid on every cold request, its bytes saved only bound the cache), by both writers
+    (put_result; finish_with_result, what a task does); readers get the same bytes, and
+    the disk bound counts what is stored: the raw size for them, the compressed one above."""
+    store = Store(tmp_path / "db.sqlite3", cache_max_bytes=10**7, memory_cache_bytes=0)
+    small, edge, big = _time_axis(2_000), b"x" * IDENTITY_MAX_BYTES, _time_axis(20_000)
+    store.put_results({"small": ("simulation", small), "edge": ("simulation", edge)})
+    store.put_result("big", "simulation", big)
+    claim = store.enqueue_and_claim("task", "simulation", {}, "me", "here", refresh=False)
+    assert claim.outcome == "claimed"
+    assert store.finish_with_result("task", "me", "simulation", small, remember=False)
+    codecs = _codecs(store)
+    assert codecs["small"] == codecs["task"] == ("identity", len(small))
+    assert codecs["edge"] == ("identity", IDENTITY_MAX_BYTES)
+    assert codecs["big"][0] == "zlib" and codecs["big"][1] < len(big) / 2
+    for key, body in (("small", small), ("edge", edge), ("big", big), ("task", small)):
+        assert store.get_result(key) == body
+    assert store.result_bytes() == sum(size for _, size in codecs.values())
+    assert _stats(store) == _table_totals(store)
+    # a store told to compress everything (identity_max_bytes=0) writes zlib rows, which
+    # the default store reads back: a replica of either setting reads the other's rows
+    other = Store(tmp_path / "db.sqlite3", 10**7, 0, identity_max_bytes=0)
+    other.put_result("small2", "simulation", small)
+    assert _codecs(store)["small2"][0] == "zlib" and store.get_result("small2") == small
 
 
 def _old_schema(path: Path) -> None:
