@@ -77,6 +77,9 @@ WARM_UP_POLL_S = 0.1
 WORKERS_RESYNC_S = 2.0
 #: a synchronous request waits at most this long for a worker to join the scheduler [s]
 NO_WORKER_GRACE_S = 5.0
+#: the same for the embedded cluster, whose nannies restart a dead worker (the watchdog's
+#: kill, a crash): such a restart took 38 s at load average 15 on the 2-core machine [s]
+EMBEDDED_NO_WORKER_GRACE_S = 60.0
 
 
 class NoWorker(Exception):
@@ -169,6 +172,9 @@ class Runner:
         self.computations = 0  # Dask tasks this replica submitted (tests check single flight)
         self.ready = False
         self.watchdog_grace_s = WATCHDOG_GRACE_S
+        self.embedded_no_worker_grace_s = EMBEDDED_NO_WORKER_GRACE_S
+        self.nannies_restored = 0  # embedded nannies Dask closed and this runner replaced
+        self._restoring: asyncio.Future[Any] | None = None  # their start, while it runs
         self.client: Any = None
         self._cluster: Any = None
         self._connected = asyncio.Event()
@@ -374,10 +380,45 @@ class Runner:
     async def _track_workers(self) -> None:
         """Follow the scheduler's workers: its ``add-worker`` / ``remove-worker`` events at
         once, and a full read every :data:`WORKERS_RESYNC_S` (events missed across a
-        scheduler restart; an unreachable scheduler counts as no worker)."""
+        scheduler restart; an unreachable scheduler counts as no worker); the embedded
+        cluster's lost nannies are replaced at the same pace (:meth:`_restore_nannies`)."""
         while True:
             await asyncio.sleep(WORKERS_RESYNC_S)
             await self._read_workers()
+            try:
+                self._restore_nannies()
+            except Exception:
+                log.exception("restoring the embedded cluster's workers")
+
+    def _restore_nannies(self) -> None:
+        """Give the embedded cluster back the nannies Dask closed: a nanny restarts its
+        worker when the process dies (the watchdog's kill), but the cluster closes the
+        nanny itself when no worker of that name has registered again within
+        ``distributed.deploy.lost-worker-timeout`` (15 s): under load (a restart took 38 s
+        at load average 15) the cluster was left with no worker and no nanny for good,
+        and every computation after it waited forever (the queued Dask task, its record
+        queued and heartbeated by this replica).  A nanny missing from the cluster's
+        workers, or closed, is started again from its spec."""
+        from distributed.core import Status
+
+        cluster = self._cluster
+        if cluster is None or cluster.status != Status.running:
+            return
+        gone = (Status.closing, Status.closed, Status.failed)
+        lost = [
+            name
+            for name in cluster.worker_spec
+            if name not in cluster.workers or cluster.workers[name].status in gone
+        ]
+        if not lost or (self._restoring is not None and not self._restoring.done()):
+            return  # a start in progress is not in ``cluster.workers`` until it is up
+        log.warning("the embedded cluster closed the nanny of worker(s) %s: started again", lost)
+        for name in lost:
+            cluster.workers.pop(name, None)
+        self.nannies_restored += len(lost)
+        # what SpecCluster.scale runs (the spec is unchanged), but with the task to wait on
+        self._restoring = asyncio.ensure_future(cluster._correct_state())
+        self._restoring.add_done_callback(lambda f: f.cancelled() or f.exception())
 
     async def _read_workers(self) -> None:
         try:
@@ -433,19 +474,22 @@ class Runner:
 
     async def result(self, task: asyncio.Task[bytes]) -> bytes:
         """The body ``task`` ends with, for a synchronous request: :class:`NoWorker` once
-        the scheduler has had no worker for :data:`NO_WORKER_GRACE_S` (the job stays
-        accepted and runs when a worker joins; the task is never cancelled here)."""
+        the scheduler has had no worker for :data:`NO_WORKER_GRACE_S` (the embedded
+        cluster: ``embedded_no_worker_grace_s``, its nannies restart a dead worker; the
+        job stays accepted and runs when a worker joins; the task is never cancelled
+        here)."""
         shielded = asyncio.shield(task)
         since: float | None = None
+        grace = NO_WORKER_GRACE_S if self._cluster is None else self.embedded_no_worker_grace_s
         while True:
             done, _ = await asyncio.wait({shielded}, timeout=0.25)
             if done:
                 return shielded.result()
-            if not self.no_worker:
+            if not self._tracking or self._worker_set:
                 since = None
             elif since is None:
                 since = time.monotonic()
-            elif time.monotonic() - since >= NO_WORKER_GRACE_S:
+            elif time.monotonic() - since >= grace:
                 # the flight goes on; its outcome is read by whoever waits for it next
                 shielded.add_done_callback(lambda f: f.cancelled() or f.exception())
                 raise NoWorker("the scheduler lost its workers during the computation")
