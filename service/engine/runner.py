@@ -1083,26 +1083,32 @@ class Runner:
             await self._wait(flight, waiter)
         raise ComputationCancelled("cancelled by request")
 
+    async def _enqueue(self, flight: Flight, **how: bool) -> Job:
+        """The flight's job record written (``Store.enqueue_job``, off the event loop):
+        queued, or answered from a stored result; ``how``: ``refresh`` / ``keep_stored``."""
+        job_in = flight.job
+        return await asyncio.to_thread(
+            functools.partial(
+                self.store.enqueue_job,
+                flight.key,
+                job_in.computation.name,
+                job_in.canonical,
+                principal=flight.principal,
+                cost=flight.cost,
+                dispatcher=self.replica,
+                **how,
+            )
+        )
+
     async def _drive_once(self, flight: Flight, force: bool, recover: bool) -> bytes:
-        key, job_in = flight.key, flight.job
+        key = flight.key
         known: Job | None = None  # the record as enqueue_job left it: not read again
         waiter: asyncio.Future[Any] | None = None
         try:
             if not recover:
                 known, waiter = await self._lane_first(flight, force)
                 if known is None and waiter is None:
-                    known = await asyncio.to_thread(
-                        functools.partial(
-                            self.store.enqueue_job,
-                            key,
-                            job_in.computation.name,
-                            job_in.canonical,
-                            refresh=force,
-                            principal=flight.principal,
-                            cost=flight.cost,
-                            dispatcher=self.replica,
-                        )
-                    )
+                    known = await self._enqueue(flight, refresh=force)
         finally:
             flight.accepted.set()
         if waiter is not None:  # computing in the lane already: its end is the next news
@@ -1122,18 +1128,7 @@ class Runner:
                 if not flight.joined:
                     flight.hit = True
                     return outcome.body
-                known = await asyncio.to_thread(
-                    functools.partial(
-                        self.store.enqueue_job,
-                        key,
-                        job_in.computation.name,
-                        job_in.canonical,
-                        keep_stored=True,
-                        principal=flight.principal,
-                        cost=flight.cost,
-                        dispatcher=self.replica,
-                    )
-                )
+                known = await self._enqueue(flight, keep_stored=True)
                 continue
             if waiter is not None and waiter.done() and waiter.result().finished:
                 # our task stored the result and finished the record with it: no re-read
