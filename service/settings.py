@@ -117,6 +117,14 @@ class Settings(BaseSettings):
         "past it such a request is answered at once with the job's current status, as "
         "without wait (0: never hold one).",
     )
+    max_job_wait_s: float = Field(
+        60.0,
+        ge=0.0,
+        le=60.0,
+        description="Longest a long poll (GET /v1/jobs/{key}?wait=) is held [s]: a larger "
+        "wait is cut to it and answered then with the job's current status (below a "
+        "reverse proxy's read timeout, e.g. nginx's 60 s default, set it lower).",
+    )
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest accepted request body [bytes]; larger: 413."
     )

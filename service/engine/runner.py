@@ -677,11 +677,13 @@ class Runner:
 
     async def wait_job(self, job: Job, wait_s: float) -> Job:
         """``job``'s record once it is no longer active (succeeded, failed, cancelled), or as
-        it is after ``wait_s`` [s]: ``GET /v1/jobs/{key}?wait=``.  No busy loop and no
-        thread held: the wait is an event set by :meth:`job_changed`, after which the record
-        is read again (a spurious wake-up waits on for the rest of ``wait_s``).  At most
-        ``max_job_waiters`` such waits at once; past it ``job`` is returned as it is.  A
-        vanished record (pruned) returns the last one read."""
+        it is after ``wait_s`` [s] (cut to the ``max_job_wait_s`` setting):
+        ``GET /v1/jobs/{key}?wait=``.  No busy loop and no thread held: the wait is an event
+        set by :meth:`job_changed`, after which the record is read again (a spurious wake-up
+        waits on for the rest of ``wait_s``).  At most ``max_job_waiters`` such waits at
+        once; past it ``job`` is returned as it is.  A vanished record (pruned) returns the
+        last one read."""
+        wait_s = min(wait_s, self.settings.max_job_wait_s)
         if not job.active or wait_s <= 0 or self.waiting >= self.settings.max_job_waiters:
             return job
         loop = asyncio.get_running_loop()

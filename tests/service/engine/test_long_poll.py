@@ -154,6 +154,22 @@ def test_past_the_bound_of_waiters_a_long_poll_answers_at_once(
         assert runner.waiting == 0 and not runner._watches
 
 
+def test_a_wait_past_the_servers_cap_is_answered_at_the_cap(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    """``max_job_wait_s`` = 0.5: ``?wait=60`` on a job that runs for 20 s is answered with
+    its current status once the cap has passed, not after the job's end (nor 60 s)."""
+    with make_client(tmp_path_factory.mktemp("cap"), max_job_wait_s=0.5) as c:
+        wait_ready(c)
+        key = c.post("/test/sleep-jobs", json={"seconds": 20.0, "tag": "cap"}).json()["key"]
+        try:
+            doc, took = _timed(c, key)
+            assert doc["status"] in ("queued", "running")
+            assert 0.4 < took < 15  # held for the cap, then answered: the job had 20 s to go
+        finally:
+            c.delete(f"/v1/jobs/{key}")
+
+
 def _timed(c: TestClient, key: str) -> tuple[dict[str, Any], float]:
     started = time.monotonic()
     doc: dict[str, Any] = c.get(f"/v1/jobs/{key}", params={"wait": 60}).json()
