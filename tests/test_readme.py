@@ -97,6 +97,34 @@ def test_the_parser_reads_markers() -> None:
         blocks("<!-- readme-test: skip -->\n```bash\nls\n```\n")
 
 
+def _setup_commands() -> list[str]:
+    """The commands of the README's "Set-up: two commands" section, split at ``&&``."""
+    text = README.read_text(encoding="utf-8")
+    section = text[text.index("## Set-up: two commands") :]
+    section = section[: section.index("\n## ", 1)]
+    found = [b for b in blocks(section) if b.lang == "bash"][:2]
+    return [part.strip() for b in found for part in b.text.strip().split("&&")]
+
+
+def test_ci_runs_the_readme_set_up_commands_in_a_fresh_venv() -> None:
+    """.ci/run installs exactly as the README says (the lock, the extras) inside a venv it
+    made itself, and runs the README's test command: a missing install step or an unlocked
+    package fails CI, not a user's first run."""
+    commands = _setup_commands()
+    assert commands[0].startswith("pip install -c constraints-dev.txt -e '.[service]'")
+    assert commands[-1] == "python -m pytest -q", commands
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    lines = [" ".join(t for t in ln.split() if t != "-q") for ln in ci.splitlines()]
+    venv_at = next(i for i, ln in enumerate(lines) if re.search(r" -m venv ", ln))
+    assert any(ln.startswith(". ") and "/bin/activate" in ln for ln in lines[venv_at:])
+    for command in commands:
+        if command.startswith("uvicorn "):  # CI serves on a port of its own, then stops
+            command = command.rpartition("--port")[0] + "--port"
+        plain = " ".join(t for t in command.split() if t != "-q")
+        at = [i for i, ln in enumerate(lines) if ln.startswith(plain)]
+        assert at and min(at) > venv_at, f".ci/run does not run {command!r} in its venv"
+
+
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("readme-work")

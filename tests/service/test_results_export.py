@@ -24,6 +24,21 @@ def tc(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
         yield c
 
 
+@pytest.fixture
+def fresh_tables(tc: Any) -> Iterator[TableCache]:
+    """A new, empty table cache on the module's app for one test, the app's own put back
+    after it.  Not ``monkeypatch.setattr(app.state, ...)``: starlette's ``State`` keeps its
+    attributes in ``_state``, not in ``__dict__``, and pytest 9.2's undo restores from
+    ``__dict__``, so it deleted ``app.state.tables`` for every later test of the module."""
+    state = tc.app.state
+    kept = state.tables
+    state.tables = TableCache(1 << 20)
+    try:
+        yield state.tables
+    finally:
+        state.tables = kept
+
+
 @pytest.fixture(scope="module")
 def stored(tc: Any) -> dict[str, Any]:
     spec = dict(SMALL, output={"positions": [0.0125], "eigen_modes": 2})
@@ -233,13 +248,12 @@ def test_table_operation_answers_what_format_answers(tc: Any, stored: dict[str, 
 
 
 def test_parquet_without_pyarrow_on_the_server_is_406_naming_format(
-    tc: Any, stored: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+    tc: Any, stored: dict[str, Any], monkeypatch: pytest.MonkeyPatch, fresh_tables: TableCache
 ) -> None:
     """pyarrow is an optional extra of the server too: without it the answer says so (and
     that CSV works) instead of failing with 500."""
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # the server's import now fails
-    # ... and such a server never encoded a Parquet table: none in its cache
-    monkeypatch.setattr(tc.app.state, "tables", exports.TableCache(1 << 20))
+    # ... and such a server never encoded a Parquet table: none in its cache (fresh_tables)
     r = tc.get(f"/v1/results/{stored['key']}", params={"format": "parquet"})
     assert r.status_code == 406
     assert r.headers["content-type"] == "application/problem+json"
@@ -297,10 +311,9 @@ def test_tables_answer_304_to_their_etag(
 
 
 def test_a_table_is_encoded_once_then_served_from_memory(
-    tc: Any, stored: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+    tc: Any, stored: dict[str, Any], monkeypatch: pytest.MonkeyPatch, fresh_tables: TableCache
 ) -> None:
     """Before, every CSV/Parquet GET read the store, parsed the result and wrote the table."""
-    monkeypatch.setattr(tc.app.state, "tables", TableCache(1 << 20))
     encodes: list[tuple[str | None, str]] = []
     real_encode = exports.encode_table
 
