@@ -132,27 +132,58 @@ def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return d
 
 
+@dataclass
+class Reader:
+    """A reader pasting the README's blocks in order into one shell directory: each block
+    runs once, after every block above it (whatever order pytest asks for them in: the
+    suite passes with ``-p randomly``), and its exit code is kept for the block's test."""
+
+    server: str
+    workdir: Path
+    done: dict[int, subprocess.CompletedProcess[str]]
+
+    def run_through(self, block: Block) -> subprocess.CompletedProcess[str]:
+        for earlier in RUNNABLE:
+            if earlier.line > block.line:
+                break
+            if earlier.skip is None and earlier.line not in self.done:
+                self.done[earlier.line] = self._run(earlier)
+        return self.done[block.line]
+
+    def _run(self, block: Block) -> subprocess.CompletedProcess[str]:
+        host = self.server.removeprefix("http://")
+        code = block.text.replace("localhost:8000", host)
+        env = dict(os.environ, BASH_ENV=str(self.workdir / ".curl-fails.sh"), MPLBACKEND="Agg")
+        # the blocks import this tree's packages, as after the README's `pip install -e .`
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+        if block.lang == "bash":
+            cmd = ["bash", "-euo", "pipefail", "-c", code]
+        else:
+            script = self.workdir / f"readme_line{block.line}.py"
+            script.write_text(code)
+            cmd = [sys.executable, str(script)]
+        return subprocess.run(
+            cmd, cwd=self.workdir, env=env, capture_output=True, text=True, timeout=TIMEOUT_S
+        )
+
+
+@pytest.fixture(scope="module")
+def reader(server: str, workdir: Path) -> Reader:
+    return Reader(server, workdir, {})
+
+
 @pytest.mark.parametrize("block", RUNNABLE, ids=[f"{b.lang}-line{b.line}" for b in RUNNABLE])
-def test_readme_block_runs(block: Block, server: str, workdir: Path) -> None:
+def test_readme_block_runs(block: Block, reader: Reader) -> None:
     if block.skip:
         pytest.skip(f"README marker: {block.skip}")
-    host = server.removeprefix("http://")
-    code = block.text.replace("localhost:8000", host)
-    env = dict(os.environ, BASH_ENV=str(workdir / ".curl-fails.sh"), MPLBACKEND="Agg")
-    # the blocks import this tree's packages, as after the README's `pip install -e .`
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    if block.lang == "bash":
-        cmd = ["bash", "-euo", "pipefail", "-c", code]
-    else:
-        script = workdir / f"readme_line{block.line}.py"
-        script.write_text(code)
-        cmd = [sys.executable, str(script)]
-    done = subprocess.run(
-        cmd, cwd=workdir, env=env, capture_output=True, text=True, timeout=TIMEOUT_S
-    )
+    done = reader.run_through(block)
+    failed_before = [
+        line for line, run in reader.done.items() if line < block.line and run.returncode
+    ]
     assert done.returncode == 0, (
-        f"README.md:{block.line} ({block.lang}) failed with {done.returncode}:\n"
-        f"{code}\n--- stdout\n{done.stdout[-4000:]}\n--- stderr\n{done.stderr[-4000:]}"
+        f"README.md:{block.line} ({block.lang}) failed with {done.returncode}"
+        f" (blocks above it that failed: {failed_before or 'none'}):\n"
+        f"{block.text}\n--- stdout\n{done.stdout[-4000:]}\n--- stderr\n{done.stderr[-4000:]}"
     )
 
 
