@@ -55,6 +55,19 @@ def screenshot(tmp_path_factory: pytest.TempPathFactory) -> Callable[[Any, str],
     return take
 
 
+#: test files that take the longest in one process (the README reader: ~40 s of blocks in
+#: README order on one server), handed out first: pytest-xdist's ``--dist loadfile`` gives
+#: files to its processes in collection order, and collected last (tests/ sorts after its
+#: packages) this one ran alone at the end of the run while the other process sat idle
+HEAVIEST_FIRST = ("tests/test_readme.py",)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Move the :data:`HEAVIEST_FIRST` files' tests to the front, the rest in their order
+    (a stable sort, the same in every xdist process, as xdist requires)."""
+    items.sort(key=lambda item: not item.nodeid.startswith(HEAVIEST_FIRST))
+
+
 def pytest_terminal_summary(terminalreporter: Any) -> None:
     if _SCREENSHOTS:
         terminalreporter.write_sep("-", "screenshots (browser tests)")
