@@ -621,8 +621,9 @@ def build_parser() -> argparse.ArgumentParser:
         "serve",
         help="run the HTTP service (API and viewer)",
         description="Run the pipeflow HTTP service with uvicorn, as 'python -m service' with "
-        "the same flags (in a child process; or 'uvicorn service.main:app', configured by "
-        "the environment); the viewer is at /.  One server process per data directory: its "
+        "the same flags (in a child process; or 'uvicorn service.main:app --http "
+        "service.http.deadline:HTTPProtocol', configured by the environment); the viewer is "
+        "at /.  One server process per data directory: its "
         "worker pool (PIPEFLOW_WORKERS) gives the parallelism.",
     )
     sp.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1)")

@@ -28,13 +28,16 @@ def serve(
     environment."""
     import uvicorn
 
+    from service.http.deadline import deadline_protocol
     from service.main import create_app
     from service.settings import Settings
 
     overrides: dict[str, Any] = {"workers": workers, "data_dir": data_dir}
     settings = Settings(**{k: v for k, v in overrides.items() if v is not None})
     print(f"pipeflow: data in {settings.data_dir}, {settings.workers} worker(s)", file=sys.stderr)
-    uvicorn.run(create_app(settings), host=host, port=port)
+    # the request deadline (service.http.deadline): a half-sent request is answered 408
+    http = deadline_protocol(settings.read_timeout_s)
+    uvicorn.run(create_app(settings), host=host, port=port, http=http)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,7 +1,8 @@
 """Start the service as it is deployed, in a child process: the one launcher of the tests, the
 benchmarks and any tool that embeds pipeflow's server.
 
-:func:`serve` runs ``python -m uvicorn service.main:app --port P`` (the README's command) on a
+:func:`serve` runs ``python -m uvicorn service.main:app --http
+service.http.deadline:HTTPProtocol --port P`` (the README's command) on a
 free port of 127.0.0.1, in a process group of its own, with this source tree first on the
 child's path (a checkout or worktree serves its own code), and waits until it answers
 ``/readyz`` (or ``/healthz``).  On exit the group is stopped: ``SIGTERM`` to the server and,
@@ -26,6 +27,9 @@ from pathlib import Path
 
 #: the directory holding the ``service`` and ``pipeflow`` packages
 ROOT = Path(__file__).resolve().parents[1]
+#: uvicorn's arguments for the service's HTTP protocol (:mod:`service.http.deadline`: a
+#: request not received within PIPEFLOW_READ_TIMEOUT_S is answered 408 and closed)
+HTTP_ARGS = ("--http", "service.http.deadline:HTTPProtocol")
 
 
 def free_port() -> int:
@@ -100,7 +104,7 @@ def serve(
     port = free_port()
     with open(log, "ab") as out:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(port)],
+            [sys.executable, "-m", "uvicorn", "service.main:app", *HTTP_ARGS, "--port", str(port)],
             cwd=ROOT,
             env=child_environment(**dict(env or {})),
             stdout=out,

@@ -20,7 +20,7 @@ from pipeflow import __version__
 from service import observability
 from service.engine import Runner
 from service.http import auth, problems
-from service.http.middleware import BodyLimit, HitFastPath, RequestContext
+from service.http.middleware import BodyLimit, ContentDecoding, HitFastPath, RequestContext
 from service.http.responses import HitCache
 from service.http.security import SecurityHeaders
 from service.routes import (
@@ -100,6 +100,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # repeated hits are answered here, before body parsing and dependency resolution
     result_paths = frozenset(f"/v1/{e.path}" for e in endpoints() if e.run_operation is not None)
     app.add_middleware(HitFastPath, hits=app.state.hits, paths=result_paths)
+    # outside the fast path: a body of a coding it cannot read is refused, gzip inflated
+    app.add_middleware(ContentDecoding, max_bytes=settings.max_body_bytes)
     # outside the fast path, so that a hit needs a key too (when keys are required)
     ring = auth.KeyRing.from_settings(settings)  # refuses to start on a bad key ring
     app.add_middleware(auth.Authenticate, settings=settings, ring=ring)

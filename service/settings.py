@@ -128,6 +128,17 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest accepted request body [bytes]; larger: 413."
     )
+    read_timeout_s: float = Field(
+        30.0,
+        gt=0,
+        le=3600,
+        description="Longest a client may take to send a request, its headers and body [s], "
+        "counted from the connection's opening (its first request) or the request's first "
+        "byte; past it the server answers 408 and closes the connection, so a half-sent "
+        "request does not hold one. Needs the service's HTTP protocol: python -m service "
+        "and pipeflow serve use it, uvicorn is given --http "
+        "service.http.deadline:HTTPProtocol.",
+    )
     job_timeout_s: float = Field(
         600.0, gt=0, description="Runtime limit of one computation [s]; past it the job fails."
     )

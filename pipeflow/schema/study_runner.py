@@ -613,6 +613,7 @@ def _table(
             for name, c in sens["columns"].items()
             if not c["available"]
         ]
+        warnings += out_of_range(sens)
     return r.document(
         r.StudyResponse,
         base_kind=spec.base_kind,
@@ -631,6 +632,27 @@ def _table(
         sensitivity=sens,
         warnings=warnings,
     )
+
+
+def out_of_range(sens: dict[str, Any]) -> list[str]:
+    """A warning per column of a :class:`~pipeflow.schema.results.StudySensitivity` whose
+    estimated indices leave [0, 1], where Sobol' indices lie: the sampling error of a
+    Saltelli design with too few base points for them."""
+    out = []
+    for name, column in sens["columns"].items():
+        outside = [
+            f"{path}: {index} = {value:.3g}"
+            for path, indices in (column["parameters"] or {}).items()
+            for index in ("S1", "ST")
+            if not 0.0 <= (value := indices[index]) <= 1.0
+        ]
+        if outside:
+            out.append(
+                f"Sobol' indices of {name} outside [0, 1] ({', '.join(outside)}): the "
+                f"sampling error of a design too small for them (N = {sens['base_points']} "
+                "base points); a larger samples.count narrows it (see S1_conf, ST_conf)"
+            )
+    return out
 
 
 def numeric_columns(base: BaseComputation) -> list[Column]:
@@ -702,6 +724,11 @@ def statistics(
     )
 
 
+#: a column whose values spread over at most this fraction of their magnitude is constant
+#: for the Sobol' indices (its differences are rounding errors) [-]
+CONSTANT = 1e-12
+
+
 def sensitivity(
     spec: StudySpec, base: BaseComputation, records: Sequence[dict[str, Any]]
 ) -> dict[str, Any] | None:
@@ -720,8 +747,13 @@ def sensitivity(
                 f"{len(given) - len(values)} of {len(given)} cases have no value (failed, or "
                 "null): the estimators need every case of the design"
             )
-        elif min(values) == max(values):
-            reason = "the column does not vary over the design (its variance is 0)"
+        elif max(values) - min(values) <= CONSTANT * max(map(abs, values)):
+            # a spread of rounding errors gives indices of noise (ST = 2.02 of a peak
+            # deflection that differed by 1 ulp over the cases)
+            reason = (
+                "the column does not vary over the design beyond rounding (its spread is at "
+                f"most {CONSTANT:g} of its magnitude)"
+            )
         if reason is not None:
             out[c.name] = r.document(
                 r.ColumnSensitivity, available=False, reason=reason, parameters=None

@@ -19,6 +19,13 @@ angular velocity [rad/s]``).
 Hz means cycles per second here (1 Hz = 2 pi rad/s), and rpm revolutions per minute
 (1 rpm = 2 pi / 60 rad/s): pint's default registry takes the radian as dimensionless and
 would read 1 Hz as 1 rad/s.
+
+A unit string is checked against a unit grammar (:func:`unit_grammar`: names joined by
+``*``, ``/`` or spaces, integer powers of at most two digits, parentheses; no other number
+than ``1``) before pint sees it: pint's parser evaluates number expressions before it
+refuses them (``"9**9**7 mm"`` cost seconds of a core, ``"9**9**9 mm"`` an hour), and a
+string of the grammar never holds one.  Parsed units and conversion factors are cached, so
+a request of 10,000 quantities converts each by one multiplication.
 """
 
 from __future__ import annotations
@@ -38,6 +45,14 @@ from pipeflow.errors import InvalidField
 if TYPE_CHECKING:
     import pint
 
+#: the longest unit string accepted [characters]
+MAX_UNIT_CHARS = 64
+#: the deepest nesting of parentheses in a unit string
+MAX_UNIT_DEPTH = 3
+#: the most different unit strings one request may use (each new one costs pint a parse
+#: of up to ~1 ms; the same one again costs a cache look-up)
+MAX_UNITS_PER_REQUEST = 32
+
 #: the JSON form of a quantity (a member of the request schema wherever a unit applies)
 QUANTITY_SCHEMA: dict[str, Any] = {
     "type": "object",
@@ -50,8 +65,10 @@ QUANTITY_SCHEMA: dict[str, Any] = {
         "unit": {
             "type": "string",
             "minLength": 1,
-            "maxLength": 64,
-            "description": "Its unit (pint's names: mm, bar, rpm, Hz, g/cm, ...).",
+            "maxLength": MAX_UNIT_CHARS,
+            "description": "Its unit: pint's unit names (mm, bar, rpm, Hz, ...) joined by "
+            "'*', '/' or spaces, with integer powers ('m**2', 'm^2', 'm²') and parentheses "
+            "(g/cm, kg*m^2, (m/s)**2); no other number than 1 (1/s).",
         },
     },
     "required": ["value", "unit"],
@@ -132,24 +149,118 @@ def to_si(value: Any, unit: str, loc: str) -> Any:
     number, given = value["value"], value["unit"]
     if isinstance(number, bool) or not isinstance(number, int | float) or not math.isfinite(number):
         raise InvalidField(f"{loc}.value: a finite number is required", f"{loc}.value")
-    if not isinstance(given, str) or not 0 < len(given) <= 64:
-        raise InvalidField(f"{loc}.unit: a unit name (1 to 64 characters)", f"{loc}.unit")
-    ureg = registry()
-    try:
-        source = ureg.parse_units(given)
-    except Exception:
-        raise InvalidField(f"{loc}.unit: unknown unit {given!r}", f"{loc}.unit") from None
-    target = ureg.parse_units(unit)
-    try:
-        converted = float(ureg.Quantity(number, source).to(target).magnitude)
-    except Exception:
+    if not isinstance(given, str) or not 0 < len(given) <= MAX_UNIT_CHARS:
         raise InvalidField(
-            f"{loc}: {number} {given} is {_dimension(source)}, not {_dimension(target)} [{unit}]",
-            loc,
-        ) from None
+            f"{loc}.unit: a unit name (1 to {MAX_UNIT_CHARS} characters)", f"{loc}.unit"
+        )
+    if not unit_grammar(given):
+        raise InvalidField(
+            f"{loc}.unit: {given!r} is not a unit: unit names (mm, rpm, Hz) joined by '*', "
+            "'/' or spaces, integer powers ('m**2', 'm^2') and parentheses; no number but 1",
+            f"{loc}.unit",
+        )
+    seen = _UNITS_SEEN.get()
+    if seen is not None and given not in seen:
+        if len(seen) >= MAX_UNITS_PER_REQUEST:
+            raise InvalidField(
+                f"{loc}.unit: a request may use at most {MAX_UNITS_PER_REQUEST} different units",
+                f"{loc}.unit",
+            )
+        seen.add(given)
+    source = parsed_unit(given)
+    if source is None:
+        raise InvalidField(f"{loc}.unit: unknown unit {given!r}", f"{loc}.unit")
+    scale = conversion(given, unit)
+    if isinstance(scale, str):
+        raise InvalidField(f"{loc}: {number} {given} {scale} [{unit}]", loc)
+    converted = number * scale
     if not math.isfinite(converted):
         raise InvalidField(f"{loc}: {number} {given} is not finite in {unit}", loc)
     return converted
+
+
+#: a token of the unit grammar (:func:`unit_grammar`), after optional white space
+_UNIT_TOKEN = re.compile(
+    r"\s*(?:"
+    r"(?P<name>°|[^\W\d]\w*)"  # a unit name (pint's, with its prefixes and plurals)
+    r"|(?P<one>1)(?![\w.])"  # the only number outside a power: 1/s
+    r"|(?P<power>(?:\*\*|\^)\s*[+-]?[0-9]{1,2}(?![\w.])|⁻?[⁰¹²³⁴⁵⁶⁷⁸⁹]{1,2})"
+    r"|(?P<op>[*/·])"
+    r"|(?P<open>\()"
+    r"|(?P<close>\))"
+    r")"
+)
+
+
+def unit_grammar(text: str) -> bool:
+    """Whether ``text`` is a unit of the grammar pint may read: unit names (and ``1``)
+    joined by ``*``, ``/``, ``·`` or spaces, each name or parenthesised group raised at
+    most once to an integer power of at most two digits (``**2``, ``^-1``, ``²``),
+    parentheses nested at most :data:`MAX_UNIT_DEPTH` deep.  No other number: nothing
+    for pint to evaluate.  One pass over ``text`` (time linear in its length)."""
+    pos, end = 0, len(text.rstrip())
+    depth = 0
+    operand = powered = False  # the last token ends an operand; it is a power
+    while pos < end:
+        m = _UNIT_TOKEN.match(text, pos)
+        if m is None:
+            return False
+        pos, kind = m.end(), m.lastgroup
+        if kind == "name":  # after an operand too: "N m" is N*m
+            operand, powered = True, False
+        elif kind in ("one", "open"):
+            if operand:  # "m 1", "m(s)": pint would read a call or a factor
+                return False
+            if kind == "open":
+                depth += 1
+                if depth > MAX_UNIT_DEPTH:
+                    return False
+            operand = kind == "one"
+        elif kind == "power":
+            if not operand or powered:  # "**2" first, "m**2**3"
+                return False
+            powered = True
+        elif kind == "op":
+            if not operand:
+                return False
+            operand = powered = False
+        else:  # close
+            if not operand or depth == 0:
+                return False
+            depth -= 1
+            powered = False
+    return operand and depth == 0
+
+
+@functools.lru_cache(maxsize=1024)
+def parsed_unit(text: str) -> Any:
+    """The pint unit of ``text`` (a unit of :func:`unit_grammar`, or a field's SI unit),
+    None if pint does not know it; cached."""
+    try:
+        return registry().parse_units(text)
+    except Exception:
+        return None
+
+
+@functools.lru_cache(maxsize=1024)
+def conversion(given: str, unit: str) -> float | str:
+    """The factor from ``given`` to ``unit`` (both units pint knows: a value in ``given``
+    times it is the value in ``unit``), or why there is none (the end of a message after
+    the quantity: ``is a length, not an angular velocity or rate``); cached."""
+    source, target = parsed_unit(given), parsed_unit(unit)
+    if source.dimensionality != target.dimensionality:
+        return f"is {_dimension(source)}, not {_dimension(target)}"
+    ureg = registry()
+    try:
+        scale = float(ureg.Quantity(1.0, source).to(target).magnitude)
+        zero = float(ureg.Quantity(0.0, source).to(target).magnitude)
+    except Exception:
+        return f"cannot be converted to {unit}"
+    if zero != 0.0:  # an offset or logarithmic unit: no factor
+        return f"is not a unit that scales to {unit}"
+    if not math.isfinite(scale) or scale == 0.0:  # (km**99)**9, (nm**99)**9
+        return f"cannot be represented in {unit}"
+    return scale
 
 
 #: the ids of the dicts of the inputs being validated that hold no quantity anywhere in
@@ -157,6 +268,9 @@ def to_si(value: Any, unit: str, loc: str) -> Any:
 _QUANTITY_FREE: ContextVar[AbstractSet[int]] = ContextVar(
     "pipeflow_quantity_free", default=frozenset()
 )
+#: the unit strings of the input being validated (:data:`MAX_UNITS_PER_REQUEST`); set by
+#: the outermost model whose input holds a quantity, for the duration of its validation
+_UNITS_SEEN: ContextVar[set[str] | None] = ContextVar("pipeflow_units_seen", default=None)
 
 
 def validate(model: type[Any], data: Any, handler: Callable[[Any], Any]) -> Any:
@@ -167,7 +281,8 @@ def validate(model: type[Any], data: Any, handler: Callable[[Any], Any]) -> Any:
     SI numbers) is scanned once, by its outermost model: the ids of its dicts are marked
     quantity-free for the duration of its validation, and the nested models that receive
     them skip the conversion at the cost of a set look-up.  A dict a validator builds
-    (not in the input) is scanned when a model receives it."""
+    (not in the input) is scanned when a model receives it.  The outermost model whose
+    input holds a quantity counts its different units (:data:`MAX_UNITS_PER_REQUEST`)."""
     if not isinstance(data, dict):
         return handler(data)
     free = _QUANTITY_FREE.get()
@@ -175,7 +290,13 @@ def validate(model: type[Any], data: Any, handler: Callable[[Any], Any]) -> Any:
         return handler(data)
     ids = _quantity_free_ids(data)
     if ids is None:
-        return handler(convert_fields(model, data))
+        if _UNITS_SEEN.get() is not None:
+            return handler(convert_fields(model, data))
+        units = _UNITS_SEEN.set(set())
+        try:
+            return handler(convert_fields(model, data))
+        finally:
+            _UNITS_SEEN.reset(units)
     if len(ids) == 1:  # no dict inside (e.g. a default {}): no nested model to tell
         return handler(data)
     token = _QUANTITY_FREE.set(free | ids if free else ids)  # never changed once set

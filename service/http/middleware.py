@@ -6,6 +6,7 @@ import hashlib
 import logging
 import re
 import time
+import zlib
 from collections import OrderedDict
 from typing import Any
 
@@ -89,6 +90,116 @@ class BodyLimit(HttpMiddleware):
             return message
 
         await self.app(scope, limited, send)
+
+
+#: the content codings a request body may have (RFC 9110 section 8.4.1; x-gzip is gzip)
+REQUEST_CODINGS = ("gzip", "identity")
+
+
+class ContentDecoding(HttpMiddleware):
+    """Request bodies by their ``Content-Encoding``: ``identity`` (or none) as they are;
+    ``gzip`` (``x-gzip``) decompressed as they stream, to at most ``max_bytes`` (413
+    beyond: a small body that inflates is no way past the limit), a stream that is not
+    gzip or ends early answered 400; any other coding, or several, 415 with
+    ``Accept-Encoding: gzip, identity`` (RFC 9110 section 15.5.16).  Requests without a
+    body are not looked at.  Outside the hit fast path, which thus never answers a body
+    it could not read; the decompressed body has no Content-Length, so the fast path
+    leaves it to the route."""
+
+    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+        super().__init__(app)
+        self.max_bytes = max_bytes
+
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
+        headers = scope.get("headers") or []
+        values = [v.decode("latin-1") for k, v in headers if k == b"content-encoding"]
+        codings = [c.strip().lower() for v in values for c in v.split(",") if c.strip()]
+        codings = [c for c in codings if c != "identity"]
+        length = next((v for k, v in headers if k == b"content-length"), None)
+        has_body = length not in (None, b"0") or any(k == b"transfer-encoding" for k, _ in headers)
+        if not codings or not has_body:
+            await self.app(scope, receive, send)
+            return
+        if length is not None and length.isdigit() and int(length) > self.max_bytes:
+            detail = f"the body has {int(length)} bytes; the limit is {self.max_bytes} bytes"
+            await response(problem(413, detail, instance=scope.get("path")))(scope, receive, send)
+            return
+        if codings not in (["gzip"], ["x-gzip"]):
+            given = ", ".join(values)
+            doc = problem(
+                415,
+                f"Content-Encoding {given!r} is not supported: send the body as it is "
+                "(identity) or gzip",
+                slug="unsupported-content-encoding",
+                errors=[
+                    {
+                        "field": "Content-Encoding",
+                        "location": "header",
+                        "message": "not gzip or identity",
+                    }
+                ],
+                instance=scope.get("path"),
+            )
+            accepted = {"Accept-Encoding": ", ".join(REQUEST_CODINGS)}
+            await response(doc, accepted)(scope, receive, send)
+            return
+        # the decompressed body: no Content-Encoding, no Content-Length (not known yet)
+        inner = dict(scope)
+        inner["headers"] = [
+            (k, v) for k, v in headers if k not in (b"content-encoding", b"content-length")
+        ]
+        await self.app(inner, _Gunzip(receive, self.max_bytes).receive, send)
+
+
+class _Gunzip:
+    """The ``receive`` of a gzip request body, decompressed (:class:`ContentDecoding`)."""
+
+    def __init__(self, receive: Receive, max_bytes: int) -> None:
+        self._receive = receive
+        self.room = max_bytes  # output bytes still allowed
+        self.limit = max_bytes
+        self.wire = 0
+        self._inflate = zlib.decompressobj(16 + zlib.MAX_WBITS)
+        self._done = False
+
+    def _out(self, data: bytes) -> bytes:
+        """``data`` decompressed (gzip members one after another), within the limit."""
+        out = []
+        while data:
+            chunk = self._inflate.decompress(data, self.room + 1)
+            self.room -= len(chunk)
+            if self.room < 0:
+                raise HTTPException(
+                    413, f"the decompressed body exceeds the limit of {self.limit} bytes"
+                )
+            out.append(chunk)
+            if self._inflate.unconsumed_tail:  # room + 1 bytes out: the next call says
+                data = self._inflate.unconsumed_tail
+            elif self._inflate.eof and self._inflate.unused_data:  # another member
+                data = self._inflate.unused_data
+                self._inflate = zlib.decompressobj(16 + zlib.MAX_WBITS)
+            else:
+                data = b""
+        return b"".join(out)
+
+    async def receive(self) -> Message:
+        message = await self._receive()
+        if message["type"] != "http.request" or self._done:
+            return message
+        data = message.get("body", b"")
+        self.wire += len(data)
+        if self.wire > self.limit:
+            raise HTTPException(413, f"the body exceeds the limit of {self.limit} bytes")
+        try:
+            body = self._out(data)
+        except zlib.error as exc:
+            raise HTTPException(400, f"the body is not valid gzip ({exc})") from None
+        more = message.get("more_body", False)
+        if not more:
+            self._done = True
+            if not self._inflate.eof:
+                raise HTTPException(400, "the body is not valid gzip (it ends early)")
+        return {"type": "http.request", "body": body, "more_body": more}
 
 
 class RequestContext(HttpMiddleware):

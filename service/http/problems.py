@@ -227,8 +227,9 @@ def response(doc: dict[str, Any], headers: dict[str, str] | None = None) -> JSON
 def responses(*codes: int) -> dict[int | str, dict[str, Any]]:
     """OpenAPI ``responses`` entries declaring the problem documents a route can return."""
     descriptions = {
-        400: "Malformed request: the body is not valid JSON.",
-        415: "The body is not application/json.",
+        400: "Malformed request: the body is not valid JSON (or, sent as gzip, not valid gzip).",
+        415: "The body is not application/json, or its Content-Encoding is neither gzip nor "
+        "identity.",
         304: "Not modified: the client's copy (If-None-Match) is current.",
         404: "Unknown key.",
         406: "Not acceptable: the Accept header admits none of the operation's media types, "

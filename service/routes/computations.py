@@ -5,8 +5,9 @@ Every endpoint gets ``POST /v1/<path>`` (the result, or a job when the
 endpoint only runs as jobs) and ``POST /v1/<path>/jobs`` (202 with a job,
 ``Location: /v1/jobs/{key}``), plus its aliases (``POST /v1/jobs`` for simulations).  The
 body is the computation's request model (a union told apart by ``kind`` where several
-computations share the endpoint), validated once by FastAPI and keyed once
-(:func:`service.keys.keyed`); the job id is the key, so the sync and job forms share one
+computations share the endpoint), validated once by FastAPI in a worker thread
+(:class:`service.http.body.ThreadValidatedRoute`) and keyed once, in a thread too
+(:func:`service.keys.keyed_in_thread`); the job id is the key, so the sync and job forms share one
 cache entry.  Nothing here is written per computation.
 """
 
@@ -27,11 +28,12 @@ from pipeflow.schema.registry import (
     response_type,
 )
 from service.deps import HitDep, RunnerDep, StoreDep
+from service.http.body import ThreadValidatedRoute, thread_validated
 from service.http.identity import principal
 from service.http.negotiation import JSON, accepts, json_body
 from service.http.problems import responses
 from service.http.responses import CACHE_HEADERS, JOB_ACCEPTED
-from service.keys import keyed
+from service.keys import keyed_in_thread
 from service.orchestration import Refresh, accept_job, run_sync
 from service.routes.endpoints import Endpoint, computations_at
 from service.schemas import JobStatus
@@ -67,9 +69,12 @@ def _computation(endpoint: Endpoint) -> Callable[[BaseModel], Computation]:
 
 def router_for(endpoint: Endpoint) -> APIRouter:
     """The routes of one endpoint (of :data:`~service.routes.endpoints.ENDPOINTS`)."""
-    router = APIRouter(prefix="/v1", tags=[endpoint.tag])
+    # the body parsed, validated (service.http.body) and keyed in worker threads
+    router = APIRouter(prefix="/v1", tags=[endpoint.tag], route_class=ThreadValidatedRoute)
     kinds = computations_at(endpoint)
-    body: Any = Annotated[request_type(kinds), Body(openapi_examples=examples(endpoint))]
+    body: Any = Annotated[
+        thread_validated(request_type(kinds)), Body(openapi_examples=examples(endpoint))
+    ]
     which = _computation(endpoint)
 
     async def run(
@@ -80,7 +85,8 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         who: Principal,
         refresh: Refresh = False,
     ) -> Response:
-        return await run_sync(runner, store, keyed(which(request), request), refresh, hit, who)
+        job = await keyed_in_thread(which(request), request)
+        return await run_sync(runner, store, job, refresh, hit, who)
 
     async def submit(
         request: body,
@@ -89,7 +95,8 @@ def router_for(endpoint: Endpoint) -> APIRouter:
         who: Principal,
         refresh: Refresh = False,
     ) -> JSONResponse:
-        return await accept_job(runner, store, keyed(which(request), request), refresh, who)
+        job = await keyed_in_thread(which(request), request)
+        return await accept_job(runner, store, job, refresh, who)
 
     costs = cost_note(endpoint)
     job_description = (

@@ -12,7 +12,7 @@ from fastapi import APIRouter, Depends
 from pipeflow import __version__
 from service.deps import RunnerDep
 from service.http.negotiation import JSON, accepts
-from service.http.problems import ProblemError, responses
+from service.http.problems import STORAGE_CAUSES, ProblemError, responses
 from service.schemas import Health, Readiness
 
 router = APIRouter(tags=["health"], dependencies=[Depends(accepts(JSON))])
@@ -39,7 +39,8 @@ async def healthz() -> Health:
 )
 async def readyz(runner: RunnerDep) -> Readiness:
     """200 when the workers are warm, the scheduler has at least one worker, the store is
-    writable and the queue has room, else 503 with Retry-After [s]."""
+    writable and the queue has room, else 503 with Retry-After [s] and the reason (for the
+    store: full or not writable; the driver's message is only logged)."""
     retry = runner.settings.retry_after_s
     for failing, detail, slug, retry_after in (
         (
@@ -51,7 +52,8 @@ async def readyz(runner: RunnerDep) -> Readiness:
         (not runner.ready, "worker processes are starting", "not-ready", 1),
         (
             not runner.store.healthy,
-            f"the store is failing ({runner.store.last_error}); retrying by itself",
+            # the cause, never the driver's text (that is in the log)
+            f"{STORAGE_CAUSES[runner.store.last_full]}; retrying by itself",
             "storage",
             retry,
         ),

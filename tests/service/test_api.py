@@ -305,6 +305,35 @@ def test_health_and_ready(client: TestClient) -> None:
     assert ready.json()["workers"] == 2 and ready.json()["capacity"] == 10
 
 
+@pytest.mark.parametrize(
+    ("full", "cause"),
+    [(True, "the disk of the store is full"), (False, "the store could not be written")],
+)
+def test_readiness_of_a_failing_store_gives_the_cause_not_the_drivers_text(
+    client: TestClient, monkeypatch: pytest.MonkeyPatch, full: bool, cause: str
+) -> None:
+    """Issue 34, item 4: the 503 carried the driver's exception text ("OperationalError:
+    database or disk is full"); it says what is wrong, the log has the driver's words.
+    The store's probe is held failing for the test, then run for real again."""
+    store = client.app.state.store  # type: ignore[attr-defined]
+    driver = (
+        "OperationalError: database or disk is full" if full else "OperationalError: disk I/O error"
+    )
+    monkeypatch.setattr(store, "probe", lambda: False)
+    store.mark_failed(driver, full=full)
+    try:
+        ready = client.get("/readyz")
+        assert ready.status_code == 503
+        assert ready.headers["content-type"] == "application/problem+json"
+        doc = ready.json()
+        assert doc["type"].endswith("/storage") and cause in doc["detail"]
+        assert "OperationalError" not in ready.text and "disk I/O" not in ready.text
+        assert "database or disk" not in ready.text
+    finally:
+        monkeypatch.undo()
+        assert store.probe()  # healthy again for the module's other tests
+
+
 def test_workers_pin_blas_threads(client: TestClient) -> None:
     from service.engine import preload
 

@@ -187,6 +187,34 @@ def test_a_saltelli_study_reports_indices_per_numeric_column() -> None:
     assert not peak["available"] and "does not vary" in peak["reason"]
 
 
+def test_indices_outside_0_1_warn_that_the_design_is_too_small() -> None:
+    """Issue 34, item 4: 8 base points estimate S1 of E at 1.57 and ST at 1.14 for the
+    fundamental frequency (indices lie in [0, 1]: sampling error); the result warns, naming
+    the column, the parameter and N.  64 base points estimate them inside [0, 1] (S1 of E
+    0.87, of M2 0.15) and do not warn; a column that varies only by rounding has no
+    indices (they would be noise)."""
+    parameters = {
+        "pipe.E": LOGNORMAL_E,
+        "pipe.M2": {"distribution": "uniform", "low": 1.0e-5, "high": 2.0e-5},
+    }
+    small = run(sampled({"count": 8, "method": "saltelli", "seed": 1, "parameters": parameters}))
+    validated(small)
+    (warning,) = [w for w in small["warnings"] if "outside [0, 1]" in w]
+    assert warning.startswith("Sobol' indices of final_omega_1 outside [0, 1] (pipe.E: S1 = 1.57")
+    assert "(N = 8 base points)" in warning and "samples.count" in warning
+    e = small["sensitivity"]["columns"]["final_omega_1"]["parameters"]["pipe.E"]
+    assert e["S1"] > 1 and e["ST"] > 1
+    large = run(sampled({"count": 64, "method": "saltelli", "seed": 0, "parameters": parameters}))
+    assert not [w for w in large["warnings"] if "outside" in w], large["warnings"]
+    columns = large["sensitivity"]["columns"]
+    for indices in columns["final_omega_1"]["parameters"].values():
+        assert 0 <= indices["S1"] <= 1 and 0 <= indices["ST"] <= 1
+    # the peak deflection at rest is u0's in every case but for 1 ulp: its "indices" were
+    # noise (ST of E 2.02); a spread of rounding errors is no variation
+    peak = columns["peak_tip_displacement"]
+    assert not peak["available"] and "beyond rounding" in peak["reason"]
+
+
 def test_the_same_seed_gives_the_same_study_and_key() -> None:
     body = {
         "count": 16,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import math
+import time
 from typing import Any
 
 import pytest
@@ -195,3 +196,94 @@ def test_the_quantity_free_marks_last_only_as_long_as_their_validation() -> None
 
     spec = units.validate(SimulationSpec, copy.deepcopy(PAPER_EXAMPLE), handler)
     assert spec.rotation.omega0.value == pytest.approx(100 * math.pi, rel=1e-15)
+
+
+@pytest.mark.parametrize(
+    "unit",
+    [
+        *("mm", "g/cm", "kg*m^2", "kg / m ** 3", "(m/s)**2", "1/s", "m s^-1", "N m", "m²"),
+        *("m⁻¹", "°/s", "parsecs per fortnight^2", "square meter", "µm", "((m))"),
+    ],
+)
+def test_the_unit_grammar_takes_names_operators_and_small_integer_powers(unit: str) -> None:
+    assert units.unit_grammar(unit), unit
+
+
+@pytest.mark.parametrize(
+    "unit",
+    [
+        *("9**9**7 mm", "9 mm", "2*m", "1e9 m", "1.0/s", "m**0.5", "m**100", "m**2**3", "**2"),
+        *("m(s)", "m 1", "m*", "(m", "m)", "(((((m)))))", "m-s", "m,s", "m; s", "m +s", "m^2s"),
+        *("__import__('os').getcwd()", "", " "),
+    ],
+)
+def test_the_unit_grammar_refuses_numbers_calls_and_chained_powers(unit: str) -> None:
+    assert not units.unit_grammar(unit), unit
+
+
+def test_a_number_expression_in_a_unit_is_refused_before_pint_evaluates_it() -> None:
+    """Issue 34, item 2: pint evaluated ``9**9**7`` (2.8 s of a core; ``9**9**8`` ~100 s)
+    before refusing the unit.  The grammar refuses it without pint: well within a second
+    here (a generous bound: it takes microseconds), naming the field."""
+    body = _body(pipe__L={"value": 25, "unit": "9**9**8 mm"})
+    start = time.perf_counter()
+    with pytest.raises(ValidationError) as err:
+        SimulationSpec.model_validate(body)
+    assert time.perf_counter() - start < 1.0
+    (e,) = err.value.errors()
+    assert e["loc"] == ("pipe",) and e["ctx"]["error"].loc == ("L", "unit")
+    assert "'9**9**8 mm' is not a unit" in e["msg"]
+
+
+def test_many_quantities_convert_by_a_cached_factor(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A table of 10,000 quantities (the most a profile holds) in one unit asks pint twice
+    to parse a unit (the given and the field's) and twice to convert (the factor, and 0 to
+    check that it is one), whatever the count: each value is then multiplied by the cached
+    factor.  Before, pint parsed both units and converted once per value (20,000 parses,
+    0.55 s of the event loop here for one request); the values are pint's."""
+    ureg = units.registry()
+    calls = {"parse_units": 0, "Quantity": 0}
+    for name in calls:
+        real = getattr(ureg, name)
+
+        def counting(*args: Any, _real: Any = real, _name: str = name) -> Any:
+            calls[_name] += 1
+            return _real(*args)
+
+        monkeypatch.setattr(ureg, name, counting)
+    units.parsed_unit.cache_clear()
+    units.conversion.cache_clear()
+    n = 10_000
+    table = {
+        "kind": "table",
+        "t": [i * 1e-3 for i in range(n)],
+        "values": [{"value": 1.0 + i, "unit": "mm/s"} for i in range(n)],
+    }
+    velocity = SimulationSpec.model_validate(_body(flow__velocity=table)).flow.velocity
+    assert calls == {"parse_units": 2, "Quantity": 2}
+    assert velocity.values[0] == 1e-3 and velocity.values[-1] == pytest.approx(10.0, rel=1e-15)
+
+
+def test_a_request_may_use_a_bounded_number_of_different_units() -> None:
+    """Each new unit string costs pint a parse (up to ~1 ms): a request naming thousands
+    of different ones (``mm*s/s``, ``mm*s*s/s/s``, ...) would cost seconds; past
+    MAX_UNITS_PER_REQUEST the first extra one is refused, naming its field.  The same unit
+    repeated costs nothing more, and the count is per request."""
+    n = units.MAX_UNITS_PER_REQUEST
+    spellings = ["mm/s", "cm/s", "m/s", "km/h", "mm*Hz", "cm*Hz", "m*Hz", "in/s", "ft/s"]
+    spellings += [f"mm/s*(s/s)**{k}" for k in range(1, 60)]
+    table = {
+        "kind": "table",
+        "t": [float(i) for i in range(n + 1)],
+        "values": [{"value": 1.0, "unit": u} for u in spellings[: n + 1]],
+    }
+    with pytest.raises(ValidationError) as err:
+        SimulationSpec.model_validate(_body(flow__velocity=table))
+    (e,) = err.value.errors()
+    assert e["ctx"]["error"].loc == ("velocity", "values", str(n), "unit")
+    assert f"at most {n} different units" in e["msg"]
+    table["values"] = table["values"][:n]
+    table["t"] = table["t"][:n]
+    for _ in range(2):  # twice: the count is per request
+        spec = SimulationSpec.model_validate(_body(flow__velocity=table))
+        assert spec.flow.velocity.values[:3] == pytest.approx([1e-3, 1e-2, 1.0], rel=1e-15)

@@ -170,6 +170,9 @@ def test_full_disk_answers_507_then_recovers(tiny_disk: Path) -> None:
         assert "full" in resp.json()["detail"]
         ready = c.get("/readyz")
         assert ready.status_code == 503 and ready.json()["type"].endswith("/storage")
+        # the cause, not SQLite's "OperationalError: database or disk is full" (issue 34)
+        assert "the disk of the store is full" in ready.json()["detail"]
+        assert "OperationalError" not in ready.text and "database or disk" not in ready.text
         assert ready.headers["retry-after"] == "2"
         # new work is refused while the store cannot write (never 500); cached results are
         # still served

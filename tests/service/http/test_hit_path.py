@@ -212,13 +212,13 @@ def test_repeated_hit_bytes_skip_the_route(app_client: TestClient, monkeypatch: 
         headers={"Content-Type": "application/json", "Accept-Encoding": "identity"},
     )
     calls: list[Any] = []
-    real_keyed = computations.keyed
+    real_keyed = computations.keyed_in_thread
 
     def counted(*args: Any) -> Any:
         calls.append(args)
         return real_keyed(*args)
 
-    monkeypatch.setattr(computations, "keyed", counted)
+    monkeypatch.setattr(computations, "keyed_in_thread", counted)
     before = app_client.get("/metrics").text
     for coding in ("identity", "gzip"):
         headers, sent = raw(
