@@ -212,7 +212,10 @@ def test_python_m_service_runs_one_server_process_with_n_compute_workers(
     argv = ["--port", "8123", "--workers", "3", "--data-dir", str(tmp_path)]
     assert service_main(argv) == 0
     ((app, kw),) = calls
-    assert kw == {"host": "127.0.0.1", "port": 8123}  # no "workers": one server process
+    # no "workers": one server process; uvicorn's protocol with the request deadline
+    http = kw.pop("http")
+    assert kw == {"host": "127.0.0.1", "port": 8123}
+    assert http.__module__ == "service.http.deadline", http
     settings = app.state.settings
     assert (settings.workers, settings.data_dir, settings.queue_size) == (3, tmp_path, 7)
     assert f"data in {tmp_path}, 3 worker(s)" in capsys.readouterr().err
