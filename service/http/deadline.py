@@ -86,6 +86,14 @@ class _Deadline:
             self._deadline.cancel()
             self._deadline = None
 
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        super().connection_made(transport)  # type: ignore[misc]
+        self._arm()  # the first request, from the opening
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._disarm()
+        super().connection_lost(exc)  # type: ignore[misc]
+
     def _headers_received(self) -> bool:
         raise NotImplementedError
 
@@ -107,14 +115,6 @@ class _Deadline:
 
 class H11DeadlineProtocol(_Deadline, H11Protocol):
     """uvicorn's h11 protocol with the request deadline."""
-
-    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
-        super().connection_made(transport)
-        self._arm()  # the first request, from the opening
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        self._disarm()
-        super().connection_lost(exc)
 
     def handle_events(self) -> None:
         super().handle_events()
@@ -138,14 +138,6 @@ else:
         """uvicorn's httptools protocol with the request deadline."""
 
         _headers_done = False
-
-        def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
-            super().connection_made(transport)
-            self._arm()  # the first request, from the opening
-
-        def connection_lost(self, exc: Exception | None) -> None:
-            self._disarm()
-            super().connection_lost(exc)
 
         def on_message_begin(self) -> None:
             super().on_message_begin()
