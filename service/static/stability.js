@@ -254,7 +254,7 @@
       summary += losing.length ? " and loses stability at v_cr from " + fmt(Math.min(...losing.map((x) => x.vcr)), 4)
         + " to " + fmt(Math.max(...losing.map((x) => x.vcr)), 4) + " m/s." : ".";
       if (unstable.length) {
-        summary += " At " + unstable.length + " spin" + (unstable.length > 1 ? "s" : "") + " (from ω0 = " + fmt(unstable[0].w) + " rad/s) it is already unstable at " + at
+        summary += " At " + unstable.length + " spin" + (unstable.length > 1 ? "s" : "") + " (the lowest ω0 = " + fmt(unstable[0].w) + " rad/s) it is already unstable at " + at
           + " (" + (kinds.length ? kinds.join(" and ") : "mechanism not in this result") + "): no critical velocity there; the table gives where it is stable.";
       }
       return {

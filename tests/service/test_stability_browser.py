@@ -293,7 +293,7 @@ def test_the_spin_map_table_gives_each_spins_stable_intervals(
     summary = page.inner_text("#summary")
     assert "At 2 of 5 spins the pipe is stable at v = 0 m/s and loses stability at v_cr" in summary
     assert (
-        "At 3 spins (from ω0 = 500 rad/s) it is already unstable at v = 0 m/s (divergence): "
+        "At 3 spins (the lowest ω0 = 500 rad/s) it is already unstable at v = 0 m/s (divergence): "
         "no critical velocity there"
     ) in summary
     _figures_loaded(page, ["spin_map"])
