@@ -321,11 +321,24 @@ def cmd_stability(args: argparse.Namespace) -> int:
     result = _result_for(args, data, "stability", ("stability", *_sweep_kinds()))
     _write_json(args, result)
     if result.get("kind") == "stability":
-        v = result.get("critical_velocity")
-        where = "none in the range" if v is None else f"{v:.6g} m/s"
-        print(f"critical flow velocity: {where}", file=sys.stderr)
+        print(f"critical flow velocity: {_critical(result)}", file=sys.stderr)
     _print_warnings(result)
     return 0
+
+
+def _critical(result: dict[str, Any]) -> str:
+    """The critical velocity of a stability result: the first loss of stability from a
+    stable start of the range; a pipe already unstable there has none (its
+    ``critical_velocity`` is then a loss after a regain), and where it is stable is said."""
+    v = result.get("critical_velocity")
+    if result.get("stable_at_start") is False:
+        lo = max(float(result["velocity_range"][0]), 0.0)
+        how = " and ".join(result.get("instability_at_start") or []) or "unstable"
+        stable = ", ".join(f"[{a:.5g}, {b:.5g}]" for a, b in result.get("stable_intervals") or [])
+        return f"none: already unstable at v = {lo:.6g} m/s ({how}); stable on " + (
+            f"{stable} m/s" if stable else "no part of the range"
+        )
+    return "none in the range" if v is None else f"{v:.6g} m/s"
 
 
 def _g(value: Any) -> str:

@@ -224,7 +224,17 @@ async def submit_job(
 ) -> Job:
     """Accept ``job`` for ``principal`` (idempotent: the id is the parameter hash) and
     return its record: a stored result finishes it at once, a computation in flight here
-    is joined, anything else goes to the durable queue (:func:`check_quotas` first)."""
+    is joined, anything else goes to the durable queue (:func:`check_quotas` first).  With
+    API keys required, a client whose request joined another's run (the record's
+    principal is not it) is granted that run (:mod:`service.http.access`)."""
+    record = await _submit(runner, store, job, refresh, principal)
+    if runner.settings.auth_required and record.principal != principal:
+        await asyncio.to_thread(store.grant, record.key, principal, record.generation)
+    return record
+
+
+async def _submit(runner: Runner, store: Store, job: Keyed, refresh: bool, principal: str) -> Job:
+    """:func:`submit_job` without the grant."""
     key = job.key
     if not refresh and not runner.is_active(key) and await asyncio.to_thread(store.has_result, key):
         await asyncio.to_thread(store.mark_succeeded, key, job.computation.name, job.canonical)

@@ -215,6 +215,12 @@ class Settings(BaseSettings):
         description="Comma-separated key ids that may read /metrics (others: 403); empty: "
         "any known key.",
     )
+    admin_key_ids: str = Field(
+        "",
+        description="With auth_required: comma-separated key ids (of the key ring) that may "
+        "read and cancel any client's job; every other key sees and cancels only the jobs "
+        "it started (and follows those it joined). Empty: no admin key.",
+    )
 
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"] = Field(
         "INFO", description="Lowest level of log records written to stdout."

@@ -230,6 +230,20 @@ def test_the_figures_the_readme_quotes_are_current() -> None:
     for m in _quoted(r'"u_cr": (?P<u>[0-9.]+), "beta", "gamma"'):  # the paper's pipe's
         same(m["u"], res.u_cr)
 
+    # the same pipe at 1000 rad/s, unstable at rest (issue 34): where it is stable, and the
+    # spin past which it diverges at v = 20 m/s (the Campbell sweep's boundary)
+    fast = critical_velocities(PAPER_PIPE, omega0=1000.0, velocity_range=(0.0, 60.0), modes=10)
+    [(a, b)] = fast.stable_intervals
+    for m in _quoted(r"stable from (?P<a>[0-9.]+) to (?P<b>[0-9.]+) m/s only"):
+        same(m["a"], a)
+        same(m["b"], b)
+    from pipeflow.stability import sweep
+
+    campbell = sweep(PAPER_PIPE, "spin", (0.0, 1500.0), fixed=20.0, modes=10, tracked=4)
+    [edge] = campbell.boundary
+    for m in _quoted(r"the pipe diverges past (?P<w>[0-9.]+) rad/s"):
+        same(m["w"], edge.value)
+
     # the tip value of the paper's first mode shape phi_1 (eq. (3)), and the initial tip of
     # the example (u0 = 1 mm times it)
     paper_tip = float(paper_scale(1)[0] * tip_values(1)[0])

@@ -22,6 +22,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
+from pipeflow.io import stability_marks as marks
+
 if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not to list plot names
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
@@ -184,13 +186,24 @@ def _draw_argand(ax: Axes, r: dict[str, Any], label: str | None) -> None:
         # mark the start of each branch: the direction of travel is the information here
         ax.plot(mode["sigma"][:1], mode["omega"][:1], "o", ms=3, color=line.get_color())
     ax.axvline(0.0, color="0.6", lw=0.8, zorder=0)
-    # the critical point: the first loss of stability along the sweep (sigma = 0, omega > 0)
+    if not _is_sweep(r):
+        return
+    # the critical point: the first loss of stability from a stable start of the sweep (the
+    # pipe's, every eigenvalue); a sweep that starts unstable has none and says so
+    unit = r["parameter"]["unit"]
+    if "stable_at_start" in r:
+        marks.sweep_note(ax, r)
+        first = marks.first_loss(r["stable_at_start"], r.get("boundary") or [], "value")
+        c = next((c for c in r["boundary"] if c["value"] == first), None)
+        if c is not None:
+            ax.plot([0.0], [c["frequency"]], "*", ms=12, color="k", zorder=5,
+                    label=f"critical point: {c['value']:.4g} {unit} ({c['kind']})")  # fmt: skip
+        return
     loss = [c for c in r.get("zero_crossings", []) if c["direction"] == "loss"]
-    if loss:
+    if loss:  # a result of an earlier version: the tracked branches' first loss
         c = loss[0]
-        unit = r.get("parameter", {}).get("unit", "")
         ax.plot([0.0], [c["frequency"]], "*", ms=12, color="k", zorder=5,
-                label=f"critical point: {c['value']:.4g} {unit}, mode {c['mode']}")  # fmt: skip
+                label=f"σ = 0: {c['value']:.4g} {unit}, mode {c['mode']}")  # fmt: skip
 
 
 def _draw_campbell(ax: Axes, r: dict[str, Any], label: str | None) -> None:
@@ -226,6 +239,7 @@ def _draw_campbell(ax: Axes, r: dict[str, Any], label: str | None) -> None:
     if crossings:
         ax.plot([c["spin"] for c in crossings], [c["frequency"] for c in crossings], "o",
                 ms=6, mfc="none", mec="k", label=label or "crossings")  # fmt: skip
+    marks.shade_unstable(ax, r)
     ax.set_xlim(float(x[0]), float(x[-1]))
     ax.set_ylim(0.0, 1.05 * top if top > 0 else 1.0)
     ax.legend(fontsize=8, loc="upper left")
@@ -269,6 +283,7 @@ def _draw_sweep(part: str) -> Callable[[Axes, dict[str, Any], str | None], None]
             ax.plot(x, y, lw=1.2, label=name)
         if part == "sigma":
             ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
+        marks.shade_unstable(ax, r)
         ax.set_xlabel(_parameter_label(r))
 
     return draw
@@ -285,18 +300,46 @@ def _growth_mesh(ax: Axes, x: Any, y: Any, r: dict[str, Any], label: str) -> Non
     ax.figure.colorbar(mesh, ax=ax, label=label)
 
 
-def _draw_spin_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    import numpy as np
+def _draw_map_lines(
+    ax: Axes, r: dict[str, Any], lines: list[float], value: str, lo: float, where: str,
+    label: str, horizontal: bool,
+) -> None:  # fmt: skip
+    """A map's lines of constant spin or beta: the critical value (first loss from a stable
+    start; none where a line starts unstable), every change of stability, and the lines
+    unstable at their start (:mod:`pipeflow.io.stability_marks`).  ``horizontal``: the
+    lines run along x (the spin map: v on x, spin on y)."""
+    if "stable_at_start" not in r or "crossings" not in r:
+        return  # not a whole map document: its growth rates only
+    first = [
+        marks.first_loss(ok, line, value)
+        for ok, line in zip(r["stable_at_start"], r["crossings"], strict=True)
+    ]
+    crit = [float("nan") if v is None else v for v in first]
+    points = [(c[value], y, c) for y, line in zip(lines, r["crossings"], strict=True) for c in line]
+    start = [(lo, y) for y, ok in zip(lines, r["stable_at_start"], strict=True) if not ok]
+    how = sorted({k for ks in r.get("instability_at_start") or [] for k in ks})
+    if not horizontal:
+        points = [(y, x, c) for x, y, c in points]
+        start = [(y, x) for x, y in start]
+        ax.plot(lines, crit, "k-", lw=1.5, label=label)
+    else:
+        ax.plot(crit, lines, "k-", lw=1.5, label=label)
+    marks.crossing_marks(ax, points)
+    marks.start_marks(ax, start, marks.mechanism(how), where)
+    ax.legend(fontsize=7, loc="lower right" if horizontal else "upper left", framealpha=0.85)
 
+
+def _draw_spin_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
     _growth_mesh(ax, r["velocities"], r["spins"], r, "largest growth rate max σ [1/s]")
-    vcr = [np.nan if v is None else v for v in r["critical_velocity"]]
-    ax.plot(vcr, r["spins"], "k-", lw=1.5, label=label or "critical velocity")
+    lo = max(float(r["velocities"][0]), 0.0)
+    name = label or f"v_cr: first loss of stability from v = {lo:g} m/s"
+    _draw_map_lines(ax, r, r["spins"], "velocity", lo, f"v = {lo:g} m/s", name, True)
 
 
 def _draw_beta_map(ax: Axes, r: dict[str, Any], label: str | None) -> None:
-    beta = [p[0] for p in r["curve"]]
-    u = [float("nan") if p[1] is None else p[1] for p in r["curve"]]
-    ax.plot(beta, u, "-o", ms=2.5, lw=1.2, label=label or f"γ = {r.get('gamma', 0):g}")
+    lo = float(r["u_range"][0])
+    name = label or f"u_cr at γ = {r.get('gamma', 0):g}: first loss from u = {lo:g}"
+    _draw_map_lines(ax, r, r["betas"], "u", lo, f"u = {lo:g}", name, False)
 
 
 def _draw_resonance_chart(ax: Axes, r: dict[str, Any], label: str | None) -> None:
@@ -514,7 +557,7 @@ PLOTS: dict[str, PlotKind] = {
         ),
         PlotKind(
             "spin_map",
-            "Stability map: growth rate over flow velocity and spin",
+            "Stability map: growth rate over flow velocity and spin, changes of stability",
             "flow velocity v [m/s]",
             "spin ω0 [rad/s]",
             _draw_spin_map,
@@ -523,9 +566,9 @@ PLOTS: dict[str, PlotKind] = {
         ),
         PlotKind(
             "beta_map",
-            "Critical flow number against mass ratio",
+            "Stability boundary against mass ratio: u_cr and every change of stability",
             "mass ratio β = M2/(M1+M2) [-]",
-            "critical flow number u_cr [-]",
+            "flow number u [-]",
             _draw_beta_map,
             lambda r: r.get("kind") == "beta_map" and bool(r.get("curve")),
         ),

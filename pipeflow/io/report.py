@@ -100,10 +100,60 @@ def _simulation_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
     return rows
 
 
+#: the results' field of how the pipe is unstable at the start of a range
+START = "instability_at_start"
+
+
+def _interval(i: list[float]) -> str:
+    return f"[{_g(i[0], 5)}, {_g(i[1], 5)}]"
+
+
+def _intervals(intervals: list[list[float]], unit: str) -> str:
+    return ", ".join(map(_interval, intervals)) + unit if intervals else "none"
+
+
+def _start(stable: Any, how: list[str] | None) -> str:
+    """'yes' or 'no: divergence' (how it is unstable there)."""
+    if stable is None:
+        return "-"
+    return "yes" if stable else "no: " + (" and ".join(how) if how else "mechanism not recorded")
+
+
+def _changes(changes: list[tuple[float, str, str]], unit: str) -> str:
+    """Every change of stability: 'regains at 17.51 m/s (divergence); loses at ...'."""
+    words = {"loss": "loses", "gain": "regains"}
+    return (
+        "; ".join(f"{words[d]} at {_g(x, 5)}{unit} ({kind})" for x, d, kind in changes)
+        if changes
+        else "none"
+    )
+
+
+def _first_loss(stable: Any, changes: list[tuple[float, str, str]], where: str) -> str:
+    """The critical value: the first loss from a stable start (else why there is none)."""
+    if not stable:
+        return f"none: already unstable at {where}"
+    loss = next((x for x, d, _ in changes if d == "loss"), None)
+    return _g(loss) if loss is not None else "none in the range"
+
+
 def _stability_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
+    lo = max(float((r.get("velocity_range") or [0.0])[0]), 0.0)
+    where = f"v = {_g(lo, 5)} m/s"
+    stable = r.get("stable_at_start")
+    changes = [
+        (c["velocity"], c["direction"], f"{c['kind']}, mode {c['mode']}")
+        for c in r.get("crossings") or []
+        if c.get("boundary")
+    ]
     rows = [
-        ("critical velocity v_cr [m/s]", _g(r.get("critical_velocity"))),
-        ("stable at the start of the range", _g(r.get("stable_at_start"))),
+        (f"stable at the start of the range, {where}", _start(stable, r.get(START))),
+        (
+            f"critical velocity v_cr [m/s]: the first loss of stability from {where}",
+            _first_loss(stable, changes, where) if stable is not None else "-",
+        ),
+        ("stable intervals [m/s]", _intervals(r.get("stable_intervals") or [], " m/s")),
+        ("changes of stability", _changes(changes, " m/s")),
         ("stable throughout", _g(r.get("stable_throughout"))),
         ("spin w0 [rad/s]", _g(r.get("omega0"))),
         ("velocity range [m/s]", _g(r.get("velocity_range"))),
@@ -117,6 +167,62 @@ def _stability_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
             )
         )
     return rows
+
+
+def _map_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
+    """A spin map (per spin, in v [m/s]) or a beta map (per beta, in u [-]): each line's
+    stability at its start, its critical value (first loss from a stable start), its
+    stable intervals and its changes of stability."""
+    spin = r["kind"] == "spin_map"
+    lines = r["spins"] if spin else r["betas"]
+    lo = max(float(r["velocities"][0]), 0.0) if spin else float(r["u_range"][0])
+    where = f"v = {_g(lo, 5)} m/s" if spin else f"u = {_g(lo, 5)}"
+    unit = " m/s" if spin else ""
+    how = r.get(START) or [None] * len(lines)
+    intervals = r.get("stable_intervals") or [[] for _ in lines]
+    value = "velocity" if spin else "u"
+    rows = [
+        (
+            "columns",
+            f"stable at {where}; first loss from there (v_cr [m/s])"
+            if spin
+            else f"stable at {where}; first loss from there (u_cr [-])",
+        )
+    ]
+    for i, x in enumerate(lines):
+        changes = [(c[value], c["direction"], c["kind"]) for c in r["crossings"][i]]
+        ok = r["stable_at_start"][i]
+        name = f"w0 = {_g(x, 5)} rad/s" if spin else f"beta = {_g(x, 4)}"
+        rows.append(
+            (
+                name,
+                f"{_start(ok, how[i])}; {_first_loss(ok, changes, where)}; stable on "
+                f"{_intervals(intervals[i], unit)}; {_changes(changes, unit)}",
+            )
+        )
+    return rows
+
+
+def _sweep_picture(r: dict[str, Any]) -> list[tuple[str, str]]:
+    """An Argand or Campbell sweep: the pipe's stability along it (every eigenvalue)."""
+    if "stable_at_start" not in r:
+        return []
+    par = r["parameter"]
+    unit = f" {par['unit']}"
+    name = "w0" if par["name"] == "spin" else "v"
+    where = f"{name} = {_g(par['values'][0], 5)}{unit}"
+    stable = r["stable_at_start"]
+    changes = [(c["value"], c["direction"], c["kind"]) for c in r.get("boundary") or []]
+    critical = "critical velocity v_cr" if par["name"] == "velocity" else "critical spin"
+    return [
+        (f"pipe stable at the start of the sweep, {where}", _start(stable, r.get(START))),
+        (
+            f"{critical} [{par['unit']}]: the first loss of stability from {where}",
+            _first_loss(stable, changes, where),
+        ),
+        (f"stable intervals [{par['unit']}]", _intervals(r.get("stable_intervals") or [], unit)),
+        ("changes of stability (every eigenvalue)", _changes(changes, unit)),
+    ]
 
 
 def _frf_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
@@ -136,12 +242,16 @@ def _frf_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
 
 
 def _sweep_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
+    if r.get("kind") in ("spin_map", "beta_map") and r.get("crossings") is not None:
+        return _map_numbers(r)
     par = r.get("parameter") or {}
     rows = [("swept", f"{par.get('name')} [{par.get('unit')}]")] if par else []
+    if par:
+        rows += _sweep_picture(r)
     for c in r.get("zero_crossings") or []:
         rows.append(
             (
-                f"sigma = 0 crossing of mode {c['mode']} ({c['direction']})",
+                f"sigma = 0 crossing of tracked mode {c['mode']} ({c['direction']})",
                 f"at {_g(c['value'])} {par.get('unit', '')}, frequency {_g(c['frequency'])} rad/s",
             )
         )

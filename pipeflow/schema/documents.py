@@ -211,6 +211,7 @@ def critical_velocities(result: CriticalVelocity) -> dict[str, Any]:
         critical_velocity=result.critical_velocity,
         stable_throughout=result.stable_throughout,
         stable_at_start=result.stable_at_start,
+        instability_at_start=list(result.instability_at_start),
         stable_intervals=result.stable_intervals,
         crossings=[crossing(c) for c in result.crossings],
         dimensionless=stability_dimensionless(result),
@@ -307,6 +308,19 @@ def sweep(s: Sweep) -> dict[str, Any]:
             else None
         ),
         zero_crossings=[zero_crossing(c) for c in s.zero_crossings],
+        stable_at_start=s.stable_at_start,
+        instability_at_start=list(s.instability_at_start),
+        boundary=[
+            r.document(
+                r.SweepBoundaryCrossing,
+                value=c.value,
+                direction=c.direction,
+                kind=c.kind,
+                frequency=c.frequency,
+            )
+            for c in s.boundary
+        ],
+        stable_intervals=s.stable_intervals,
         warnings=list(s.warnings),
         diagnostics={
             "points": int(s.values.size),
@@ -329,6 +343,7 @@ def spin_map(m: SpinMap) -> dict[str, Any]:
         growth_rate=m.growth.tolist(),
         critical_velocity=m.critical_velocity,
         stable_at_start=m.stable_at_start,
+        instability_at_start=[list(k) for k in m.instability_at_start],
         stable_intervals=[
             stable_intervals(
                 max(0.0, float(m.velocities[0])),
@@ -379,6 +394,13 @@ def beta_map(m: BetaMap) -> dict[str, Any]:
         u_range=list(m.u_range),
         u_cr=m.u_cr,
         stable_at_start=m.stable_at_start,
+        instability_at_start=[list(k) for k in m.instability_at_start],
+        stable_intervals=[
+            stable_intervals(
+                m.u_range[0], m.u_range[1], ok, [(c.velocity, c.direction == "loss") for c in line]
+            )
+            for ok, line in zip(m.stable_at_start, m.crossings, strict=True)
+        ],
         crossings=[
             [
                 r.document(

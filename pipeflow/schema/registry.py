@@ -421,7 +421,12 @@ PAPER_STABILITY: dict[str, Any] = {
 
 #: a critical-velocity analysis's row in a design study
 STABILITY_SUMMARY = (
-    Column("critical_velocity", "m/s", "First loss of stability in the range (null: none)."),
+    Column(
+        "critical_velocity",
+        "m/s",
+        "First loss of stability from the start of the range, where the pipe is stable "
+        "(null: none; or already unstable at the start, see stable_at_start).",
+    ),
     Column("critical_mode", "-", "The mode that loses stability there."),
     Column("critical_kind", "", "flutter or divergence."),
     Column(
@@ -436,8 +441,11 @@ STABILITY_SUMMARY = (
 
 
 def summarize_stability(result: dict[str, Any]) -> dict[str, Any]:
-    """A critical-velocity result (JSON) reduced to :data:`STABILITY_SUMMARY`."""
-    critical = result["critical_velocity"]
+    """A critical-velocity result (JSON) reduced to :data:`STABILITY_SUMMARY`.  A pipe
+    already unstable at the start of its range has no critical velocity here (the result's
+    ``critical_velocity`` is then a loss after stability is regained: not a threshold from
+    rest to be compared, averaged or ranked)."""
+    critical = result["critical_velocity"] if result["stable_at_start"] else None
     first = next(
         (c for c in result["crossings"] if c["direction"] == "loss" and c["velocity"] == critical),
         None,

@@ -175,6 +175,22 @@ def sign_changes(
     return sorted(out)
 
 
+def mechanisms(xi: ComplexArray, tol: float, radius: float) -> list[str]:
+    """How the spectrum ``xi`` [1/s] is unstable: "divergence" (a real eigenvalue with
+    sigma > ``tol``) and/or "flutter" (a complex pair with sigma > ``tol``), each once,
+    the fastest-growing first; empty when stable.  An eigenvalue is real when
+    |omega| <= 1e-7 ``radius`` (the spectral radius of the sweep), the rule the crossings
+    are classified by."""
+    out: list[str] = []
+    for x in sorted(np.asarray(xi).ravel(), key=lambda x: -x.real):
+        if x.real <= tol:
+            break
+        kind = "divergence" if abs(x.imag) <= 1e-7 * radius else "flutter"
+        if kind not in out:
+            out.append(kind)
+    return out
+
+
 def stable_intervals(
     lo: float, hi: float, stable_at_start: bool, boundary: list[tuple[float, bool]]
 ) -> list[list[float]]:

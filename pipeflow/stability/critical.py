@@ -30,6 +30,7 @@ from pipeflow.stability.core import (
     check_modes,
     check_range,
     growth_rate,
+    mechanisms,
     sign_changes,
     stable_intervals,
     state_matrices,
@@ -78,6 +79,8 @@ class CriticalVelocity:
     stable_intervals : [[v_a, v_b], ...] [m/s] where the pipe is stable (v >= 0 part).
     crossings : every branch crossing of sigma = 0 in the v >= 0 part, by velocity.
     stable_at_start : stability at max(v_min, 0) (None when the whole range is v < 0).
+    instability_at_start : how the pipe is unstable there: "divergence" and/or "flutter",
+        the fastest-growing first (empty when stable there).
     reverse_flow : the aspirating-pipe caveat when the range reaches v < 0, else None.
     """
 
@@ -92,6 +95,7 @@ class CriticalVelocity:
     stable_intervals: list[list[float]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    instability_at_start: list[str] = field(default_factory=list)
 
     @property
     def stable_throughout(self) -> bool:
@@ -226,6 +230,8 @@ def critical_velocities(
         )
     result.crossings = crossings
     result.stable_at_start = not any(unstable0[j] and br.upper(j, start) for j in range(m))
+    if not result.stable_at_start:
+        result.instability_at_start = mechanisms(br.xi[start], float(tol[start]), radius)
     first = [c for c in crossings if c.boundary and c.direction == "loss"]
     if first:
         result.critical_velocity = first[0].velocity

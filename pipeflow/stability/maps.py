@@ -27,6 +27,7 @@ from pipeflow.stability.core import (
     check_modes,
     check_range,
     eigenvalues,
+    mechanisms,
     nondimensional_pipe,
     sign_changes,
 )
@@ -117,7 +118,9 @@ class SpinMap:
     (spins[i], velocities[k]); crossings[i] : the boundary crossings at spins[i] for v >= 0;
     critical_velocity[i] : the first loss [m/s] or None (if the line starts unstable, e.g.
     divergence by fast spin at v = 0, the first loss after stability is regained; see
-    stable_at_start and stable_intervals).
+    stable_at_start and stable_intervals); instability_at_start[i] : how the line is
+    unstable at its first v >= 0 ("divergence" and/or "flutter", fastest first; empty
+    when stable there).
     """
 
     pipe: Pipe
@@ -129,6 +132,7 @@ class SpinMap:
     stable_at_start: list[bool]
     critical_velocity: list[float | None]
     warnings: list[str] = field(default_factory=list)
+    instability_at_start: list[list[str]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -143,21 +147,37 @@ class _SpinLines:
     rtol: float
 
 
-def _spin_lines(piece: _SpinLines) -> tuple[FloatArray, list[list[BoundaryCrossing]], list[bool]]:
-    """Growth rates (spins x velocities) [1/s], boundary crossings and stability at the
-    first v >= 0 of each line of ``piece``: every point and line is computed on its own,
-    so the map does not depend on how it is cut."""
+def _start(xi: Any, start: int) -> tuple[bool, list[str]]:
+    """Stability at point ``start`` of a line whose spectra are ``xi`` (points x 2n) and
+    how it is unstable there (:func:`~pipeflow.stability.core.mechanisms`)."""
+    if start >= len(xi):
+        return False, []
+    tol = float(rounding_level(xi[start]))
+    how = mechanisms(xi[start], tol, float(np.max(np.abs(xi))))
+    return bool(xi[start].real.max() <= tol), how
+
+
+_Lines = tuple[list[list[BoundaryCrossing]], list[bool], list[list[str]]]
+
+
+def _spin_lines(
+    piece: _SpinLines,
+) -> tuple[FloatArray, list[list[BoundaryCrossing]], list[bool], list[list[str]]]:
+    """Growth rates (spins x velocities) [1/s], boundary crossings, and stability at the
+    first v >= 0 of each line of ``piece`` with how it is unstable there: every point and
+    line is computed on its own, so the map does not depend on how it is cut."""
     model = build_model(piece.pipe, piece.modes)
     v = piece.velocities
     xi = _spectra(model, v[None, :], piece.spins[:, None])
     start = int(np.searchsorted(v, 0.0))
-    crossings, stable = [], []
+    crossings, stable, how = [], [], []
     for i, w0 in enumerate(piece.spins):
         line = _line(model, v, float(w0), xi[i], piece.rtol) if start < v.size else []
-        ok = bool(start < v.size and xi[i, start].real.max() <= rounding_level(xi[i, start]))
+        ok, kinds = _start(xi[i], start)
         crossings.append(line)
         stable.append(ok)
-    return xi.real.max(axis=-1), crossings, stable
+        how.append(kinds)
+    return xi.real.max(axis=-1), crossings, stable, how
 
 
 def spin_map(
@@ -203,6 +223,7 @@ def spin_map(
         stable_at_start=[ok for part in parts for ok in part[2]],
         critical_velocity=[_first_loss(line) for line in crossings],
         warnings=warnings,
+        instability_at_start=[kinds for part in parts for kinds in part[3]],
     )
 
 
@@ -224,6 +245,7 @@ class BetaMap:
     warnings: list[str] = field(default_factory=list)
     groups: dict[str, float] = field(default_factory=dict)
     plane: str = "in-plane"
+    instability_at_start: list[list[str]] = field(default_factory=list)
 
     @property
     def u_cr(self) -> list[float | None]:
@@ -244,9 +266,10 @@ class _BetaLines:
     plane: str
 
 
-def _beta_lines(piece: _BetaLines) -> tuple[list[list[BoundaryCrossing]], list[bool]]:
-    """Boundary crossings in u and stability at the first u of each beta of ``piece``."""
-    crossings, stable = [], []
+def _beta_lines(piece: _BetaLines) -> _Lines:
+    """Boundary crossings in u, stability at the first u of each beta of ``piece`` and
+    how it is unstable there."""
+    crossings, stable, how = [], [], []
     u = piece.u
     for beta in piece.betas:
         pipe = nondimensional_pipe(float(beta), piece.groups, piece.plane)
@@ -257,8 +280,10 @@ def _beta_lines(piece: _BetaLines) -> tuple[list[list[BoundaryCrossing]], list[b
         crossings.append(
             [BoundaryCrossing(c.velocity / scale, c.direction, c.kind, c.frequency) for c in line]
         )
-        stable.append(bool(xi[0].real.max() <= rounding_level(xi[0])))
-    return crossings, stable
+        ok, kinds = _start(xi, 0)
+        stable.append(ok)
+        how.append(kinds)
+    return crossings, stable, how
 
 
 def beta_map(
@@ -313,4 +338,5 @@ def beta_map(
         stable_at_start=stable,
         groups=nondimensional_pipe(0.5, groups, plane).dimensionless_groups(),
         plane=plane,
+        instability_at_start=[kinds for part in parts for kinds in part[2]],
     )

@@ -18,7 +18,7 @@ serial tracking and crossing searches.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Literal, Protocol
@@ -34,7 +34,9 @@ from pipeflow.spectra import follow, order_lowest, rounding_level
 from pipeflow.stability.core import (
     check_modes,
     check_range,
+    mechanisms,
     sign_changes,
+    stable_intervals,
     state_matrices,
 )
 
@@ -140,6 +142,59 @@ def zero_crossings(br: Branches, chosen: Sequence[int]) -> list[ZeroCrossing]:
     return sorted(out, key=lambda c: c.value)
 
 
+@dataclass(frozen=True)
+class BoundaryCrossing:
+    """The pipe (its whole spectrum, tracked or not) changing stability along the sweep.
+
+    value : swept parameter there [m/s or rad/s]; direction : "loss" or "gain" with
+    increasing parameter; kind : "flutter" or "divergence" (the eigenvalue that crosses,
+    the fastest-growing on the unstable side); frequency : its |omega| [rad/s].
+    """
+
+    value: float
+    direction: Literal["loss", "gain"]
+    kind: Literal["flutter", "divergence"]
+    frequency: float
+
+
+def pipe_stability(
+    br: Branches, matrices: Callable[[FloatArray], FloatArray]
+) -> tuple[bool, list[str], list[BoundaryCrossing], list[list[float]]]:
+    """The pipe's stability along the sweep, from its whole spectrum (largest sigma over
+    every eigenvalue, as the maps do; not only the tracked branches, which may leave out
+    the one that diverges): whether it is stable at the first point, how it is unstable
+    there (:func:`~pipeflow.stability.core.mechanisms`), every change of stability
+    located to :data:`CROSSING_RTOL` and the intervals where it is stable."""
+    tol = rounding_level(br.xi)
+    radius = float(np.max(np.abs(br.xi)))
+
+    def spectrum(x: float) -> ComplexArray:
+        return np.asarray(np.linalg.eigvals(matrices(np.array([x]))[0]))
+
+    def growth(x: float, k: int) -> float:
+        return float(spectrum(x).real.max())
+
+    how = mechanisms(br.xi[0], float(tol[0]), radius)
+    out = []
+    g = br.xi.real.max(axis=1)
+    for x, _, loss in sign_changes(br.p, g, tol, growth, 0, CROSSING_RTOL):
+        w = spectrum(x)
+        top = w[np.argmax(w.real)]
+        divergence = abs(top.imag) <= 1e-7 * radius
+        out.append(
+            BoundaryCrossing(
+                x,
+                "loss" if loss else "gain",
+                "divergence" if divergence else "flutter",
+                0.0 if divergence else abs(float(top.imag)),
+            )
+        )
+    intervals = stable_intervals(
+        float(br.p[0]), float(br.p[-1]), not how, [(c.value, c.direction == "loss") for c in out]
+    )
+    return not how, how, out, intervals
+
+
 @dataclass
 class Sweep:
     """Tracked eigenvalues along a sweep (SI units; JSON form:
@@ -152,6 +207,11 @@ class Sweep:
     confidence : (points, modes) tracking confidence in [0, 1].
     mode : mode numbers (1 = lowest frequency at the first point).
     inserted : the point was added by refinement.
+    stable_at_start : the pipe (every eigenvalue, not only the tracked branches) is
+        stable at the first point; instability_at_start : how it is unstable there
+        ("divergence" and/or "flutter", fastest first; empty when stable); boundary :
+        every change of its stability along the sweep; stable_intervals : [[a, b], ...]
+        of the swept parameter where it is stable (:func:`pipe_stability`).
     """
 
     pipe: Pipe
@@ -167,6 +227,10 @@ class Sweep:
     orders: tuple[float, ...] = ()
     excitation: list[ExcitationCrossing] = field(default_factory=list)
     zero_crossings: list[ZeroCrossing] = field(default_factory=list)
+    stable_at_start: bool = True
+    instability_at_start: list[str] = field(default_factory=list)
+    boundary: list[BoundaryCrossing] = field(default_factory=list)
+    stable_intervals: list[list[float]] = field(default_factory=list)
 
     @property
     def sigma(self) -> FloatArray:
@@ -266,6 +330,7 @@ def sweep(
     orders = tuple(float(n) for n in orders) if parameter == "spin" else ()
     excitation = excitation_crossings(br, chosen.tolist(), orders)
     zeros = zero_crossings(br, chosen.tolist())
+    stable, how, boundary, intervals = pipe_stability(br, matrices)
     if progress is not None:
         progress(1.0)
     return Sweep(
@@ -282,4 +347,8 @@ def sweep(
         orders=orders,
         excitation=excitation,
         zero_crossings=zeros,
+        stable_at_start=stable,
+        instability_at_start=how,
+        boundary=boundary,
+        stable_intervals=intervals,
     )

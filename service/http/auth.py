@@ -22,7 +22,9 @@ The credentials are read by FastAPI's security utilities (:class:`~fastapi.secur
 document when authentication is on), in an ASGI middleware rather than a route dependency,
 so that the hit fast path (:class:`service.http.middleware.HitFastPath`) is behind it too.
 The key id of an authenticated request is ``request.state.principal`` (None when
-authentication is off or the path is open).
+authentication is off or the path is open).  Keys whose ids are in
+``PIPEFLOW_ADMIN_KEY_IDS`` read and cancel any client's job; every other key only its own
+(:mod:`service.http.access`).
 """
 
 from __future__ import annotations
@@ -110,6 +112,12 @@ class KeyRing:
                 "PIPEFLOW_AUTH_REQUIRED is on but there is no key: set PIPEFLOW_API_KEYS or "
                 "PIPEFLOW_API_KEYS_FILE (make a key with: python -m service.http.auth new <id>)"
             )
+        unknown = sorted(admin_ids(settings) - {key_id for _, key_id in ring.digests})
+        if settings.auth_required and unknown:
+            raise KeyRingError(
+                f"PIPEFLOW_ADMIN_KEY_IDS names {', '.join(map(repr, unknown))}, not the id of "
+                "any key of PIPEFLOW_API_KEYS or PIPEFLOW_API_KEYS_FILE"
+            )
         return ring
 
     def identify(self, key: str) -> str | None:
@@ -138,8 +146,18 @@ def protected(path: str, settings: Settings) -> bool:
     return path == "/v1" or path.startswith("/v1/")
 
 
+def _ids(text: str) -> frozenset[str]:
+    return frozenset(i.strip() for i in text.split(",") if i.strip())
+
+
 def _metrics_ids(settings: Settings) -> frozenset[str]:
-    return frozenset(i.strip() for i in settings.metrics_key_ids.split(",") if i.strip())
+    return _ids(settings.metrics_key_ids)
+
+
+def admin_ids(settings: Settings) -> frozenset[str]:
+    """The key ids of ``PIPEFLOW_ADMIN_KEY_IDS``: they may read and cancel any job
+    (:mod:`service.http.access`)."""
+    return _ids(settings.admin_key_ids)
 
 
 class Authenticate(HttpMiddleware):
@@ -230,6 +248,15 @@ def document(doc: dict[str, Any], settings: Settings) -> dict[str, Any]:
                     "content": {"application/problem+json": ref},
                 },
             )
+            if operation.get("operationId") == "cancelJob":
+                answers.setdefault(
+                    "403",
+                    {
+                        "description": "The job is another key's run, which this key joined: "
+                        "only the key that started it, or an admin key, cancels it.",
+                        "content": {"application/problem+json": ref},
+                    },
+                )
             if path == "/metrics" and _metrics_ids(settings):
                 answers.setdefault(
                     "403",

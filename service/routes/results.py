@@ -88,7 +88,10 @@ async def get_result(
     if encoded is None:
         body = await asyncio.to_thread(store.get_result, key)
         if body is None:
-            pending = " yet; its job is still in progress" if runner.is_active(key) else ""
+            # with keys required, whether someone's job computes it is not said: the job
+            # is another client's business (service.http.access)
+            running = runner.is_active(key) and not runner.settings.auth_required
+            pending = " yet; its job is still in progress" if running else ""
             raise ProblemError(404, f"no result {key}{pending}", slug="unknown-key")
         encoded = await encoded_hit(key, body, hit)
     etag = entity_tag(key, sends_gzip(encoded, hit.gzip))

@@ -1,8 +1,11 @@
 // pipeflow stability page: every analysis of POST /v1/stability and POST /v1/sweeps with a
 // form generated from the request schemas in /openapi.json (SchemaForm).  Sweeps run as
 // jobs: progress is polled from GET /v1/jobs/{key} until the result is ready.  Results
-// show a summary, a table of every crossing (stability boundary, sigma = 0 of a tracked
-// branch, Campbell excitation lines) and the server's figures (pipeflow.io.plots, SVG), their
+// show a summary of the pipe's stability along the range (stable at its start or not, and
+// how; every change of stability and its mechanism; the stable intervals; a critical
+// velocity only as the first loss from a stable start), tables of it and of every crossing
+// (stability boundary, sigma = 0 of a tracked branch, Campbell excitation lines) and the
+// server's figures (pipeflow.io.plots, SVG), their
 // spin and frequency axes in the units chosen (rad/s, rpm, Hz), and links to the result's
 // report (HTML, PDF).
 "use strict";
@@ -65,75 +68,231 @@
 
   const table = P.columnTable;
 
+  // ---- the stability along a range ---------------------------------------------------------
+  // One picture for every analysis (issue 34): stable at the start of the range or not (and
+  // how: divergence, flutter), every change of stability with its mechanism, the stable
+  // intervals.  A critical velocity is only ever the first loss of stability from a stable
+  // start; a range that starts unstable has none.
+
+  const interval = (i) => "[" + fmt(i[0], 5) + ", " + fmt(i[1], 5) + "]";
+
+  function mechanism(how) {
+    return how && how.length ? how.join(" and ") : "mechanism not in this result";
+  }
+
+  function startState(p) {
+    // "stable at v = 0 m/s" / "unstable at v = 0 m/s (divergence)"
+    const at = p.name + " = " + fmt(p.x0, 5) + (p.unit ? " " + p.unit : "");
+    return p.stable ? "stable at " + at : "unstable at " + at + " (" + mechanism(p.how) + ")";
+  }
+
+  function changeText(c, unit) {
+    return (c.direction === "loss" ? "loses" : "regains") + " stability at " + fmt(c.x, 5)
+      + (unit ? " " + unit : "") + " (" + c.kind + (c.mode ? ", mode " + c.mode : "") + ")";
+  }
+
+  function picture(p) {
+    // the whole picture as sentences: start, every change, the stable intervals
+    const unit = p.unit ? " " + p.unit : "";
+    const first = startState(p);
+    let text = first[0].toUpperCase() + first.slice(1);
+    if (p.changes.length) text += "; " + p.changes.map((c) => changeText(c, p.unit)).join(", then ");
+    text += ". Stable on " + (p.intervals.length ? p.intervals.map(interval).join(", ") + unit : "no part of the range") + ".";
+    return text;
+  }
+
+  function firstLoss(p) {
+    // the critical value: the first loss from a stable start, else null
+    if (!p.stable) return null;
+    const loss = p.changes.find((c) => c.direction === "loss");
+    return loss || null;
+  }
+
+  function segments(p, end) {
+    // the range cut at every change of stability: [{from, to, state, begins}]
+    const out = [];
+    let from = p.x0;
+    let stable = p.stable;
+    let begins = "start of the range" + (stable ? "" : " (" + mechanism(p.how) + ")");
+    for (const c of p.changes) {
+      out.push({ from, to: c.x, state: stable ? "stable" : "unstable", begins });
+      from = c.x;
+      stable = c.direction === "gain";
+      begins = (c.direction === "loss" ? "loss by " : "regained: ") + c.kind + (c.mode ? ", mode " + c.mode : "");
+    }
+    out.push({ from, to: end, state: stable ? "stable" : "unstable", begins });
+    return out;
+  }
+
+  function segmentTable(title, p, end) {
+    const u = p.unit ? " [" + p.unit + "]" : " [-]";
+    return table(title, [
+      ["from " + p.name + u, (s) => s.from], ["to " + p.name + u, (s) => s.to],
+      ["pipe", (s) => s.state], ["how it begins", (s) => s.begins],
+    ], segments(p, end));
+  }
+
+  function linePicture(stable, how, crossings, intervals, x0, name, unit, value) {
+    // a map's line (spin or beta): its picture from the result's arrays
+    return {
+      stable, how: how || [], name, unit, x0, intervals: intervals || [],
+      changes: (crossings || []).map((c) => ({ x: value(c), direction: c.direction, kind: c.kind })),
+    };
+  }
+
+  function sweepPicture(r) {
+    // the pipe along an Argand or Campbell sweep (every eigenvalue, not the tracked ones)
+    if (r.stable_at_start === undefined) return null; // a result of an earlier version
+    const par = r.parameter;
+    const name = par.name === "spin" ? "ω0" : "v";
+    return {
+      stable: r.stable_at_start, how: r.instability_at_start || [], name, unit: par.unit,
+      x0: par.values[0], end: par.values[par.values.length - 1], intervals: r.stable_intervals || [],
+      changes: (r.boundary || []).map((c) => ({ x: c.value, direction: c.direction, kind: c.kind })),
+    };
+  }
+
   const VIEWS = {
     stability(r) {
-      const cr = r.critical_velocity;
-      const u = r.dimensionless && r.dimensionless.u_cr;
-      return {
-        summary: cr === null || cr === undefined
-          ? (r.stable_throughout ? "Stable over the whole range." : "No loss of stability found in the range.")
-          : "Critical velocity v_cr = " + fmt(cr) + " m/s (u_cr = " + fmt(u, 4) + ") at ω0 = " + fmt(r.omega0)
-            + " rad/s; stable on " + (r.stable_intervals || []).map((i) => "[" + i.map((x) => fmt(x, 5)).join(", ") + "]").join(", ") + " m/s.",
-        unstable: cr !== null && cr !== undefined,
-        tables: [table("Every crossing of σ = 0", [
-          ["velocity [m/s]", (c) => c.velocity], ["frequency [rad/s]", (c) => c.frequency],
-          ["frequency [Hz]", (c) => c.frequency_hz], ["mode", (c) => c.mode], ["kind", (c) => c.kind],
-          ["direction", (c) => c.direction], ["boundary", (c) => c.boundary], ["flow number u [-]", (c) => c.flow_number],
-        ], r.crossings || [])],
-      };
+      const tables = [];
+      let summary;
+      if (r.stable_at_start === null || r.stable_at_start === undefined) {
+        summary = "The range is reverse flow only (v < 0): no critical velocity (see the caveat below).";
+      } else {
+        const range = r.velocity_range || [0, 0];
+        const p = {
+          stable: r.stable_at_start, how: r.instability_at_start, name: "v", unit: "m/s",
+          x0: Math.max(range[0], 0), intervals: r.stable_intervals || [],
+          changes: (r.crossings || []).filter((c) => c.boundary)
+            .map((c) => ({ x: c.velocity, direction: c.direction, kind: c.kind, mode: c.mode })),
+        };
+        const loss = firstLoss(p);
+        const from = "v = " + fmt(p.x0, 5) + " m/s" + (p.x0 > 0 ? " (the start of the range; below it is not analysed)" : "");
+        const u = r.dimensionless && r.dimensionless.u_cr;
+        const head = !p.stable
+          ? "No critical velocity: at ω0 = " + fmt(r.omega0) + " rad/s the pipe is already unstable at " + from + "."
+          : loss
+            ? "Critical velocity v_cr = " + fmt(loss.x) + " m/s (u_cr = " + fmt(u, 4) + ") at ω0 = " + fmt(r.omega0)
+              + " rad/s: the first loss of stability from " + from + ", by " + loss.kind + (loss.mode ? " of mode " + loss.mode : "") + "."
+            : "Stable over the whole range at ω0 = " + fmt(r.omega0) + " rad/s.";
+        summary = head + " " + picture(p);
+        tables.push(segmentTable("Stability along the range", p, range[1]));
+      }
+      tables.push(table("Every crossing of σ = 0", [
+        ["velocity [m/s]", (c) => c.velocity], ["frequency [rad/s]", (c) => c.frequency],
+        ["frequency [Hz]", (c) => c.frequency_hz], ["mode", (c) => c.mode], ["kind", (c) => c.kind],
+        ["direction", (c) => c.direction], ["boundary", (c) => c.boundary], ["flow number u [-]", (c) => c.flow_number],
+      ], r.crossings || []));
+      return { summary, unstable: !r.stable_throughout, tables };
     },
     argand(r) {
       const zeros = r.zero_crossings || [];
-      const loss = zeros.find((c) => c.direction === "loss");
+      const p = sweepPicture(r);
+      const tracked = table("Crossings of σ = 0 by the tracked branches", [
+        ["velocity [m/s]", (c) => c.value], ["frequency [rad/s]", (c) => c.frequency],
+        ["mode", (c) => c.mode], ["direction", (c) => c.direction],
+      ], zeros);
+      if (!p) {
+        return {
+          summary: zeros.length ? "The tracked branches cross σ = 0 " + zeros.length + " times (table)." : "No tracked branch crosses σ = 0.",
+          unstable: zeros.length > 0, tables: [tracked],
+        };
+      }
+      const loss = firstLoss(p);
+      const head = !p.stable ? "No critical velocity: the pipe is already unstable at the start of the sweep."
+        : loss ? "Critical velocity v_cr = " + fmt(loss.x) + " m/s: the first loss of stability from v = " + fmt(p.x0, 5) + " m/s, by " + loss.kind + "."
+          : "Stable over the whole sweep.";
       return {
-        summary: loss ? "Critical point: mode " + loss.mode + " crosses σ = 0 at v = " + fmt(loss.value) + " m/s, ω = " + fmt(loss.frequency) + " rad/s."
-          : "No tracked branch crosses σ = 0.",
-        unstable: !!loss,
-        tables: [table("Crossings of σ = 0 by the tracked branches", [
-          ["velocity [m/s]", (c) => c.value], ["frequency [rad/s]", (c) => c.frequency],
-          ["mode", (c) => c.mode], ["direction", (c) => c.direction],
-        ], zeros)],
+        summary: head + " " + picture(p),
+        unstable: !(p.stable && !loss),
+        tables: [segmentTable("Stability along the sweep (every eigenvalue)", p, p.end), tracked],
       };
     },
     campbell(r) {
       const exc = r.excitation || { orders: [], crossings: [] };
       const zeros = r.zero_crossings || [];
-      const loss = zeros.find((c) => c.direction === "loss");
+      const p = sweepPicture(r);
+      const head = "Excitation orders " + exc.orders.map((n) => fmt(n) + "x").join(", ") + ": "
+        + exc.crossings.length + " crossings with the tracked branches at v = " + fmt((r.fixed || {}).velocity) + " m/s.";
+      const tables = [table("Crossings of the excitation lines ω = n ω0", [
+        ["order n", (c) => c.order], ["mode", (c) => c.mode], ["spin [rad/s]", (c) => c.spin],
+        ["spin [rpm]", (c) => c.spin_rpm], ["frequency [rad/s]", (c) => c.frequency],
+        ["σ [1/s]", (c) => c.sigma], ["damping ratio ζ [-]", (c) => c.damping_ratio],
+      ], exc.crossings)];
+      if (p) tables.push(segmentTable("Stability along the sweep (every eigenvalue)", p, p.end));
+      tables.push(table("Crossings of σ = 0 by the tracked branches", [
+        ["spin [rad/s]", (c) => c.value], ["frequency [rad/s]", (c) => c.frequency],
+        ["mode", (c) => c.mode], ["direction", (c) => c.direction],
+      ], zeros));
       return {
-        summary: "Excitation orders " + exc.orders.map((n) => fmt(n) + "x").join(", ") + ": "
-          + exc.crossings.length + " crossings with the tracked branches at v = " + fmt((r.fixed || {}).velocity) + " m/s."
-          + (loss ? " Mode " + loss.mode + " loses stability at ω0 = " + fmt(loss.value) + " rad/s." : ""),
-        unstable: zeros.some((c) => c.direction === "loss"),
-        tables: [table("Crossings of the excitation lines ω = n ω0", [
-          ["order n", (c) => c.order], ["mode", (c) => c.mode], ["spin [rad/s]", (c) => c.spin],
-          ["spin [rpm]", (c) => c.spin_rpm], ["frequency [rad/s]", (c) => c.frequency],
-          ["σ [1/s]", (c) => c.sigma], ["damping ratio ζ [-]", (c) => c.damping_ratio],
-        ], exc.crossings), table("Crossings of σ = 0 by the tracked branches", [
-          ["spin [rad/s]", (c) => c.value], ["frequency [rad/s]", (c) => c.frequency],
-          ["mode", (c) => c.mode], ["direction", (c) => c.direction],
-        ], zeros)],
+        summary: head + (p ? " " + picture(p) : ""),
+        unstable: p ? !(p.stable && p.changes.length === 0) : zeros.length > 0,
+        tables,
       };
     },
     spin_map(r) {
-      const rows = r.spins.map((w, i) => ({ w, rpm: r.spins_rpm[i], v: r.critical_velocity[i], n: (r.crossings[i] || []).length }));
-      const found = rows.filter((x) => x.v !== null);
+      const x0 = Math.max(r.velocities[0], 0);
+      const rows = r.spins.map((w, i) => {
+        const how = (r.instability_at_start || [])[i];
+        const p = linePicture(r.stable_at_start[i], how, r.crossings[i], (r.stable_intervals || [])[i],
+          x0, "v", "m/s", (c) => c.velocity);
+        const loss = firstLoss(p);
+        return {
+          w, rpm: r.spins_rpm[i], p,
+          start: p.stable ? "stable" : "unstable (" + mechanism(p.how) + ")",
+          vcr: !p.stable ? "none: unstable at v = " + fmt(x0, 5) + " m/s" : loss ? loss.x : "none in the range",
+          stable: p.intervals.length ? p.intervals.map(interval).join(", ") : "nowhere",
+          changes: p.changes.length ? p.changes.map((c) => (c.direction === "loss" ? "loss " : "gain ") + fmt(c.x, 5) + " (" + c.kind + ")").join("; ") : "none",
+        };
+      });
+      const atRest = rows.filter((x) => x.p.stable);
+      const losing = atRest.filter((x) => typeof x.vcr === "number");
+      const unstable = rows.filter((x) => !x.p.stable);
+      const kinds = [...new Set(unstable.flatMap((x) => x.p.how))];
+      const at = "v = " + fmt(x0, 5) + " m/s";
+      let summary = "At " + atRest.length + " of " + rows.length + " spins the pipe is stable at " + at;
+      summary += losing.length ? " and loses stability at v_cr from " + fmt(Math.min(...losing.map((x) => x.vcr)), 4)
+        + " to " + fmt(Math.max(...losing.map((x) => x.vcr)), 4) + " m/s." : ".";
+      if (unstable.length) {
+        summary += " At " + unstable.length + " spin" + (unstable.length > 1 ? "s" : "") + " (the lowest ω0 = " + fmt(unstable[0].w) + " rad/s) it is already unstable at " + at
+          + " (" + (kinds.length ? kinds.join(" and ") : "mechanism not in this result") + "): no critical velocity there; the table gives where it is stable.";
+      }
       return {
-        summary: "Critical velocity at " + found.length + " of " + rows.length + " spins.",
-        unstable: found.length > 0,
-        tables: [table("Critical velocity per spin", [
-          ["spin [rad/s]", (x) => x.w], ["spin [rpm]", (x) => x.rpm], ["v_cr [m/s]", (x) => x.v],
-          ["boundary crossings", (x) => x.n],
+        summary,
+        unstable: rows.some((x) => !x.p.stable || x.p.changes.length > 0),
+        tables: [table("Stability per spin", [
+          ["spin [rad/s]", (x) => x.w], ["spin [rpm]", (x) => x.rpm], ["at " + at, (x) => x.start],
+          ["v_cr: first loss from " + at + " [m/s]", (x) => x.vcr], ["stable on [m/s]", (x) => x.stable],
+          ["changes of stability [m/s]", (x) => x.changes],
         ], rows)],
       };
     },
     beta_map(r) {
-      const rows = r.betas.map((b, i) => ({ b, u: r.u_cr[i], n: (r.crossings[i] || []).length }));
+      const u0 = r.u_range[0];
+      const rows = r.betas.map((b, i) => {
+        const how = (r.instability_at_start || [])[i];
+        const p = linePicture(r.stable_at_start[i], how, r.crossings[i], (r.stable_intervals || [])[i],
+          u0, "u", "", (c) => c.u);
+        const loss = firstLoss(p);
+        return {
+          b, p,
+          start: p.stable ? "stable" : "unstable (" + mechanism(p.how) + ")",
+          u: !p.stable ? "none: unstable at u = " + fmt(u0, 5) : loss ? loss.x : "none in the range",
+          stable: p.intervals.length ? p.intervals.map(interval).join(", ") : "nowhere",
+          changes: p.changes.length ? p.changes.map((c) => (c.direction === "loss" ? "loss " : "gain ") + fmt(c.x, 5) + " (" + c.kind + ")").join("; ") : "none",
+        };
+      });
+      const unstable = rows.filter((x) => !x.p.stable);
       return {
-        summary: "u_cr(β) at γ = " + fmt(r.gamma) + "; " + (r.multiple_crossings || []).length
-          + " mass ratios with more than one crossing (S-shaped segments).",
-        unstable: rows.some((x) => x.u !== null),
-        tables: [table("Critical flow number per mass ratio", [
-          ["β [-]", (x) => x.b], ["u_cr [-]", (x) => x.u], ["crossings", (x) => x.n],
+        summary: "u_cr(β) at γ = " + fmt(r.gamma) + ": the first loss of stability from u = " + fmt(u0, 5) + "; "
+          + (r.multiple_crossings || []).length + " mass ratios with more than one crossing (S-shaped segments)."
+          + (unstable.length ? " At " + unstable.length + " mass ratios the pipe is already unstable at u = " + fmt(u0, 5)
+            + ": no u_cr there; the table gives where it is stable." : ""),
+        unstable: rows.some((x) => !x.p.stable || x.p.changes.length > 0),
+        tables: [table("Stability per mass ratio", [
+          ["β [-]", (x) => x.b], ["at u = " + fmt(u0, 5), (x) => x.start],
+          ["u_cr: first loss from u = " + fmt(u0, 5) + " [-]", (x) => x.u], ["stable on [-]", (x) => x.stable],
+          ["changes of stability [-]", (x) => x.changes],
         ], rows)],
       };
     },

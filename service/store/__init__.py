@@ -21,6 +21,7 @@ import threading
 
 from service.store.connection import PROBE_BYTES, StoreConnection, sqlite_url
 from service.store.errors import StorageError, StoreRefused
+from service.store.grants import GrantStore
 from service.store.jobs import (
     ACTIVE,
     COST_WINDOW_S,
@@ -28,7 +29,6 @@ from service.store.jobs import (
     Claim,
     Job,
     JobState,
-    JobStore,
     Usage,
 )
 from service.store.memory import MemoryLRU
@@ -55,10 +55,18 @@ __all__ = [
 ]
 
 
-class Store(ResultStore, JobStore):
+class Store(ResultStore, GrantStore):
     """Thread-safe access to the database (call from threads, not the event loop): its
-    results (:mod:`service.store.results`) and job records (:mod:`service.store.jobs`) over
-    one connection (:mod:`service.store.connection`)."""
+    results (:mod:`service.store.results`), job records (:mod:`service.store.jobs`) and
+    who may follow them (:mod:`service.store.grants`) over one connection
+    (:mod:`service.store.connection`)."""
+
+    def prune_jobs(self, older_than: float) -> int:
+        """The finished job records (:meth:`service.store.jobs.JobStore.prune_jobs`), then
+        the grants of the records gone or reset."""
+        pruned = super().prune_jobs(older_than)
+        self.prune_grants()
+        return pruned
 
     def finish_with_result(
         self, key: str, owner: str, kind: str, body: bytes, *, remember: bool = True

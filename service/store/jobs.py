@@ -503,24 +503,6 @@ class JobStore(StoreConnection):
                 ),
             )
 
-    def request_cancel(self, key: str) -> Job | None:
-        """Flag an active job as cancelled (its attempt stops at its next heartbeat)."""
-        now = time.time()
-        with self._write() as conn:
-            conn.execute(
-                update(jobs)
-                .where(jobs.c.key == key, jobs.c.status.in_(ACTIVE))
-                .values(
-                    cancel=1,
-                    status="cancelled",
-                    finished=now,
-                    updated=now,
-                    error=json.dumps({"detail": "cancelled by request"}),
-                )
-            )
-            conn.execute(delete(checkpoints).where(checkpoints.c.key == key))
-            return self._job(conn, key)
-
     @staticmethod
     def _stored(conn: Connection, key: str) -> bool:
         """Whether the results table holds ``key`` (read in ``conn``'s transaction)."""

@@ -92,6 +92,17 @@ checkpoints = Table(
     Column("written", Float, nullable=False),
 )
 
+#: migration 0006: a client that joined another client's run of a job (submitted the same
+#: computation), and the record's generation then: it may follow that run too
+#: (:mod:`service.store.grants`)
+job_grants = Table(
+    "job_grants",
+    metadata,
+    Column("key", String(128), primary_key=True),
+    Column("principal", String(256), primary_key=True),
+    Column("generation", Integer, nullable=False),
+)
+
 #: a scratch row written by the storage probe (is there room for a write again?)
 probe = Table(
     "probe",

@@ -120,6 +120,19 @@ def test_stability_critical_velocity_and_sweep_plot(
     assert result["kind"] == "stability" and result["critical_velocity"] > 0
     assert "critical flow velocity:" in capsys.readouterr().err
 
+    # spinning at 1000 rad/s the pipe diverges at rest: no critical velocity, where it is
+    # stable instead (not the API's critical_velocity, the loss after the regain)
+    fast = {"pipe": PIPE, "modes": 10, "velocity_range": [0, 60]}
+    spec.write_text(json.dumps(fast | {"rotation": {"omega0": {"value": 1000.0}}}))
+    assert main(["stability", str(spec), "-o", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    [(a, b)] = result["stable_intervals"]
+    assert result["critical_velocity"] == b and result["stable_at_start"] is False
+    assert (
+        f"critical flow velocity: none: already unstable at v = 0 m/s (divergence); stable "
+        f"on [{a:.5g}, {b:.5g}] m/s"
+    ) in capsys.readouterr().err
+
     sweep = tmp_path / "argand.json"
     sweep.write_text(
         json.dumps({"kind": "argand", "pipe": PIPE, "modes": 4, "velocity_range": [0, 40]})

@@ -6,7 +6,9 @@ the schema); critical velocities show every crossing (the paper pipe at 100 rad/
 stability at 27.69 m/s, README / ``critical_velocities``); a Campbell sweep runs as a job
 with progress polled from ``/v1/jobs/{key}``, its excitation crossings tabled as the API
 returned them and its figures loaded; Argand, spin and beta maps render; a shareable link
-reloads the result; a bad range shows the API's message next to the field.
+reloads the result; a bad range shows the API's message next to the field.  A pipe unstable
+at rest (1000 rad/s) shows no critical velocity but its stable intervals, on the page, in
+its spin map's table and in its report (issue 34).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Any
 import httpx
 import pytest
 
+from pipeflow.schema.stability import PAPER_PIPE_JSON
 from tests.service.browser import Page, open_page, page
 
 #: slow (CI's second step): a real chromium and a server of its own: over 10 s a file
@@ -65,7 +68,12 @@ def test_critical_velocities_every_crossing_and_share(
     assert result["kind"] == "stability"
     assert result["critical_velocity"] == pytest.approx(27.69, abs=0.005)
     assert "Critical velocity v_cr = 27.69" in page.inner_text("#summary")
-    rows = _table(page)
+    # the range cut where the pipe changes stability: stable from rest, flutter from v_cr
+    assert _table(page, 0) == [
+        ["0", f"{result['critical_velocity']:.6g}", "stable", "start of the range"],
+        [f"{result['critical_velocity']:.6g}", "60", "unstable", "loss by flutter, mode 3"],
+    ]
+    rows = _table(page, 1)
     assert len(rows) == len(result["crossings"]) >= 1
     for row, crossing in zip(rows, result["crossings"], strict=True):
         assert float(row[0]) == pytest.approx(crossing["velocity"], rel=1e-5)
@@ -124,7 +132,7 @@ def test_campbell_sweep_job_shows_progress_and_crossings(
             "argand",
             {"velocity_range": "0, 40", "points": "121"},
             "argand",
-            "Critical point: mode 3",
+            "Critical velocity v_cr = 27.69",
         ),
         (
             "spin_map",
@@ -136,7 +144,7 @@ def test_campbell_sweep_job_shows_progress_and_crossings(
                 "modes": "6",
             },
             "spin_map",
-            "Critical velocity at",
+            "spins the pipe is stable at v = 0 m/s",
         ),
         (
             "beta_map",
@@ -165,7 +173,8 @@ def test_argand_and_maps(
     rows = _table(page)
     if kind == "argand":
         first = next(c for c in result["zero_crossings"] if c["direction"] == "loss")
-        assert float(rows[0][0]) == pytest.approx(first["value"], rel=1e-5)
+        assert float(rows[0][1]) == pytest.approx(first["value"], rel=1e-5)  # stable until
+        assert float(_table(page, 1)[0][0]) == pytest.approx(first["value"], rel=1e-5)
         assert first["value"] == pytest.approx(27.69, abs=0.005)
     elif kind == "spin_map":
         assert len(rows) == len(result["spins"]) == 4
@@ -186,3 +195,107 @@ def test_bad_range_shows_the_api_message_next_to_the_field(server: str, page: Pa
     slot.wait_for(state="visible")
     assert "increasing" in slot.inner_text()
     assert "invalid" in (page.get_attribute("input[name='velocity_range']", "class") or "")
+
+
+# -- a pipe unstable at rest (issue 34, safety item 1) ----------------------------------------
+# The paper's pipe at 1000 rad/s diverges at v = 0, is stable from 17.51 to 34.31 m/s and
+# flutters above (tests/pipeflow/stability/test_unstable_at_rest.py checks the numbers on
+# the spectrum).  The API's critical_velocity there is 34.31 m/s, the first loss after the
+# regain: no page may show it as a critical velocity.
+
+
+def _g(x: float, digits: int = 6) -> str:
+    """A number as the pages' fmt writes it (``digits`` significant)."""
+    return f"{x:.{digits}g}"
+
+
+def test_a_pipe_unstable_at_rest_has_no_critical_velocity(
+    server: str, page: Page, screenshot: Any
+) -> None:
+    open_page(page, server + "/stability")
+    page.fill("input[name='rotation.omega0.value']", "1000")
+    result = _run(page)
+    assert result["stable_at_start"] is False and result["instability_at_start"] == ["divergence"]
+    assert result["critical_velocity"] == pytest.approx(34.314, abs=1e-3)  # the API's field
+    [(a, b)] = result["stable_intervals"]
+    summary = page.inner_text("#summary")
+    assert summary.startswith(
+        "No critical velocity: at ω0 = 1000 rad/s the pipe is already unstable at v = 0 m/s."
+    )
+    assert (
+        f"Unstable at v = 0 m/s (divergence); regains stability at {_g(a, 5)} m/s (divergence, "
+        f"mode 1), then loses stability at {_g(b, 5)} m/s (flutter, mode 3). Stable on "
+        f"[{_g(a, 5)}, {_g(b, 5)}] m/s."
+    ) in summary
+    assert "v_cr" not in summary and "Critical velocity" not in summary
+    assert "ok" not in (page.get_attribute("#summary", "class") or "")  # the red banner
+    assert _table(page, 0) == [
+        ["0", _g(a), "unstable", "start of the range (divergence)"],
+        [_g(a), _g(b), "stable", "regained: divergence, mode 1"],
+        [_g(b), "60", "unstable", "loss by flutter, mode 3"],
+    ]
+    page.locator("#summary").scroll_into_view_if_needed()
+    screenshot(page, "stability-unstable-at-rest")
+
+    # its report: no critical velocity either, the same picture
+    page.goto(f"{server}/v1/results/{result['key']}/report.html")
+    text = page.inner_text("body")
+    label = "critical velocity v_cr [m/s]: the first loss of stability from v = 0 m/s"
+    assert f"{label}\tnone: already unstable at v = 0 m/s" in text
+    assert "stable at the start of the range, v = 0 m/s\tno: divergence" in text
+    assert f"stable intervals [m/s]\t[{_g(a, 5)}, {_g(b, 5)}] m/s" in text
+    screenshot(page, "report-unstable-at-rest")
+
+
+def test_the_spin_map_table_gives_each_spins_stable_intervals(
+    server: str, page: Page, screenshot: Any
+) -> None:
+    fields = {
+        "velocity_range": "0, 60",
+        "spin_range": "0, 1000",
+        "velocity_points": "61",
+        "spin_points": "5",
+        "modes": "10",
+    }
+    open_page(page, server + "/stability?analysis=spin_map")
+    for name, value in fields.items():
+        page.fill(f"input[name='{name}']", value)
+    result = _run(page)
+    assert result["spins"] == [0, 250, 500, 750, 1000]
+    assert result["stable_at_start"] == [True, True, False, False, False]
+    rows = _table(page, 0)
+    assert len(rows) == 5
+    for row, ok, v_cr, stable in zip(
+        rows,
+        result["stable_at_start"],
+        result["critical_velocity"],
+        result["stable_intervals"],
+        strict=True,
+    ):
+        assert row[2] == ("stable" if ok else "unstable (divergence)")
+        # v_cr only from a stable start: never the loss after the regain
+        assert row[3] == (_g(v_cr) if ok else "none: unstable at v = 0 m/s")
+        assert row[4] == ", ".join(f"[{_g(x, 5)}, {_g(y, 5)}]" for x, y in stable)
+    assert rows[-1][5] == (
+        f"gain {_g(result['stable_intervals'][-1][0][0], 5)} (divergence); "
+        f"loss {_g(result['stable_intervals'][-1][0][1], 5)} (flutter)"
+    )
+    # the same line by the independent analysis (branch following, not the map's max sigma)
+    spec = {
+        "pipe": PAPER_PIPE_JSON,
+        "rotation": {"omega0": {"kind": "constant", "value": 1000.0}},
+        "modes": 10,
+        "velocity_range": [0.0, 60.0],
+    }
+    line = httpx.post(server + "/v1/stability", json=spec, timeout=120).json()
+    [(a, b)] = line["stable_intervals"]
+    assert rows[-1][4] == f"[{_g(a, 5)}, {_g(b, 5)}]"
+    summary = page.inner_text("#summary")
+    assert "At 2 of 5 spins the pipe is stable at v = 0 m/s and loses stability at v_cr" in summary
+    assert (
+        "At 3 spins (the lowest ω0 = 500 rad/s) it is already unstable at v = 0 m/s (divergence): "
+        "no critical velocity there"
+    ) in summary
+    _figures_loaded(page, ["spin_map"])
+    page.locator("#summary").scroll_into_view_if_needed()
+    screenshot(page, "stability-spin-map-unstable-at-rest")

@@ -216,7 +216,7 @@ def test_growth_maps_with_no_growth_keep_a_symmetric_scale() -> None:
 def test_campbell_and_argand_mark_the_crossings() -> None:
     """The Campbell figure draws one dashed line per excitation order (legend "1x", "2x"),
     the crossings and a damping-ratio colour bar; the Argand figure marks the critical point
-    (the paper pipe at 100 rad/s: 27.69 m/s, mode 3, as in the README)."""
+    (the paper pipe at 100 rad/s: 27.69 m/s by flutter, as in the README)."""
     from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
     from pipeflow.schema.stability import PAPER_PIPE_JSON
 
@@ -252,4 +252,4 @@ def test_campbell_and_argand_mark_the_crossings() -> None:
             }
         )
     )
-    assert "critical point: 27.69 m/s, mode 3" in _svg_text(render(a, "argand", "svg"))
+    assert "critical point: 27.69 m/s (flutter)" in _svg_text(render(a, "argand", "svg"))

@@ -82,7 +82,10 @@ def test_stability_report_states_the_critical_velocity() -> None:
     result = COMPUTATIONS["stability"].execute(StabilitySpec.model_validate(body))
     _, texts = _pdf_text(to_pdf(result, body))
     flat = re.sub(r"\s+", " ", " ".join(texts))
-    assert f"critical velocity v_cr [m/s] {result['critical_velocity']:.6g}" in flat
+    v_cr = f"{result['critical_velocity']:.6g}"
+    label = "critical velocity v_cr [m/s]: the first loss of stability from v = 0 m/s"
+    assert f"{label} {v_cr}" in flat
+    assert f"stable intervals [m/s] [0, {result['critical_velocity']:.5g}] m/s" in flat
 
 
 def test_the_end_values_of_a_diverged_run_are_stated_at_its_divergence_time(

@@ -111,6 +111,20 @@ def test_a_server_requiring_keys_refuses_to_start_without_one(tmp_path: Path) ->
     create_app(Settings(data_dir=tmp_path, auth_required=False))  # off: no key needed
 
 
+def test_admin_key_ids_must_be_keys_of_the_ring(tmp_path: Path) -> None:
+    """A misspelt admin id would leave the operator without the admin key they meant:
+    the server refuses to start and names the id (ids are not secrets)."""
+    with pytest.raises(KeyRingError, match="PIPEFLOW_ADMIN_KEY_IDS names 'ops'"):
+        create_app(
+            Settings(
+                data_dir=tmp_path, auth_required=True, api_keys=ALICE_ENTRY, admin_key_ids="ops"
+            )
+        )
+    create_app(
+        Settings(data_dir=tmp_path, auth_required=True, api_keys=ALICE_ENTRY, admin_key_ids="alice")
+    )
+
+
 def _assert_401(r: object, message: str) -> None:
     assert r.status_code == 401, r.text  # type: ignore[attr-defined]
     assert r.headers["content-type"] == "application/problem+json"  # type: ignore[attr-defined]
@@ -191,6 +205,9 @@ def test_openapi_of_a_server_requiring_keys_declares_them(tc: TestClient) -> Non
     assert "401" in post["responses"]
     assert "403" in doc["paths"]["/metrics"]["get"]["responses"]
     assert "security" not in doc["paths"]["/healthz"]["get"]
+    # a key cancels only the runs it started (an admin key: any)
+    assert "403" in doc["paths"]["/v1/jobs/{key}"]["delete"]["responses"]
+    assert "403" not in doc["paths"]["/v1/jobs/{key}"]["get"]["responses"]
 
 
 def test_the_compose_replicas_require_keys() -> None:

@@ -157,7 +157,8 @@ def _old_schema(path: Path) -> None:
 
 def test_migrates_a_pre_alembic_database(tmp_path: Path) -> None:
     """The old file keeps its data: stamped 0001, migrated to head (codec, attempts, ...,
-    the running totals of 0003, the queue's columns of 0004, the checkpoints of 0005)."""
+    the running totals of 0003, the queue's columns of 0004, the checkpoints of 0005, the
+    job grants of 0006)."""
     path = tmp_path / "db.sqlite3"
     _old_schema(path)
     store = Store(path, cache_max_bytes=10_000, memory_cache_bytes=0)
@@ -169,8 +170,9 @@ def test_migrates_a_pre_alembic_database(tmp_path: Path) -> None:
     assert job.dispatcher == "before-0004" and not job.waiting
     assert job.principal is None and job.cost == 0.0
     conn = sqlite3.connect(path)
-    assert conn.execute("SELECT version_num FROM alembic_version").fetchone() == ("0005",)
+    assert conn.execute("SELECT version_num FROM alembic_version").fetchone() == ("0006",)
     assert conn.execute("SELECT COUNT(*) FROM checkpoints").fetchone() == (0,)
+    assert conn.execute("SELECT COUNT(*) FROM job_grants").fetchone() == (0,)
     # migration 0003 filled the running totals from the rows already there
     assert conn.execute("SELECT result_bytes, result_rows FROM store_stats").fetchall() == [(7, 1)]
     conn.close()
