@@ -43,7 +43,7 @@ from pipeflow.modeshapes import (
     MAX_SHAPE_TIMES,
     MAX_SHAPE_VALUES,
 )
-from pipeflow.schema import units
+from pipeflow.schema import plausibility, units
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
@@ -1057,7 +1057,10 @@ def run_simulation(spec: SimulationSpec, progress: Progress | None = None) -> Re
     """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
     the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
     with request_fields(SIMULATION_FIELDS):
-        return simulate(spec.to_simulation(), progress=progress)
+        result = simulate(spec.to_simulation(), progress=progress)
+    # a value far outside the pipe's scales, likely meant in another unit (issue 34, item 8)
+    result.warnings.extend(plausibility.warnings(spec))
+    return result
 
 
 #: the paper's section-5 example (:mod:`pipeflow.paper`), v = 0.4 t m/s, w0 = 100 rad/s,
