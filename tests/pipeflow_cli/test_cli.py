@@ -73,6 +73,22 @@ def test_invalid_spec_names_the_field(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "pipe.L" in err and "greater than 0" in err
 
 
+def test_invalid_spec_messages_are_readable(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 34, item 8: an unknown field gets a "did you mean", "3000 rpm" as text the
+    {"value", "unit"} form."""
+    spec = json.loads(json.dumps(PAPER_EXAMPLE))
+    spec["rotation"]["omega0"]["value"] = "3000 rpm"
+    spec["modse"] = spec.pop("modes")
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(spec))
+    assert main(["run", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "error: modse: Extra inputs are not permitted; did you mean 'modes'?" in err
+    assert '{"value": 3000, "unit": "rpm"}' in err
+
+
 def test_bad_json_and_bad_plot_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "x.json"
     path.write_text("{not json")

@@ -49,3 +49,24 @@ def test_both_ways_is_a_422_naming_the_field(client: TestClient) -> None:
     (error,) = r.json()["errors"]
     assert error["field"] == "pipe.material"
     assert "did you mean 'stainless'?" in error["message"]
+
+
+def test_422_messages_are_readable(client: TestClient) -> None:
+    """Issue 34, item 8: "3000 rpm" as text is shown the {"value", "unit"} form, an
+    unknown field gets a "did you mean", a validator's refusal has no "Value error,"."""
+    body = _body(DRAWING)
+    body["rotation"] = {"omega0": {"kind": "constant", "value": "3000 rpm"}}
+    r = client.post("/v1/simulations", json=body)
+    assert r.status_code == 422, r.text
+    (error,) = r.json()["errors"]
+    assert error["field"] == "rotation.omega0.value"
+    assert error["message"].endswith('as {"value": 3000, "unit": "rpm"}')
+    body = _body(dict(DRAWING, fluid="water", wall_thicknes=0.003))
+    r = client.post("/v1/simulations", json=body)
+    assert r.status_code == 422, r.text
+    (error,) = r.json()["errors"]
+    assert error["field"] == "pipe.wall_thicknes"
+    assert error["message"] == "Extra inputs are not permitted; did you mean 'wall_thickness'?"
+    r = client.post("/v1/simulations", json=_body(dict(DRAWING, wall_thickness=0.1)))
+    (error,) = r.json()["errors"]
+    assert error["message"].startswith("wall_thickness = 0.1 m is more than outer_diameter / 2")
