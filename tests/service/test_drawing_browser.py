@@ -74,3 +74,24 @@ def test_the_form_takes_the_pipe_from_its_drawing(server: str, page: Page, scree
     )
     page.locator("input[name='pipe.outer_diameter']").scroll_into_view_if_needed()
     screenshot(page, "viewer-pipe-from-drawing")
+
+
+def test_the_page_shows_a_spin_meant_in_rpm(server: str, page: Page, screenshot: Any) -> None:
+    """Issue 34, item 8: 3000 typed as rad/s for the paper's pipe (first bending frequency
+    291 rad/s) runs, and the page lists the plausibility warning with the rpm form."""
+    open_page(page, server + "/")
+    page.fill("input[name='modes']", "3")
+    page.fill("input[name='time.t_end']", "0.02")
+    page.fill("input[name='time.samples']", "21")
+    page.fill("input[name='rotation.omega0.value']", "3000")
+    page.evaluate("window.pipeflowViewer.state.result = null")
+    page.click("#run")
+    page.wait_for_function(
+        "window.pipeflowViewer.state.result !== null"
+        " && document.getElementById('status').textContent.startsWith('done')"
+    )
+    shown = page.inner_text("#warnings")
+    assert "rotation.omega0 = 3000 rad/s is 10.3x the pipe's first bending frequency" in shown
+    assert '{"value": 3000, "unit": "rpm"} (314 rad/s)' in shown
+    page.locator("#warnings").scroll_into_view_if_needed()
+    screenshot(page, "viewer-spin-plausibility-warning")
