@@ -43,7 +43,7 @@ from pipeflow.modeshapes import (
     MAX_SHAPE_TIMES,
     MAX_SHAPE_VALUES,
 )
-from pipeflow.schema import plausibility, units
+from pipeflow.schema import messages, plausibility, units
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
@@ -378,7 +378,7 @@ def from_drawing(data: dict[str, Any]) -> dict[str, Any]:
         if isinstance(cause, InvalidField):
             raise InvalidField(cause.message, cause.loc) from None
         loc = ".".join(str(p) for p in err["loc"])
-        raise InvalidField(f"{loc}: {err['msg']}", loc) from None
+        raise InvalidField(f"{loc}: {messages.message(err)}", loc) from None
     out = {k: v for k, v in data.items() if k not in DRAWING_FIELDS}
 
     def clash(explicit: str, derived: str) -> None:
