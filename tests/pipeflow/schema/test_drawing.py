@@ -238,6 +238,17 @@ def _refusal(pipe: dict[str, Any]) -> tuple[str, str]:
             "outer_diameter",
             "is a time",
         ),
+        (
+            {
+                "L": 1,
+                "material": "steel",
+                "outer_diameter": "33.4 mm",
+                "inner_diameter": d,
+                "fluid": "water",
+            },
+            "outer_diameter",
+            'as {"value": 33.4, "unit": "mm"}',
+        ),
     ],
 )
 def test_mixed_or_incomplete_drawings_are_refused_naming_the_field(
