@@ -887,7 +887,10 @@ class SimulationSpec(StrictModel):
     @classmethod
     def _known_method(cls, v: str) -> str:
         if v not in SOLVERS:
-            raise InvalidField(f"unknown method {v!r}; choose one of {', '.join(sorted(SOLVERS))}")
+            hint = messages.did_you_mean(v, sorted(SOLVERS)) or "; choose one of " + ", ".join(
+                sorted(SOLVERS)
+            )
+            raise InvalidField(f"unknown method {v!r}{hint}")
         return v
 
     @model_validator(mode="after")

@@ -58,3 +58,12 @@ def test_validator_messages_lose_the_prefix_and_units_get_a_did_you_mean() -> No
     body["rotation"]["omega0"]["value"] = {"value": 3000, "unit": "rmp"}
     [(_, text)] = _errors(body)
     assert text.endswith("value.unit: unknown unit 'rmp'; did you mean 'rpm'?")
+
+
+def test_an_unknown_method_gets_a_did_you_mean() -> None:
+    body = copy.deepcopy(PAPER_EXAMPLE)
+    body["method"] = "magnsu"
+    [(loc, text)] = _errors(body)
+    assert (loc, text) == ("method", "unknown method 'magnsu'; did you mean 'magnus'?")
+    body["method"] = "zzz"
+    assert _errors(body)[0][1].startswith("unknown method 'zzz'; choose one of ")
