@@ -187,12 +187,13 @@ def _run_local(kind: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
 
     try:
         request = registry.parse(kind, spec_data)
-    except ValidationError:
+    except ValidationError as exc:
         print(
             f"error: not a valid {kind!r} request (choose the computation with --kind: "
             f"{', '.join(_kinds())})",
             file=sys.stderr,
         )
+        exc.__notes__ = [_REQUEST_TYPE_NOTE + kind]
         raise
     try:
         return registry.computation_for(request).execute(request, bar)
@@ -659,14 +660,22 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _describe_validation(exc: Exception) -> list[str]:
+#: the note a request's ValidationError carries: the computation it was validated as
+_REQUEST_TYPE_NOTE = "pipeflow request kind: "
+
+
+def _describe_validation(exc: Exception, tp: Any = None) -> list[str]:
+    """One line per error: the field and :func:`pipeflow.schema.messages.message` (``tp``,
+    the request type, gives an unknown field its "did you mean")."""
+    from pipeflow.schema import messages
+
     errors = getattr(exc, "errors", None)
     if not callable(errors):
         return [str(exc)]
     lines = []
     for e in errors():
         loc = ".".join(str(x) for x in e.get("loc", ()))
-        lines.append(f"{loc or 'spec'}: {e.get('msg', '')}")
+        lines.append(f"{loc or 'spec'}: {messages.message(e, tp)}")
     return lines
 
 
@@ -679,7 +688,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except ValidationError as exc:
-        for line in _describe_validation(exc):
+        tp = None
+        for note in getattr(exc, "__notes__", ()):
+            if note.startswith(_REQUEST_TYPE_NOTE):
+                from pipeflow.schema import registry
+
+                tp = registry.request_type(note.removeprefix(_REQUEST_TYPE_NOTE))
+        for line in _describe_validation(exc, tp):
             print(f"error: {line}", file=sys.stderr)
         return 2
     except PipeflowError as exc:

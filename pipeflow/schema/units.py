@@ -169,7 +169,9 @@ def to_si(value: Any, unit: str, loc: str) -> Any:
         seen.add(given)
     source = parsed_unit(given)
     if source is None:
-        raise InvalidField(f"{loc}.unit: unknown unit {given!r}", f"{loc}.unit")
+        raise InvalidField(
+            f"{loc}.unit: unknown unit {given!r}{unit_suggestion(given, unit)}", f"{loc}.unit"
+        )
     scale = conversion(given, unit)
     if isinstance(scale, str):
         raise InvalidField(f"{loc}: {number} {given} {scale} [{unit}]", loc)
@@ -230,6 +232,34 @@ def unit_grammar(text: str) -> bool:
             depth -= 1
             powered = False
     return operand and depth == 0
+
+
+#: the units a misspelt one is matched against, by SI unit (a field's), and for any field
+USUAL_UNITS: dict[str, tuple[str, ...]] = {
+    "m": ("m", "mm", "cm", "km", "um", "inch", "ft"),
+    "rad/s": ("rad/s", "rpm", "Hz", "deg/s"),
+    "m/s": ("m/s", "mm/s", "cm/s", "km/h", "ft/s"),
+    "Pa": ("Pa", "kPa", "MPa", "GPa", "bar", "psi"),
+    "s": ("s", "ms", "min", "h"),
+    "kg": ("kg", "g", "lb"),
+    "N": ("N", "kN", "mN", "lbf"),
+}
+
+
+def unit_suggestion(given: str, unit: str) -> str:
+    """``"; did you mean 'rpm'?"`` for a misspelt unit (``"rmp"``): the closest of the
+    usual units of the field's SI ``unit`` (:data:`USUAL_UNITS`), else of every usual
+    unit; ``""`` if none is close."""
+    import difflib
+
+    usual = USUAL_UNITS.get(unit, ())
+    everything = tuple(u for units in USUAL_UNITS.values() for u in units)
+    for names in (usual, everything):
+        lowered = {name.lower(): name for name in names}
+        close = difflib.get_close_matches(given.lower(), list(lowered), n=1, cutoff=0.6)
+        if close:
+            return f"; did you mean {lowered[close[0]]!r}?"
+    return ""
 
 
 @functools.lru_cache(maxsize=1024)

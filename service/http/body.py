@@ -175,6 +175,7 @@ class ThreadValidatedRoute(APIRoute):
             except RequestValidationError as exc:
                 if exc.body is outcome:  # FastAPI reports the body it validated: the JSON
                     exc.body = outcome.doc
+                exc.body_type = validator.tp  # type: ignore[attr-defined]  # its messages
                 raise
 
         return validated_in_thread

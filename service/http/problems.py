@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from pipeflow.errors import ErrorRecord, PipeflowError, StorageError, classify
+from pipeflow.schema import messages
 from service import observability
 
 log = logging.getLogger("service")
@@ -315,7 +316,13 @@ def _named_field(body: Any, base: list[Any], err: dict[str, Any]) -> list[Any]:
 
 
 def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
+    """Each error of ``exc`` as the problem document's entry: the field, its JSON
+    pointer, and the message (:func:`pipeflow.schema.messages.message`: no "Value error,"
+    prefix, the quantity form for "3000 rpm" sent as text, a "did you mean" for an
+    unknown field of the body's type, which :mod:`service.http.body` attaches as
+    ``exc.body_type``)."""
     body = getattr(exc, "body", None)
+    model = getattr(exc, "body_type", None)
     out: list[dict[str, Any]] = []
     for err in exc.errors():
         offset: int | None = None
@@ -341,7 +348,7 @@ def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
                 "field": field,
                 "pointer": _pointer(path) if where == "body" else None,
                 "location": where,
-                "message": str(err.get("msg", "invalid")),
+                "message": messages.message(err, model if where == "body" else None),
                 "type": str(err.get("type", "value_error")),
             }
         )

@@ -16,9 +16,9 @@
 //   its sampled parameters: field path -> values or distribution) a map editor: one entry
 //   per key, a key input and the value's own fields, "add" and "remove" buttons; an empty
 //   map is not sent;
-// - an enum becomes a <select>, a boolean a checkbox, a number, string or array of numbers
-//   a text input (arrays as "a, b, c"); "X or null" is X, left empty for null, and an
-//   optional block ("object or null") is sent only when its "include" box is ticked;
+// - an enum becomes a <select> (with an empty choice for "enum or null"), a boolean a
+//   checkbox, a number, string or array of numbers a text input (arrays as "a, b, c");
+//   "X or null" is X, left empty for null, and an optional block ("object or null") is sent only when its "include" box is ticked;
 // - every field shows its description, with the unit the description states in brackets
 //   ("[m/s]") next to its name; initial values are the given values (an example), else the
 //   schema's defaults.  A number's bounds (minimum, maximum, exclusive ones) are its
@@ -232,6 +232,8 @@ window.SchemaForm = (function () {
     let input;
     if (Array.isArray(s.enum)) {
       input = el("select", { name: path, "data-field": path, "data-type": "enum" });
+      // "name or null" (pipe.material): an empty choice, sent as nothing (the default)
+      if (s.nullable) input.add(new Option("", "", false, v === undefined || v === null));
       for (const option of s.enum) {
         input.add(new Option(String(option), String(option), false, option === v));
       }
@@ -588,6 +590,7 @@ window.SchemaForm = (function () {
     if (type === "boolean") return input.checked;
     if (type === "enum") {
       const raw = input.value;
+      if (raw === "" && s.nullable) return null;
       const match = (s.enum || []).find((o) => String(o) === raw);
       return match !== undefined ? match : raw;
     }

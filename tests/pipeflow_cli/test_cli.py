@@ -73,6 +73,37 @@ def test_invalid_spec_names_the_field(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "pipe.L" in err and "greater than 0" in err
 
 
+def test_invalid_spec_messages_are_readable(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 34, item 8: an unknown field gets a "did you mean", "3000 rpm" as text the
+    {"value", "unit"} form."""
+    spec = json.loads(json.dumps(PAPER_EXAMPLE))
+    spec["rotation"]["omega0"]["value"] = "3000 rpm"
+    spec["modse"] = spec.pop("modes")
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(spec))
+    assert main(["run", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "error: modse: Extra inputs are not permitted; did you mean 'modes'?" in err
+    assert '{"value": 3000, "unit": "rpm"}' in err
+
+
+def test_a_spin_meant_in_rpm_is_warned_about_on_stderr(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 34, item 8: the plausibility warning of the result, with the rpm form."""
+    spec = json.loads(json.dumps(PAPER_EXAMPLE))
+    spec.update(modes=3, time={"t_end": 0.01, "samples": 11})
+    spec["rotation"]["omega0"]["value"] = 3000.0
+    path = tmp_path / "spin.json"
+    path.write_text(json.dumps(spec))
+    assert main(["run", str(path), "-o", str(tmp_path / "r.json"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: rotation.omega0 = 3000 rad/s is 10.3x the pipe's first bending" in err
+    assert '{"value": 3000, "unit": "rpm"} (314 rad/s)' in err
+
+
 def test_bad_json_and_bad_plot_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "x.json"
     path.write_text("{not json")

@@ -1,0 +1,68 @@
+"""Plausibility warnings (issue 34, item 8): a spin or a flow velocity far outside the
+pipe's own scales is warned about in the result, naming the field, the value, the scale
+and the unit that would make it ordinary.
+
+The paper's pipe (E I = 9.438e-8 N m^2, M1 + M2 = 3.5325e-5 kg/m, L = 0.025 m): its first
+bending frequency by hand is 1.8751^2 sqrt(EI / (m L^4)) = 291 rad/s, so 3000 rad/s is
+10.3 of it and 3000 rpm (314 rad/s) is ordinary.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+from pipeflow.schema import plausibility
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec, run_simulation
+
+
+def _spec(**changes: Any) -> SimulationSpec:
+    body = copy.deepcopy(PAPER_EXAMPLE)
+    body.update(modes=3, time={"t_end": 0.01, "samples": 11})
+    for path, value in changes.items():
+        head, tail = path.split("__")
+        body[head][tail] = value
+    return SimulationSpec.model_validate(body)
+
+
+def test_first_bending_frequency_by_hand() -> None:
+    E, I, L, M1, M2 = 7.8e9, 1.21e-17, 0.025, 1.884e-5, 1.6485e-5
+    hand = 1.8751**2 * math.sqrt(E * I / ((M1 + M2) * L**4))
+    assert abs(hand - 291.0) < 0.5
+    assert plausibility.first_bending_frequency(E, I, M1, M2, L) == hand
+
+
+def test_a_spin_meant_in_rpm_is_warned_about_in_the_result() -> None:
+    spec = _spec(rotation__omega0={"kind": "constant", "value": 3000.0})
+    result = run_simulation(spec)
+    (warning,) = [w for w in result.warnings if w.startswith("rotation.omega0")]
+    assert warning == (
+        "rotation.omega0 = 3000 rad/s is 10.3x the pipe's first bending frequency "
+        '(291 rad/s); if you meant rpm, send rotation.omega0.value = {"value": 3000, '
+        '"unit": "rpm"} (314 rad/s)'
+    )
+    # the same number sent in rpm is ordinary
+    rpm = _spec(rotation__omega0={"kind": "constant", "value": {"value": 3000, "unit": "rpm"}})
+    assert plausibility.warnings(rpm) == []
+
+
+def test_a_velocity_past_ten_critical_flow_numbers_is_warned_about() -> None:
+    (warning,) = plausibility.warnings(_spec(flow__velocity={"kind": "constant", "value": 500.0}))
+    assert warning.startswith("flow.velocity = 500 m/s is u = 165, 18.1x the pipe's critical ")
+    assert "(u_cr = 9.13, v_cr = 27.6 m/s)" in warning
+    assert warning.endswith(
+        'if you meant cm/s, send flow.velocity.value = {"value": 500, "unit": "cm/s"} (5 m/s)'
+    )
+    ramp = _spec(flow__velocity={"kind": "polynomial", "coefficients": [0.0, 50000.0]})
+    (warning,) = plausibility.warnings(ramp)  # 500 m/s at t_end = 0.01 s
+    assert "give the profile's numbers as" in warning
+
+
+def test_ordinary_values_give_no_warning() -> None:
+    assert plausibility.warnings(SimulationSpec.model_validate(PAPER_EXAMPLE)) == []
+    # 20 m/s is past u_cr (a run that flutters) but not ten times: no warning
+    assert plausibility.warnings(_spec(flow__velocity={"kind": "constant", "value": 60.0})) == []
+    assert (
+        plausibility.warnings(_spec(rotation__omega0={"kind": "constant", "value": 1500.0})) == []
+    )
