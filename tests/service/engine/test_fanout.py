@@ -184,10 +184,13 @@ def test_a_piece_whose_worker_dies_is_rerun(two: TestClient) -> None:
     v = np.linspace(0.0, 60.0, 200)
     rows = [0, 101, 199]
     w = np.linspace(0.0, 1999.0, 200)[rows]
-    growth, _, stable = maps._spin_lines(maps._SpinLines(request.mounted_pipe(), 20, v, w, 1e-10))
+    growth, _, stable, how = maps._spin_lines(
+        maps._SpinLines(request.mounted_pipe(), 20, v, w, 1e-10)
+    )
     for i, row in enumerate(rows):
         assert doc["growth_rate"][row] == growth[i].tolist()
         assert doc["stable_at_start"][row] == stable[i]
+        assert doc["instability_at_start"][row] == how[i]
 
 
 @pytest.mark.slow  # a killed worker / a runtime limit, 10-15 s
