@@ -91,8 +91,8 @@ def test_the_async_client_sends_its_key(
 ) -> None:
     url, _ = live
 
-    async def run(**kwargs: str) -> int:
-        async with AsyncClient(url, **kwargs) as c:
+    async def run(api_key: str | None = None) -> int:
+        async with AsyncClient(url, api_key=api_key) as c:
             try:
                 await c.simulate(SMALL)
             except ServiceError as exc:
