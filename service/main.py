@@ -18,7 +18,7 @@ from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
 from service import observability
-from service.engine import Runner
+from service.engine import Runner, preload
 from service.http import auth, problems
 from service.http.middleware import BodyLimit, HitFastPath, RequestContext
 from service.http.responses import HitCache
@@ -67,6 +67,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the service; ``settings`` defaults to the environment's."""
     settings = settings or get_settings()
     observability.configure_logging(settings.log_level, settings.log_format)
+    preload.cap_malloc_arenas()  # before the process starts its threads
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
