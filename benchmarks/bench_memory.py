@@ -12,6 +12,15 @@ counted in each process, what ``ps`` and ``docker stats`` show) and PSS (``Pss``
 ``smaps_rollup``: shared pages split between the processes sharing them).  The sides are
 started one after another, in a rotating order each round; the medians over the rounds
 are printed, with each side's ratio to the first.
+
+    python benchmarks/bench_memory.py --distributed
+
+measures the processes of docker-compose.yml's roles instead, run here without containers
+or TLS: ``dask scheduler``, 2 ``dask worker --nthreads 1 --preload-nanny
+service.engine.preload`` (each a nanny and its worker process) and one API replica
+(``uvicorn service.main:app`` with ``PIPEFLOW_SCHEDULER_ADDRESS``; SQLite in place of
+PostgreSQL, whose server is not ours), idle for ``--settle`` seconds once ``/readyz``
+answers; RSS and PSS per role.
 """
 
 from __future__ import annotations
@@ -85,10 +94,108 @@ def start_server(
     raise RuntimeError(f"no server process for {url}")
 
 
+def distributed(settle_s: float) -> int:
+    """The compose roles' idle memory (see the module docstring)."""
+    import subprocess
+
+    from service.launch import answers, child_environment, free_port, stop_group
+
+    def rows_of(proc: subprocess.Popen[bytes]) -> list[tuple[int, str, int, int]]:
+        return group_memory(proc.pid)
+
+    with ExitStack() as stack:
+        work = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="pipeflow-mem-")))
+        env = child_environment(PIPEFLOW_LOG_LEVEL="WARNING", PIPEFLOW_DATA_DIR=str(work))
+        env.pop("DASK_CONFIG", None)
+
+        def spawn(name: str, args: list[str], **extra: str) -> subprocess.Popen[bytes]:
+            log = stack.enter_context(open(work / f"{name}.log", "ab"))
+            proc = subprocess.Popen(
+                args,
+                cwd=ROOT,
+                env={**env, **extra},
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+            stack.callback(stop_group, proc, 15, 20.0)
+            return proc
+
+        port, dashboard, http = free_port(), free_port(), free_port()
+        address = f"tcp://127.0.0.1:{port}"
+        roles = {
+            "scheduler": spawn(
+                "scheduler",
+                [
+                    sys.executable,
+                    "-m",
+                    "distributed.cli.dask_scheduler",
+                    "--host",
+                    "127.0.0.1",
+                    "--port",
+                    str(port),
+                    "--dashboard-address",
+                    f"127.0.0.1:{dashboard}",
+                ],
+            )
+        }
+        for i in (1, 2):
+            roles[f"worker {i}"] = spawn(
+                f"worker{i}",
+                [
+                    sys.executable,
+                    "-m",
+                    "distributed.cli.dask_worker",
+                    address,
+                    "--nthreads",
+                    "1",
+                    "--preload-nanny",
+                    "service.engine.preload",
+                    "--no-dashboard",
+                ],
+                OMP_NUM_THREADS="1",
+                OPENBLAS_NUM_THREADS="1",
+                MKL_NUM_THREADS="1",
+            )
+        roles["api replica"] = spawn(
+            "api",
+            [sys.executable, "-m", "uvicorn", "service.main:app", "--port", str(http)],
+            PIPEFLOW_SCHEDULER_ADDRESS=address,
+        )
+        deadline = time.monotonic() + 180
+        while not answers(f"http://127.0.0.1:{http}/readyz"):
+            if time.monotonic() > deadline:
+                raise RuntimeError((work / "api.log").read_text(errors="replace")[-3000:])
+            time.sleep(0.2)
+        time.sleep(settle_s)
+        print("| role | processes | RSS [MB] | PSS [MB] |")
+        print("|---|---:|---:|---:|")
+        total_rss = total_pss = 0.0
+        for name, proc in roles.items():
+            rows = rows_of(proc)
+            rss = sum(r[2] for r in rows) / 1024
+            pss = sum(r[3] for r in rows) / 1024
+            total_rss, total_pss = total_rss + rss, total_pss + pss
+            detail = ", ".join(f"{r[2] / 1024:.0f}" for r in rows)
+            print(f"| {name} | {len(rows)} ({detail} MB RSS) | {rss:.0f} | {pss:.0f} |")
+        print(f"| all | | {total_rss:.0f} | {total_pss:.0f} |")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = sides_parser(__doc__, 3)
     ap.add_argument("--settle", type=float, default=3.0, help="idle time before measuring [s]")
+    ap.add_argument(
+        "--distributed", action="store_true", help="the compose roles instead (see above)"
+    )
+    for action in ap._actions:  # the sides are not needed with --distributed
+        if action.dest == "servers":
+            action.nargs = "*"
     args = ap.parse_args(argv)
+    if args.distributed:
+        return distributed(args.settle)
+    if not args.servers:
+        ap.error("give at least one NAME=TREE side (or --distributed)")
     sides = parse_sides(args.servers)
     results: dict[str, list[dict[str, float]]] = {name: [] for name, _, _ in sides}
     for r in range(args.rounds):

@@ -22,6 +22,10 @@ from typing import IO, Any
 
 from pipeflow.errors import PipeflowError
 
+#: the environment variable of the API key (``pipeflow_client.API_KEY_ENV``; spelled here
+#: too because the command line imports the client only with ``--server``)
+API_KEY_ENV = "PIPEFLOW_API_KEY"
+
 EXAMPLE_HELP = """\
 the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s):
 
@@ -37,6 +41,7 @@ the paper's example (Wang & Zhong 2018, section 5: v = 0.4 t m/s, w0 = 100 rad/s
   pipeflow serve --port 8000                    # the HTTP service and viewer at / (it
                                                 # runs: python -m service --port 8000)
   pipeflow run spec.json --server http://localhost:8000          # run on a server
+  export PIPEFLOW_API_KEY=pf_...                # its key, if it requires keys (or --api-key)
 """
 
 
@@ -201,10 +206,13 @@ def _run_local(kind: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
         bar.close()
 
 
-def _run_remote(kind: str, spec_data: Any, server: str, bar: ProgressBar) -> dict[str, Any]:
+def _run_remote(
+    kind: str, spec_data: Any, server: str, bar: ProgressBar, api_key: str | None = None
+) -> dict[str, Any]:
+    """Run on ``server``; ``api_key`` (None: ``PIPEFLOW_API_KEY``, read by the client)."""
     from pipeflow_client import Client  # imported here: the library has no web imports
 
-    with Client(server) as client:
+    with Client(server, api_key=api_key) as client:
         try:
             return dict(client.compute(kind, spec_data, progress=bar))
         finally:
@@ -227,7 +235,7 @@ def _result_for(
         ),
     )
     if getattr(args, "server", None):
-        return _run_remote(kind, data, args.server, bar)
+        return _run_remote(kind, data, args.server, bar, getattr(args, "api_key", None))
     return _run_local(kind, data, bar)
 
 
@@ -461,10 +469,21 @@ def build_parser() -> argparse.ArgumentParser:
         )
         g.add_argument("--quiet", action="store_true", help="never draw the progress bar")
 
+    def api_key_flag(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument(
+            "--api-key",
+            metavar="KEY",
+            help=f"API key of a --server that requires keys, sent as 'Authorization: Bearer "
+            f"KEY' (default: ${API_KEY_ENV}; the variable keeps the key out of the process "
+            "list, where other users can read a command line)",
+        )
+
     def json_output_flags(sp: argparse.ArgumentParser) -> None:
-        """-o, --server, --compact and the progress flags of the JSON-writing commands."""
+        """-o, --server, --api-key, --compact and the progress flags of the JSON-writing
+        commands."""
         sp.add_argument("-o", "--output", help="write to this file instead of stdout")
         sp.add_argument("--server", metavar="URL", help="run on this pipeflow server instead")
+        api_key_flag(sp)
         sp.add_argument("--compact", action="store_true", help="JSON on one line")
         progress_flags(sp)
 
@@ -541,6 +560,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--title", help="figure title (default: the plot's name)")
     units_flags(sp)
     sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
+    api_key_flag(sp)
     kind_flag(sp, "simulation")
     progress_flags(sp)
     sp.set_defaults(func=cmd_plot)
@@ -558,6 +578,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", required=True, help="output file, .html or .pdf ('-': stdout)")
     sp.add_argument("--format", choices=("html", "pdf"), help="format (default: from --out)")
     sp.add_argument("--server", metavar="URL", help="run a spec on this pipeflow server")
+    api_key_flag(sp)
     kind_flag(sp, "simulation")
     progress_flags(sp)
     sp.set_defaults(func=cmd_report)
@@ -685,6 +706,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "api_key", None) is not None and not getattr(args, "server", None):
+        parser.error("--api-key is the key of a --server; give --server URL too")
     try:
         return int(args.func(args))
     except ValidationError as exc:
@@ -701,6 +724,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         name = exc.field if exc.field is not None else exc.parameter
         where = f"{name}: " if name else ""
         print(f"error: {where}{exc.message}", file=sys.stderr)
+        if getattr(exc, "status", None) == 401:  # the server's answer (pipeflow_client)
+            print(
+                f"hint: this server requires an API key: give it with --api-key KEY or the "
+                f"environment variable {API_KEY_ENV}",
+                file=sys.stderr,
+            )
         return 2
     except (ValueError, KeyError, ImportError) as exc:
         # plot/export errors carry a field too; a missing optional extra says what to install

@@ -12,6 +12,7 @@ Example::
     from pipeflow.schema.simulation import PAPER_EXAMPLE
     from pipeflow_client import Client
 
+    # api_key="pf_..." (or PIPEFLOW_API_KEY in the environment) for a server requiring keys
     with Client("http://localhost:8000") as c:
         r = c.simulate(PAPER_EXAMPLE)          # numpy arrays, SI units
         print(r.key, r.tip_displacement[:3])   # u(L, t) [m]
@@ -32,6 +33,7 @@ for _module in ("httpx", "tenacity"):
     require(_module, "client", "pipeflow_client (and `pipeflow ... --server URL`)")
 
 from pipeflow_client.client import (  # noqa: E402
+    API_KEY_ENV,
     AsyncClient,
     Client,
     JobFailed,
@@ -42,6 +44,7 @@ from pipeflow_client.client import (  # noqa: E402
 )
 
 __all__ = [
+    "API_KEY_ENV",
     "AsyncClient",
     "Client",
     "JobFailed",

@@ -16,6 +16,12 @@ sync :class:`Client` drives it with :class:`httpx.Client` and ``time.sleep``, th
 :class:`AsyncClient` with :class:`httpx.AsyncClient` and ``asyncio.sleep``.  Both retry a
 ``503 Service Unavailable`` (all computation slots busy) with tenacity, waiting what the
 answer's ``Retry-After`` says (seconds or an HTTP date; exponential back-off without it).
+
+A server that requires API keys (README "Access") gets the client's key on every request as
+``Authorization: Bearer <key>``: the ``api_key`` argument, else the environment variable
+``PIPEFLOW_API_KEY`` (:data:`API_KEY_ENV`); an explicit argument beats the variable, and
+``api_key=""`` sends none.  The key is kept out of the client's ``headers`` and its repr,
+and no message of the client carries it.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from __future__ import annotations
 import asyncio
 import email.utils
 import functools
+import os
 import time
 from collections.abc import Callable, Generator, Mapping
 from dataclasses import dataclass, field
@@ -644,19 +651,56 @@ def _checked(response: httpx.Response) -> httpx.Response:
 
 # ---- the two clients -------------------------------------------------------------------
 
+#: the environment variable a client takes its API key from when given none
+API_KEY_ENV = "PIPEFLOW_API_KEY"
+#: request headers that carry a key (lower case)
+_KEY_HEADERS = frozenset({"authorization", "x-api-key"})
+
+
+def api_key_headers(
+    api_key: str | None, headers: Mapping[str, str] | None = None
+) -> dict[str, str]:
+    """The ``Authorization: Bearer <key>`` header of a client (empty: send no key).
+
+    ``api_key`` given (not None) decides: its key, or none when empty.  Otherwise a key
+    header among the caller's own ``headers`` is left to speak for itself, and failing that
+    the environment variable :data:`API_KEY_ENV` gives the key (an empty one: none)."""
+    if api_key is None:
+        if any(name.lower() in _KEY_HEADERS for name in headers or {}):
+            return {}
+        api_key = os.environ.get(API_KEY_ENV)
+    key = (api_key or "").strip()
+    return {"Authorization": f"Bearer {key}"} if key else {}
+
 
 class _Base:
-    """What both clients share: base URL, default headers, retry policy, and the methods."""
+    """What both clients share: base URL, default headers, API key, retry policy, and the
+    methods."""
 
     def __init__(
         self,
         base_url: str,
         headers: Mapping[str, str] | None,
         retry: RetryPolicy | None,
+        api_key: str | None = None,
     ) -> None:
         self.base_url = base_url.rstrip("/")
         self.headers = dict(headers or {})
         self.retry = retry if retry is not None else RetryPolicy()
+        # kept apart from ``headers`` (which a caller may print); an explicit key replaces
+        # a key header of the caller's own
+        self._key_headers = api_key_headers(api_key, self.headers)
+        if self._key_headers:
+            self.headers = {k: v for k, v in self.headers.items() if k.lower() not in _KEY_HEADERS}
+
+    @property
+    def sends_api_key(self) -> bool:
+        """Whether requests carry an API key (from ``api_key`` or ``PIPEFLOW_API_KEY``)."""
+        return bool(self._key_headers)
+
+    def __repr__(self) -> str:
+        key = ", api key" if self._key_headers else ""
+        return f"{type(self).__name__}({self.base_url!r}{key})"
 
     def _run(self, steps: Steps[Any]) -> Any:
         raise NotImplementedError
@@ -667,7 +711,7 @@ class _Base:
             "url": self.base_url + call.path,
             "params": call.params,
             "json": call.json,
-            "headers": {**self.headers, **call.headers},
+            "headers": {**self.headers, **self._key_headers, **call.headers},
         }
         if call.timeout is not None:
             kwargs["timeout"] = call.timeout
@@ -706,7 +750,9 @@ class Client(_Base):
     ``http`` lets a caller pass its own :class:`httpx.Client` (tests pass FastAPI's
     ``TestClient``); otherwise one is created with ``timeout`` [s] and closed by
     :meth:`close` or the ``with`` block.  ``retry`` sets how 503 answers are retried
-    (:class:`RetryPolicy`; ``RetryPolicy(attempts=1)`` never retries).
+    (:class:`RetryPolicy`; ``RetryPolicy(attempts=1)`` never retries).  ``api_key``: the key
+    of a server that requires keys, sent as ``Authorization: Bearer <key>``; None (the
+    default) takes ``PIPEFLOW_API_KEY`` from the environment, ``""`` sends none.
     """
 
     def __init__(
@@ -717,8 +763,9 @@ class Client(_Base):
         http: httpx.Client | None = None,
         headers: Mapping[str, str] | None = None,
         retry: RetryPolicy | None = None,
+        api_key: str | None = None,
     ) -> None:
-        super().__init__(base_url, headers, retry)
+        super().__init__(base_url, headers, retry, api_key)
         self._own = http is None
         self.http = http if http is not None else httpx.Client(timeout=timeout)
 
@@ -757,7 +804,7 @@ class AsyncClient(_Base):
     """The same service and methods as :class:`Client`, for asyncio: every method returns
     an awaitable (``r = await client.simulate(spec)``), on an :class:`httpx.AsyncClient`
     (``http``, or one created with ``timeout`` [s] and closed by :meth:`aclose` or
-    ``async with``)."""
+    ``async with``); ``api_key`` as for :class:`Client`."""
 
     def __init__(
         self,
@@ -767,8 +814,9 @@ class AsyncClient(_Base):
         http: httpx.AsyncClient | None = None,
         headers: Mapping[str, str] | None = None,
         retry: RetryPolicy | None = None,
+        api_key: str | None = None,
     ) -> None:
-        super().__init__(base_url, headers, retry)
+        super().__init__(base_url, headers, retry, api_key)
         self._own = http is None
         self.http = http if http is not None else httpx.AsyncClient(timeout=timeout)
 

@@ -18,7 +18,7 @@ from fastapi.openapi.utils import get_openapi
 
 from pipeflow import __version__
 from service import observability
-from service.engine import Runner
+from service.engine import Runner, preload
 from service.http import auth, problems
 from service.http.middleware import BodyLimit, ContentDecoding, HitFastPath, RequestContext
 from service.http.responses import HitCache
@@ -49,6 +49,12 @@ LENIENT_CONTENT_TYPE: dict[str, Any] = (
     else {}
 )
 
+#: the OpenAPI document's title.  Client generators name their package after it:
+#: openapi-python-client makes ``pipeflow_api_client`` of it (``<title>-client``), which does
+#: not shadow this repository's own ``pipeflow_client`` (the title "pipeflow" did); the
+#: committed configuration openapi/openapi-python-client.yml names the same package
+TITLE = "pipeflow API"
+
 DESCRIPTION = """\
 Vibration of a rotating cantilevered pipe conveying fluid with time-varying flow
 velocity v(t) [m/s] and spin w0(t) [rad/s] (Wang & Zhong, CMES 114(1), 2018).
@@ -61,6 +67,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the service; ``settings`` defaults to the environment's."""
     settings = settings or get_settings()
     observability.configure_logging(settings.log_level, settings.log_format)
+    preload.cap_malloc_arenas()  # before the process starts its threads
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -85,7 +92,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             observability.process_exited()
 
     app = FastAPI(
-        title="pipeflow",
+        title=TITLE,
         version=__version__,
         description=DESCRIPTION,
         lifespan=lifespan,

@@ -154,6 +154,43 @@ def release_memory() -> None:
         pass
 
 
+#: glibc's environment variable of the malloc arena bound (the operator's, if set, stands)
+ARENA_VARIABLE = "MALLOC_ARENA_MAX"
+#: the bound :func:`cap_malloc_arenas` sets in the API process
+API_ARENAS = 1
+#: ``mallopt``'s parameter number of the arena bound (glibc's malloc.h)
+_M_ARENA_MAX = -8
+
+
+def cap_malloc_arenas(arenas: int = API_ARENAS) -> bool:
+    """Bound glibc's malloc arenas of this process to ``arenas`` (``mallopt(M_ARENA_MAX)``),
+    unless the operator's environment sets ``MALLOC_ARENA_MAX`` (glibc then read it itself).
+
+    glibc gives each thread that allocates an arena of its own, up to 8 per core, and an
+    arena keeps pages it touched: the API process runs its event loop, the store's and
+    FastAPI's thread pools, the fast lane and Dask's client and nannies, and held 11 arenas
+    and 16 MB more idle than with one (a bound of 2 saved the same with 2 workers but not
+    with 1: ``benchmarks/RESULTS.md``, issue 34).  The GIL serialises the Python
+    allocations of those threads anyway; what allocates without it (SQLite, zlib) waits for
+    the one arena's lock instead.  Called before the process starts its threads (arenas
+    made earlier stay); returns whether the bound was set (False elsewhere than on glibc,
+    or when the operator set one)."""
+    import ctypes
+    import ctypes.util
+
+    if os.environ.get(ARENA_VARIABLE) is not None or not sys.platform.startswith("linux"):
+        return False
+    name = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(name) if name else None
+    except OSError:
+        return False
+    mallopt = getattr(libc, "mallopt", None)
+    if mallopt is None:
+        return False
+    return bool(mallopt(_M_ARENA_MAX, int(arenas)))
+
+
 def warm_task(cfg: Any) -> int:
     """The first task of a worker (the runner sends one to each worker before it is
     ready): it opens the worker's store (engine, first connection, pragmas) for the

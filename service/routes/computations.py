@@ -3,7 +3,9 @@ the service's table of where each is asked for (:data:`service.routes.endpoints.
 
 Every endpoint gets ``POST /v1/<path>`` (the result, or a job when the
 endpoint only runs as jobs) and ``POST /v1/<path>/jobs`` (202 with a job,
-``Location: /v1/jobs/{key}``), plus its aliases (``POST /v1/jobs`` for simulations).  The
+``Location: /v1/jobs/{key}``; for an endpoint that only runs as jobs the same operation
+under a second path, so that every computation has its ``/jobs``), plus its aliases
+(``POST /v1/jobs`` for simulations).  The
 body is the computation's request model (a union told apart by ``kind`` where several
 computations share the endpoint), validated once by FastAPI in a worker thread
 (:class:`service.http.body.ThreadValidatedRoute`) and keyed once, in a thread too
@@ -121,8 +123,16 @@ def router_for(endpoint: Endpoint) -> APIRouter:
             dependencies=NEGOTIATION,
         )
 
-    if endpoint.run_operation is None:  # always a job
+    if endpoint.run_operation is None:  # always a job, at both paths
         add_job_route(f"/{endpoint.path}", endpoint.job_operation, endpoint.description + costs)
+        add_job_route(
+            f"/{endpoint.path}/jobs",
+            f"{endpoint.job_operation}Job",
+            f"The same operation as ``POST /v1/{endpoint.path}`` (which always answers with "
+            "a job), under the ``/jobs`` path every computation has.  "
+            + endpoint.description
+            + costs,
+        )
         return router
     router.add_api_route(
         f"/{endpoint.path}",

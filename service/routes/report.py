@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Header, Path, Query, Response
 
@@ -35,31 +35,15 @@ def _render(body: bytes, spec: dict[str, Any] | None, key: str, fmt: str) -> byt
         return report.to_html(result, spec, key).encode()
 
 
-@router.get(
-    "/{key}/report.{fmt}",
-    operation_id="getResultReport",
-    summary="A report of a stored result (HTML or PDF)",
-    response_class=Response,
-    responses={
-        200: {
-            "content": {
-                report.MEDIA_TYPES["html"]: {"schema": {"type": "string"}},
-                report.MEDIA_TYPES["pdf"]: {"schema": BINARY},
-            },
-            "description": "The report: inputs, key numbers (SI units), figures, method and "
-            "diagnostics, warnings, the pipeflow version.",
-        },
-        **responses(304, 404, 422),
-    },
+#: what both report operations say of their answer
+REPORT_DESCRIPTION = (
+    "The report: inputs, key numbers (SI units), figures, method and diagnostics, warnings, "
+    "the pipeflow version."
 )
-async def get_result_report(
-    key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
-    fmt: Annotated[Literal["html", "pdf"], Path(description="Report format.")],
-    store: StoreDep,
-    if_none_match: Annotated[str | None, Header()] = None,
-) -> Response:
-    """The report of the result stored under ``key``: a self-contained HTML page (figures
-    embedded as PNG) or a PDF (matplotlib's PdfPages: the text, then one figure a page)."""
+
+
+async def _report(store: StoreDep, key: str, fmt: str, if_none_match: str | None) -> Response:
+    """The report of the result stored under ``key`` as ``fmt`` (``html`` or ``pdf``)."""
     headers, body = await stored(store, key, f'"{key}-report.{fmt}"', if_none_match)
     if fmt == "html":  # opened in a browser: its inline styles and data: figures only
         headers["Content-Security-Policy"] = REPORT_CSP
@@ -69,6 +53,55 @@ async def get_result_report(
     spec = job.spec if job is not None else None
     data = await asyncio.to_thread(_render, body, spec, key, fmt)
     return Response(data, media_type=report.MEDIA_TYPES[fmt], headers=headers)
+
+
+# One operation per media type: a generated client reads each answer as what its one media
+# type declares (the PDF as bytes).  One operation declaring both made openapi-python-client
+# read the PDF as text, and a client saved it corrupt.
+@router.get(
+    "/{key}/report.html",
+    operation_id="getResultReportHtml",
+    summary="A report of a stored result (HTML)",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {report.MEDIA_TYPES["html"]: {"schema": {"type": "string"}}},
+            "description": REPORT_DESCRIPTION,
+        },
+        **responses(304, 404, 422),
+    },
+)
+async def get_result_report_html(
+    key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
+    store: StoreDep,
+    if_none_match: Annotated[str | None, Header()] = None,
+) -> Response:
+    """The report of the result stored under ``key`` as a self-contained HTML page (figures
+    embedded as PNG)."""
+    return await _report(store, key, "html", if_none_match)
+
+
+@router.get(
+    "/{key}/report.pdf",
+    operation_id="getResultReportPdf",
+    summary="A report of a stored result (PDF)",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {report.MEDIA_TYPES["pdf"]: {"schema": BINARY}},
+            "description": REPORT_DESCRIPTION,
+        },
+        **responses(304, 404, 422),
+    },
+)
+async def get_result_report_pdf(
+    key: Annotated[str, Path(pattern=KEY_PATTERN, description="Parameter hash.")],
+    store: StoreDep,
+    if_none_match: Annotated[str | None, Header()] = None,
+) -> Response:
+    """The report of the result stored under ``key`` as a PDF (matplotlib's PdfPages: the
+    text, then one figure a page)."""
+    return await _report(store, key, "pdf", if_none_match)
 
 
 def _animate(body: bytes, mode: int | None, time_index: int, frames: int) -> bytes:

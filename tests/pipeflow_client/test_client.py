@@ -89,7 +89,9 @@ def test_cli_run_and_plot_with_server(
     service: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # the CLI builds Client(url); route it through the in-process app
-    monkeypatch.setattr(pipeflow_client, "Client", lambda url: Client(url, http=service))
+    monkeypatch.setattr(
+        pipeflow_client, "Client", lambda url, **kw: Client(url, http=service, **kw)
+    )
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps(SMALL))
     out = tmp_path / "r.json"

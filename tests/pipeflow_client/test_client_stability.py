@@ -94,7 +94,9 @@ def test_cli_stability_with_server_draws_progress(
     """``pipeflow stability --server URL --progress`` runs as a job and draws the bar, like
     ``pipeflow run --server``; the answer is the same critical velocity [m/s] as the
     in-process analysis (10-mode u_cr = 5.5917, rel 1e-3 as above)."""
-    monkeypatch.setattr(pipeflow_client, "Client", lambda url: Client(url, http=service))
+    monkeypatch.setattr(
+        pipeflow_client, "Client", lambda url, **kw: Client(url, http=service, **kw)
+    )
     spec = tmp_path / "stab.json"
     spec.write_text(json.dumps({**BETA_02, "modes": 8}))
     out = tmp_path / "stab_result.json"

@@ -387,3 +387,95 @@ def test_dashboard_queries_what_the_scheduler_exports(compose: dict[str, Any]) -
     exported = _exported(text)
     dask = {n for names in _dashboard_metrics().values() for n in names if n.startswith("dask_")}
     assert dask and dask <= exported, dask - exported
+
+
+# -- credentials: required, without defaults, handed over as files -------------------------
+
+#: what the operator must export before ``docker compose up``: none has a default
+CREDENTIALS = ("PIPEFLOW_API_KEYS", "PIPEFLOW_METRICS_KEY", "GRAFANA_ADMIN_PASSWORD")
+#: compose's variable syntax: ``${NAME}``, ``${NAME:-default}``, ``${NAME-default}``,
+#: ``${NAME:?message}``, ``${NAME?message}``, ``${NAME:+alt}``, ``${NAME+alt}``; ``$$`` is a $
+_VARIABLE = re.compile(r"\$\$|\$\{(?P<name>\w+)(?:(?P<op>:?[-?+])(?P<arg>[^}]*))?\}")
+
+
+class Unset(KeyError):
+    """A required variable is unset or empty (compose stops with its message)."""
+
+
+def _interpolate(node: Any, env: dict[str, str]) -> Any:
+    """``node`` (the parsed file) with compose's variable interpolation applied to every
+    string, as ``docker compose`` does before anything runs."""
+    if isinstance(node, dict):
+        return {k: _interpolate(v, env) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_interpolate(v, env) for v in node]
+    if not isinstance(node, str):
+        return node
+
+    def one(m: re.Match[str]) -> str:
+        if m[0] == "$$":
+            return "$"
+        name, op, arg = m["name"], m["op"] or "", m["arg"] or ""
+        value = env.get(name)
+        present = value is not None and (value != "" or not op.startswith(":"))
+        if op.endswith("?") and not present:
+            raise Unset(f"{name}: {arg}")
+        if op.endswith("-") and not present:
+            return arg
+        if op.endswith("+"):
+            return arg if present else ""
+        return value or ""
+
+    return _VARIABLE.sub(one, node)
+
+
+def test_credentials_are_required_and_have_no_default(compose: dict[str, Any]) -> None:
+    """Each credential is required (``${NAME:?message}``) wherever the file names it, and
+    none has a default (Grafana's was ``admin``): compose stops, naming the missing one."""
+    text = (ROOT / "docker-compose.yml").read_text()
+    uses = [m for m in _VARIABLE.finditer(text) if m["name"]]
+    for name in CREDENTIALS:
+        ops = [m["op"] for m in uses if m["name"] == name]
+        assert ops and set(ops) == {":?"}, (name, ops)
+        assert all(m["arg"].strip() for m in uses if m["name"] == name)  # a message
+    assert "admin}" not in text and ":-admin" not in text
+
+    env = {name: f"value-of-{name}" for name in CREDENTIALS}
+    _interpolate(compose, env)  # everything set: compose goes on
+    for name in CREDENTIALS:
+        for missing in ({k: v for k, v in env.items() if k != name}, {**env, name: ""}):
+            with pytest.raises(Unset, match=name):
+                _interpolate(compose, missing)
+
+
+def test_secrets_reach_their_services_as_files_only(compose: dict[str, Any]) -> None:
+    """Prometheus' key and Grafana's admin password are compose secrets read from the
+    operator's environment, mounted as files and read from there; neither value is in any
+    container's environment."""
+    env = {name: f"value-of-{name}" for name in CREDENTIALS}
+    doc = _interpolate(compose, env)
+    services = doc["services"]
+    assert doc["secrets"]["metrics_key"] == {"environment": "PIPEFLOW_METRICS_KEY"}
+    assert doc["secrets"]["grafana_admin_password"] == {"environment": "GRAFANA_ADMIN_PASSWORD"}
+    grafana = services["grafana"]
+    assert grafana["secrets"] == ["grafana_admin_password"]
+    environment = grafana["environment"]
+    assert "GF_SECURITY_ADMIN_PASSWORD" not in environment  # a value would be a default
+    assert environment["GF_SECURITY_ADMIN_PASSWORD__FILE"] == "/run/secrets/grafana_admin_password"
+    assert services["prometheus"]["secrets"] == ["metrics_key"]
+    for name, service in services.items():
+        values = json.dumps(service.get("environment", {}))
+        for secret in ("PIPEFLOW_METRICS_KEY", "GRAFANA_ADMIN_PASSWORD"):
+            assert env[secret] not in values, (name, secret)
+
+
+def test_the_interpolation_of_this_test_is_composes() -> None:
+    env = {"A": "a", "E": ""}
+    assert _interpolate("${A}-${B:-b}-${E:-e}-${E-e}-$${A}-${A:+x}-${B:+x}", env) == (
+        "a-b-e--${A}-x-"
+    )
+    with pytest.raises(Unset, match="B: say so"):
+        _interpolate({"k": ["${B:?say so}"]}, env)
+    with pytest.raises(Unset, match="E"):
+        _interpolate("${E:?}", env)
+    assert _interpolate("${E?}", env) == ""

@@ -31,7 +31,9 @@ def test_operations_errors_and_example() -> None:
         "submitSimulationJob",
         "submitCompareJob",
         "submitSweep",
+        "submitSweepJob",
         "submitStudy",
+        "submitStudyJob",
         "runFrequencyResponse",
         "submitFrequencyResponseJob",
         "getJob",
@@ -39,19 +41,33 @@ def test_operations_errors_and_example() -> None:
         "getResult",
         "getResultPlot",
         "getResultTable",
-        "getResultReport",
+        "getResultReportHtml",
+        "getResultReportPdf",
         "getResultModeShapeAnimation",
         "getHealth",
         "getReadiness",
         "getMetrics",
     }
-    # every computing endpoint has the same pair: the result, and the job form
-    for path in ("/v1/simulations", "/v1/compare", "/v1/stability", "/v1/frequency-responses"):
+    # every computing endpoint has the same pair: the result (or, for sweeps and studies,
+    # which always run as jobs, the job), and the job form
+    from service.routes.endpoints import endpoints
+
+    for endpoint in endpoints():
+        path = f"/v1/{endpoint.path}"
         assert ("POST", path) in ops and ("POST", path + "/jobs") in ops
+        assert ops[("POST", path + "/jobs")]["responses"]["202"]
     for op in ops.values():
         for code, resp in op["responses"].items():
             if int(code) >= 400:
                 assert list(resp["content"]) == ["application/problem+json"], (op, code)
+        # an answer of several media types declares them all as bytes: a generated client
+        # reads the answer as the first it knows (text/html beside application/pdf made it
+        # read a PDF as text); a text answer has an operation of its own
+        content = op["responses"].get("200", {}).get("content", {})
+        if len(content) > 1:
+            schemas = [c["schema"] for c in content.values()]
+            assert all(c == {"type": "string", "format": "binary"} for c in schemas), op
+    assert doc["info"]["title"] == "pipeflow API"
     sim = ops[("POST", "/v1/simulations")]
     assert {"413", "422", "503", "500"} <= set(sim["responses"])
     example = sim["requestBody"]["content"]["application/json"]["examples"]["paper"]["value"]
