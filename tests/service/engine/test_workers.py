@@ -45,11 +45,11 @@ SLOW_JOB = {**SMALL, "modes": 10, "method": "rk4", "time": {"t_end": 15.0, "samp
 
 
 def readme_worker_command() -> list[str]:
-    """The README's ``dask worker`` line (without its comment)."""
-    for line in (ROOT / "README.md").read_text().splitlines():
+    """The manual's ``dask worker`` line (docs/deployment.md, without its comment)."""
+    for line in (ROOT / "docs" / "deployment.md").read_text().splitlines():
         if line.startswith("dask worker "):
             return shlex.split(line.partition("#")[0])
-    raise AssertionError("the README has no `dask worker` command")
+    raise AssertionError("docs/deployment.md has no `dask worker` command")
 
 
 def compose_worker_command() -> list[str]:
