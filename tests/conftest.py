@@ -56,9 +56,10 @@ def screenshot(tmp_path_factory: pytest.TempPathFactory) -> Callable[[Any, str],
 
 
 #: test files that take the longest in one process (the reader of README.md's and docs/'s
-#: blocks, page by page on one server: 60-140 s by the machine's load), handed out first: pytest-xdist's ``--dist loadfile`` gives
-#: files to its processes in collection order, and collected last (tests/ sorts after its
-#: packages) this one ran alone at the end of the run while the other process sat idle
+#: blocks, page by page on one server: 60-140 s by the machine's load), handed out first:
+#: pytest-xdist's ``--dist loadfile`` gives files to its processes in collection order, and
+#: collected last (tests/ sorts after its packages) this one ran alone at the end of the run
+#: while the other process sat idle
 HEAVIEST_FIRST = ("tests/test_readme.py",)
 
 
