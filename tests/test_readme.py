@@ -146,8 +146,12 @@ def test_the_readme_is_the_front_door() -> None:
     first_screen = "\n".join(text.splitlines()[:40])
     assert "examples/start_here.ipynb" in first_screen
     assert (ROOT / "examples" / "start_here.ipynb").is_file()
-    for link in re.findall(r"\]\((docs/[^)#]+)", text):
+    for link, anchor in re.findall(r"\]\((docs/[^)#]+)(?:#([^)]+))?\)", text):
         assert (ROOT / link).is_file(), link
+        if anchor:  # MkDocs checks the pages' own links; the README is not one of them
+            headings = re.findall(r"^#+ (.+)$", (ROOT / link).read_text(encoding="utf-8"), re.M)
+            slugs = {re.sub(r"[^\w\- ]", "", h).strip().lower().replace(" ", "-") for h in headings}
+            assert anchor in slugs, (link, anchor, slugs)
 
 
 def test_the_report_of_a_spec_shows_its_inputs_in_the_docs() -> None:
