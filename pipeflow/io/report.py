@@ -5,12 +5,11 @@
 the inputs, the key numbers (status, critical velocity, peaks and damping ratios, growth
 rates, divergence, error estimate; a study's statistics with their standard errors and its
 Sobol' indices with their intervals, :mod:`pipeflow.io.study_report`), the figures
-(:mod:`pipeflow.io.plots`, matplotlib),
-the method and its diagnostics, the warnings and the version.  :func:`to_html` writes one
-self-contained page (PNG figures as data URIs, no script, no external asset);
-:func:`to_pdf` writes the same content with matplotlib's ``PdfPages`` (a text page, then
-one page per figure; no other dependency).  Both are deterministic for a given result
-(no timestamps), so equal results give equal bytes.
+(:mod:`pipeflow.io.plots`, matplotlib), the method and its diagnostics, the warnings and
+the version.  :func:`to_html` writes one self-contained page (PNG figures as data URIs, no
+script, no external asset); :func:`to_pdf` writes the same content with matplotlib's
+``PdfPages`` (a text page, then one page per figure; no other dependency).  Both are
+deterministic for a given result (no timestamps), so equal results give equal bytes.
 """
 
 from __future__ import annotations
