@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 from pipeflow.io import stability_marks as marks
+from pipeflow.io import study_plots
 
 if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not to list plot names
     from matplotlib.axes import Axes
@@ -61,6 +62,9 @@ class PlotKind:
     #: "spin" [rad/s] or "frequency" [rad/s]; None: the axis stays as drawn
     x_quantity: str | None = None
     y_quantity: str | None = None
+    #: one panel per column, laid out by ``draw`` (:mod:`pipeflow.io.study_plots`): the
+    #: title is the figure's, not the first panel's
+    suptitle: bool = False
 
 
 #: display units of the axes (the data stay SI): quantity -> {unit: factor from rad/s};
@@ -644,6 +648,24 @@ PLOTS: dict[str, PlotKind] = {
                 _is_frf(r) and len(r["positions"]) >= 3 and bool(r["operating_points"][0]["peaks"])
             ),
         ),
+        PlotKind(
+            "study_histograms",
+            "Histograms of the study's outputs over its ok cases (mean, 5/50/95 % quantiles)",
+            "",
+            "cases [-]",
+            study_plots.draw_histograms,
+            lambda r: r.get("kind") == "study" and bool(study_plots.histogram_columns(r)),
+            suptitle=True,
+        ),
+        PlotKind(
+            "sobol_indices",
+            "Sobol' indices S1 and ST per parameter with their confidence intervals",
+            "parameter",
+            "Sobol' index [-]",
+            study_plots.draw_sobol,
+            lambda r: r.get("kind") == "study" and bool(study_plots.sobol_columns(r)),
+            suptitle=True,
+        ),
     )
 }
 
@@ -686,7 +708,10 @@ def figure(
     ax.set_ylabel(kind.ylabel)
     for label, result in series:
         kind.draw(ax, result, label)  # may refine the labels (e.g. the swept parameter)
-    ax.set_title(title if title is not None else kind.title, fontsize=10)
+    if kind.suptitle:
+        fig.suptitle(title if title is not None else kind.title, fontsize=10)
+    else:
+        ax.set_title(title if title is not None else kind.title, fontsize=10)
     ax.grid(True, lw=0.4, alpha=0.5)
     if name not in ("spin_map", "resonance_chart", "floquet_multipliers") and not kind.log_y:
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)

@@ -3,12 +3,13 @@
 :func:`report` gathers what an engineer attaches to a review from a result's JSON form
 (:mod:`pipeflow.schema.documents`, what the service stores) and, when known, its request:
 the inputs, the key numbers (status, critical velocity, peaks and damping ratios, growth
-rates, divergence, error estimate), the figures (:mod:`pipeflow.io.plots`, matplotlib),
-the method and its diagnostics, the warnings and the version.  :func:`to_html` writes one
-self-contained page (PNG figures as data URIs, no script, no external asset);
-:func:`to_pdf` writes the same content with matplotlib's ``PdfPages`` (a text page, then
-one page per figure; no other dependency).  Both are deterministic for a given result
-(no timestamps), so equal results give equal bytes.
+rates, divergence, error estimate; a study's statistics with their standard errors and its
+Sobol' indices with their intervals, :mod:`pipeflow.io.study_report`), the figures
+(:mod:`pipeflow.io.plots`, matplotlib), the method and its diagnostics, the warnings and
+the version.  :func:`to_html` writes one self-contained page (PNG figures as data URIs, no
+script, no external asset); :func:`to_pdf` writes the same content with matplotlib's
+``PdfPages`` (a text page, then one page per figure; no other dependency).  Both are
+deterministic for a given result (no timestamps), so equal results give equal bytes.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pipeflow import __version__
+from pipeflow.io import study_report
 
 #: most figures in one report (the first of the result's available plots)
 MAX_FIGURES = 6
@@ -261,22 +263,6 @@ def _sweep_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
     return rows
 
 
-def _study_numbers(r: dict[str, Any]) -> list[tuple[str, str]]:
-    rows = [(f"cases: {k}", _g(v)) for k, v in (r.get("counts") or {}).items()]
-    stats = r.get("statistics") or {}
-    inst = stats.get("instability") or {}
-    if inst:
-        rows.append(("probability of instability [-]", _g(inst.get("probability"))))
-    for name, st in (stats.get("columns") or {}).items():
-        rows.append(
-            (
-                f"{name} [{st.get('unit', '')}]: mean, min, max",
-                f"{_g(st.get('mean'))}, {_g(st.get('min'))}, {_g(st.get('max'))}",
-            )
-        )
-    return rows
-
-
 def report(
     result: Mapping[str, Any], inputs: Mapping[str, Any] | None = None, key: str | None = None
 ) -> Report:
@@ -293,7 +279,7 @@ def report(
     elif kind == "frequency_response":
         numbers = _frf_numbers(r)
     elif kind == "study":
-        numbers = _study_numbers(r)
+        numbers = study_report.numbers(r)
     else:
         numbers = _sweep_numbers(r)
     out = Report(title=f"pipeflow report: {kind}")
@@ -302,7 +288,10 @@ def report(
         about.append(("key (parameter hash)", str(key or r.get("key"))))
     out.sections.append(("Result", about))
     out.sections.append(("Key numbers (SI units)", numbers))
-    method: list[tuple[str, str]] = []
+    indices = study_report.sensitivity(r) if kind == "study" else None
+    if indices:
+        out.sections.append(("Sensitivity: Sobol' indices and their intervals", indices))
+    method: list[tuple[str, str]] = study_report.method(r, inputs) if kind == "study" else []
     if r.get("method_used"):
         from pipeflow.solvers import SOLVERS
 
@@ -315,6 +304,7 @@ def report(
     diagnostics: list[tuple[str, str]] = []
     _flat("", r.get("diagnostics") or {}, diagnostics)
     out.sections.append(("Method and diagnostics", method + diagnostics))
+    inputs = inputs or r.get("request")  # a study echoes its request
     if inputs:
         rows: list[tuple[str, str]] = []
         _flat("", dict(inputs), rows)

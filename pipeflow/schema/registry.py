@@ -661,6 +661,7 @@ STUDY = register(
         "bound",
         estimate=StudySpec.cost,
         tables=("study",),
+        plots=("study_histograms", "sobol_indices"),
         check=StudySpec.check,
         examples={
             "simulation_grid": {

@@ -428,6 +428,13 @@ class StudyResponse(_Result):
         description="Sobol' sensitivity indices (studies sampled with method saltelli; null "
         "otherwise)."
     )
+    request: dict[str, Any] | None = Field(
+        None,
+        description="The study's request in its normal form, the one its key is the hash of "
+        "(a valid request again: posted, it is the same study): its design (cases, grid or "
+        "samples with method, count N and seed) and base. Absent from results stored "
+        "before it was echoed.",
+    )
 
 
 # -- POST /v1/frequency-responses ------------------------------------------------------------

@@ -630,6 +630,7 @@ def _table(
         ),
         statistics=statistics(spec, base, overrides, records),
         sensitivity=sens,
+        request=spec.canonical(),  # the design, for the report and the study page
         warnings=warnings,
     )
 

@@ -4,7 +4,8 @@
 // axes in rad/s, rpm or Hz), a result's report links (HTML, PDF), the link a page is opened
 // with (?key=..., ?spec=...), the examples chooser, and a page's run: a request posted from
 // the form, a job polled with a progress bar until its result is ready (a newer run stops an
-// older one), a result opened by key, and the error shown in the status line.
+// older one), its result brought into view (scrolled to and focused), a result opened by
+// key, and the error shown in the status line.
 "use strict";
 
 window.PipeflowPages = (function () {
@@ -161,6 +162,17 @@ window.PipeflowPages = (function () {
     }
   }
 
+  function reveal() {
+    // the result of a Run brought into view: the forms are taller than a window (the
+    // simulation's ~1,700 px), so #results is scrolled to the window's top and focused
+    // (keyboard and screen-reader users land on it; tabindex -1: not a tab stop)
+    const el = document.getElementById("results");
+    if (!el || el.hidden) return;
+    if (!el.hasAttribute("tabindex")) el.setAttribute("tabindex", "-1");
+    el.scrollIntoView({ block: "start" });
+    el.focus({ preventScroll: true });
+  }
+
   // ---- the examples chooser ----------------------------------------------------------------
 
   function examplesChooser(select, examples, chosen, pick, suffix) {
@@ -246,6 +258,7 @@ window.PipeflowPages = (function () {
         const result = r.job ? await follow(answer.body, token) : answer.body;
         if (!result || token !== state.run) return;
         r.show(result, spec);
+        reveal();
         o.status.textContent = r.job ? "done (job " + short(result.key) + ")"
           : "done (" + (result.cached ? "cached" : "computed") + ")";
       } catch (problem) {
@@ -281,6 +294,6 @@ window.PipeflowPages = (function () {
 
   return {
     fmt, tick, tickFormat, finite, positive, chartWidth, short, resultUrl, fetchResult, table, columnTable, figures,
-    plotUnits, axisUnits, reportLinks, examplesChooser, page,
+    plotUnits, axisUnits, reportLinks, examplesChooser, page, reveal,
   };
 })();

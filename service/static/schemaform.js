@@ -19,15 +19,16 @@
 // - an enum becomes a <select> (with an empty choice for "enum or null"), a boolean a
 //   checkbox, a number, string or array of numbers a text input (arrays as "a, b, c");
 //   "X or null" is X, left empty for null, and an optional block ("object or null") is sent only when its "include" box is ticked;
-// - every field shows its description, with the unit the description states in brackets
+// - every field shows its description as one plain sentence (helpText: the docstrings' reST
+//   unmarked), with the unit the description states in brackets
 //   ("[m/s]") next to its name; initial values are the given values (an example), else the
 //   schema's defaults.  A number's bounds (minimum, maximum, exclusive ones) are its
 //   input's tooltip and are checked as it is typed; a profile's fields without a unit of
 //   their own (value, mean, amplitude, ...) show the unit of the quantity they profile
 //   ("force [N]": "amplitude [N]").
 // - a number (or list of numbers) that the API also takes as a quantity ({"value", "unit"},
-//   converted to SI at validation) in metres or rad/s gets a unit <select> beside it: m or
-//   mm; rad/s, rpm or Hz (cycles per second).  The SI unit sends the plain number; another
+//   converted to SI at validation) in metres, rad/s or m/s gets a unit <select> beside it: m
+//   or mm; rad/s, rpm or Hz (cycles per second); m/s, mm/s, km/h or ft/s.  The SI unit sends the plain number; another
 //   sends {"value": 3000, "unit": "rpm"} (a polynomial's coefficient c_k in unit/s^k), so
 //   the API's cache key is the same for the same physics.
 // Inputs are named by the dotted JSON path ("flow.velocity.coefficients"), which is also
@@ -79,9 +80,31 @@ window.SchemaForm = (function () {
 
   //: the units offered beside a field that takes a quantity, by its SI unit (the first);
   //: pint's names, as the API reads them (Hz: cycles per second, 1 Hz = 2 pi rad/s)
-  const UNIT_CHOICES = { "m": ["m", "mm"], "rad/s": ["rad/s", "rpm", "Hz"] };
+  const UNIT_CHOICES = {
+    "m": ["m", "mm"], "rad/s": ["rad/s", "rpm", "Hz"], "m/s": ["m/s", "mm/s", "km/h", "ft/s"],
+  };
   //: each choice in its SI unit (for the bounds checked while typing; the API converts)
-  const TO_SI = { "m": 1, "mm": 1e-3, "rad/s": 1, "rpm": (2 * Math.PI) / 60, "Hz": 2 * Math.PI };
+  const TO_SI = {
+    "m": 1, "mm": 1e-3, "rad/s": 1, "rpm": (2 * Math.PI) / 60, "Hz": 2 * Math.PI,
+    "m/s": 1, "mm/s": 1e-3, "km/h": 1 / 3.6, "ft/s": 0.3048,
+  };
+
+  function helpText(description) {
+    // a field's description as a help text: one plain sentence.  The descriptions come from
+    // the models' docstrings, in reST: roles unwrapped (:class:`~a.b.C` -> C, :math:`x` -> x,
+    // :func:`text <target>` -> text), literals and emphasis unmarked (``x``, `x`, **x**),
+    // whitespace collapsed; an opening plain lowercase word capitalised (after a "name: "
+    // label such as a method's, which stays as written), and a full stop if none ends it
+    let t = String(description || "").replace(/\s+/g, " ").trim();
+    t = t.replace(/:[a-z]+(?::[a-z]+)?:`(~?)([^`]*?)`/g, (m, tilde, body) => {
+      const text = body.replace(/\s*<[^>]*>$/, "");
+      return tilde ? text.split(".").pop() : text;
+    });
+    t = t.replace(/``([^`]*)``/g, "$1").replace(/`([^`]*)`/g, "$1").replace(/\*\*([^*]+)\*\*/g, "$1");
+    if (!t) return t;
+    t = t.replace(/^((?:[a-z0-9_/]+: )?)([a-z]{2,})(?=[ ,;:.]|$)/, (m, label, word) => label + word[0].toUpperCase() + word.slice(1));
+    return /[.!?]["'\u2019)\]]*$/.test(t) ? t : t + ".";
+  }
 
   function isQuantity(v) {
     return !!v && typeof v === "object" && !Array.isArray(v) && "value" in v && "unit" in v;
@@ -226,7 +249,7 @@ window.SchemaForm = (function () {
       given = String(first.unit).replace(/\s*\/\s*s\s*\*\*\s*\d+$/, "");
       shown = v.map((x) => (isQuantity(x) ? x.value : x));
     }
-    const label = el("label", { class: "field", title: s.description || "" });
+    const label = el("label", { class: "field", title: helpText(s.description) });
     const nameEl = el("span", { class: "name" }, name + (unit && unit !== "-" ? " [" + unit + "]" : ""));
     label.append(nameEl);
     let input;
@@ -282,7 +305,7 @@ window.SchemaForm = (function () {
       label.classList.add("with-unit");
       label.append(select);
     }
-    if (s.description) label.append(el("small", { class: "help" }, s.description));
+    if (s.description) label.append(el("small", { class: "help" }, helpText(s.description)));
     const wrap = el("div", { class: "leaf" });
     wrap.append(label, el("span", { class: "error", "data-error-for": path }));
     return wrap;
@@ -295,7 +318,7 @@ window.SchemaForm = (function () {
     const fs = el("fieldset", { class: "union", "data-union": path });
     const unit = groupUnit(s);
     fs.append(el("legend", {}, name + (unit ? " [" + unit + "]" : "")));
-    if (s.description) fs.append(el("small", { class: "help block" }, s.description));
+    if (s.description) fs.append(el("small", { class: "help block" }, helpText(s.description)));
     const label = el("label", { class: "field" });
     label.append(el("span", { class: "name" }, disc));
     const select = el("select", { name: path + "." + disc, "data-field": path, "data-type": "kind" });
@@ -307,7 +330,7 @@ window.SchemaForm = (function () {
     for (const k of kinds) {
       const variant = deref(doc, { $ref: s.discriminator.mapping[k] });
       const block = el("div", { class: "kind", "data-kind": k });
-      if (variant.description) block.append(el("small", { class: "help block" }, k + ": " + variant.description));
+      if (variant.description) block.append(el("small", { class: "help block" }, k + ": " + helpText(variant.description)));
       const given = value && value[disc] === k ? value : undefined;
       fields(doc, variant, path, given, block, disc, unit);
       block.hidden = k !== chosen;
@@ -349,7 +372,7 @@ window.SchemaForm = (function () {
         const unit = isProfile(s) ? groupUnit(s) : null;
         fs.append(el("legend", {}, name + (unit ? " [" + unit + "]" : "")));
       }
-      if (s.description) body.append(el("small", { class: "help block" }, s.description));
+      if (s.description) body.append(el("small", { class: "help block" }, helpText(s.description)));
       fields(doc, s, path, value, body, undefined, isProfile(s) ? groupUnit(s) : undefined);
       return fs;
     }
@@ -377,7 +400,7 @@ window.SchemaForm = (function () {
     const count = el("span", { class: "count" });
     legend.append(title, " ", count);
     fs.append(legend);
-    if (s.description) fs.append(el("small", { class: "help block" }, s.description));
+    if (s.description) fs.append(el("small", { class: "help block" }, helpText(s.description)));
     const head = el("div", { class: "leaf list-error" });
     head.append(el("span", { class: "error", "data-error-for": path }));
     fs.append(head);
@@ -398,7 +421,7 @@ window.SchemaForm = (function () {
       } else {
         box = el("fieldset", { class: "group", "data-group": p });
         box.append(el("legend", {}, label));
-        if (item.description) box.append(el("small", { class: "help block" }, item.description));
+        if (item.description) box.append(el("small", { class: "help block" }, helpText(item.description)));
         const slot = el("div", { class: "leaf" });
         slot.append(el("span", { class: "error", "data-error-for": p }));
         box.append(slot);
@@ -456,14 +479,14 @@ window.SchemaForm = (function () {
     // "samples.parameters.pipe.E.sigma"); redrawn from the collected values when a key
     // changes, is added or removed
     const vs = mapValue(doc, s);
-    const keyHelp = (s.propertyNames && s.propertyNames.description) || "";
+    const keyHelp = helpText(s.propertyNames && s.propertyNames.description);
     const max = s.maxProperties !== undefined ? s.maxProperties : Infinity;
     const fs = el("fieldset", { class: "map", "data-map": path, "data-group": path });
     const legend = el("legend", {});
     const count = el("span", { class: "count" });
     legend.append(el("span", {}, name), " ", count);
     fs.append(legend);
-    if (s.description) fs.append(el("small", { class: "help block" }, s.description));
+    if (s.description) fs.append(el("small", { class: "help block" }, helpText(s.description)));
     const head = el("div", { class: "leaf list-error" });
     head.append(el("span", { class: "error", "data-error-for": path }));
     const entries = el("div", { class: "entries" });
@@ -721,6 +744,6 @@ window.SchemaForm = (function () {
 
   return {
     deref, requestSchema, render, collect, clearErrors, onNewItem, showProblem, problemOf, show, unitOf,
-    showWarnings, shareLink, post, quantityOf, UNIT_CHOICES,
+    showWarnings, shareLink, post, quantityOf, UNIT_CHOICES, helpText,
   };
 })();

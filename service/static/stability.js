@@ -54,7 +54,7 @@
     const a = state.analyses[name];
     state.analysis = name;
     select.value = name;
-    document.getElementById("analysis-help").textContent = a.description || "";
+    document.getElementById("analysis-help").textContent = SF.helpText(a.description);
     SF.render(host, state.doc, a.schema, values || a.example || {});
   }
 

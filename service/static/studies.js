@@ -2,7 +2,8 @@
 // in /openapi.json (SchemaForm: the base request with its kind, and cases, a grid or sampled
 // parameters as list and map editors), the API's examples plus two sampled studies of the
 // README, the job followed through GET /v1/jobs/{key} until its result is ready, or a study
-// opened by key (?key=..., a shareable link; a study still running is followed too).
+// opened by key (?key=..., a shareable link, or the key box; a study still running is
+// followed too), its form then filled with the study's own request (the result echoes it).
 // The result: a banner with the counts and the probability that a case is unstable (with its
 // binomial standard error), for saltelli designs the Sobol' indices S1 and ST of each summary
 // column per parameter (bars with their confidence intervals as whiskers), a histogram of
@@ -359,6 +360,7 @@
     document.getElementById("csv-link").href = base + "?format=csv&table=study";
     document.getElementById("parquet-link").href = base + "?format=parquet&table=study";
     document.getElementById("open-key").value = key;
+    P.reportLinks(key);
   }
 
   // ---- API calls -------------------------------------------------------------------------
@@ -366,7 +368,15 @@
   function show(result, spec) {
     state.key = result.key;
     render(result);
-    share(result.key, spec);
+    share(result.key, spec || result.request || null);
+  }
+
+  function fillFromResult(result, spec) {
+    // a study opened by key without its request (the key box, a ?key= link): the form
+    // shows the study's own request, which the result echoes (its normal form)
+    if (spec || !result.request) return;
+    SF.render(host, state.doc, state.schema, JSON.parse(JSON.stringify(result.request)));
+    document.getElementById("example").value = "";
   }
 
   function run(event) {
@@ -377,7 +387,10 @@
 
   function open(key, spec) {
     // a study by key: its job followed while it runs (a stored result has no job: loaded)
-    return page.open(key, (result) => show(result, spec), true);
+    return page.open(key, (result) => {
+      fillFromResult(result, spec);
+      show(result, spec);
+    }, true);
   }
 
   async function start() {

@@ -5,6 +5,8 @@
 // on a symmetric-log (asinh) scale with readable axis labels.  A forced run (loads) says
 // which loads were applied (the result echoes them); a start at rest (u0 = 0: zero initial
 // tip) is a forced vibration, drawn on a linear axis unless the library calls it unstable.
+// A run that diverged after a few output samples says so and how to get more (a t_end at
+// the divergence time, offered as a button).  The result of a Run is scrolled into view.
 // The frequency chart's axis is in rad/s, Hz or rpm (the data stay rad/s); the result links
 // to its report (HTML, PDF).
 "use strict";
@@ -143,6 +145,49 @@
     el.dataset.growthRate = info.rate === null ? "" : String(info.rate);
   }
 
+  //: a diverged run showing fewer output samples than this (and under a quarter of those
+  //: requested) is "short": the page says why and how to get more
+  const SHORT_RUN = 200;
+
+  function requested(name) {
+    // a number of the request as the form holds it (the run's own: the form sent it, or
+    // the shared link filled it), NaN when absent
+    const input = form.querySelector("input[name='" + name + "']");
+    return input ? Number(input.value) : NaN;
+  }
+
+  function shortRun(result) {
+    // a run that diverged after a few output samples: how many, where it stopped, and the
+    // settings that give more (t_end at the divergence time: every requested sample falls
+    // before it; a larger divergence bound; a lower velocity or spin stays stable)
+    const box = document.getElementById("short-run");
+    const shown = (result.t || []).length;
+    const samples = requested("time.samples");
+    const tEnd = requested("time.t_end");
+    const stop = result.divergence_time;
+    const short = result.status === "diverged" && typeof stop === "number" && stop > 0
+      && shown < SHORT_RUN && !(shown >= samples / 4);
+    box.hidden = !short;
+    box.dataset.samples = String(shown);
+    if (!short) return;
+    // t_end at the divergence time, rounded up to two significant digits
+    const scale = Math.pow(10, Math.floor(Math.log10(stop)) - 1);
+    const suggested = +(Math.ceil(stop / scale) * scale).toPrecision(2);
+    box.dataset.suggestedTEnd = String(suggested);
+    const text = box.querySelector(".text");
+    text.textContent = "The run diverged after " + shown + " output samples"
+      + (Number.isFinite(samples) ? " of the " + samples + " requested" : "")
+      + ": it stopped at t = " + tick(stop) + " s"
+      + (Number.isFinite(tEnd) ? " of t_end = " + tick(tEnd) + " s" : "")
+      + ", so the charts show only the start of the growth. For more samples of it, set"
+      + " time.t_end to about " + tick(suggested) + " s (the requested samples then fall"
+      + " before the divergence) or raise time.samples; a larger output.divergence_bound [m]"
+      + " follows it further (within the linear model's range); a lower flow velocity or"
+      + " spin keeps the pipe stable.";
+    const button = box.querySelector("button");
+    button.textContent = "Run again with t_end = " + tick(suggested) + " s";
+  }
+
   function tipScale(result) {
     const choice = document.getElementById("tip-scale").value;
     const y = finite(result.tip_displacement).filter((v) => v !== null);
@@ -229,6 +274,7 @@
     state.result = result;
     document.getElementById("results").hidden = false;
     banner(result);
+    shortRun(result);
     showLoads(result);
     const tipSeries = [{ label: "tip displacement [m]", y: result.tip_displacement }];
     if (result.status === "diverged" && typeof result.divergence_bound === "number") {
@@ -326,6 +372,7 @@
       state.key = result.key;
       render(result);
       share(result.key, spec);
+      P.reveal();
       const seconds = ((performance.now() - started) / 1000).toFixed(2);
       statusEl.textContent = "done (" + result.status + ", " + (result.cached ? "cached" : "computed")
         + " in " + seconds + " s)";
@@ -362,6 +409,13 @@
   }
 
   form.addEventListener("submit", run);
+  document.querySelector("#short-run button").addEventListener("click", () => {
+    // the suggested t_end in its field (in s), then a new run
+    const input = form.querySelector("input[name='time.t_end']");
+    input.value = document.getElementById("short-run").dataset.suggestedTEnd;
+    input.dispatchEvent(new Event("input"));
+    form.requestSubmit();
+  });
   for (const id of ["tip-scale", "frequency-unit"]) {
     document.getElementById(id).addEventListener("change", () => {
       if (state.result) render(state.result);

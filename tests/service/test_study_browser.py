@@ -197,3 +197,72 @@ def test_bad_distribution_shows_the_api_message_next_to_the_field(server: str, p
     slot = page.locator("[data-error-for='samples.parameters.pipe.E.sigma']")
     slot.wait_for(state="visible")
     assert slot.inner_text()
+
+
+def test_a_study_opened_by_key_fills_the_form_and_links_its_report(
+    server: str, page: Page, screenshot: Any
+) -> None:
+    """A saltelli study run through the API, then opened on the page by its key alone (the
+    key box): the form shows the study's own request (the result echoes it), the share link
+    carries it, and the page links the study's report, whose HTML shows the Sobol' indices
+    with their intervals, the standard errors, the filled "Method and diagnostics" section
+    and the histogram and Sobol' figures."""
+    spec = {
+        **SOBOL,
+        "samples": {
+            **SOBOL["samples"],
+            "method": "saltelli",
+            "count": 8,
+            "parameters": {
+                **SOBOL["samples"]["parameters"],
+                "pipe.M2": {"distribution": "uniform", "low": 1.5e-5, "high": 1.8e-5},
+            },
+        },
+    }
+    job = httpx.post(server + "/v1/studies", json=spec, timeout=60)
+    assert job.status_code in (200, 202), job.text
+    key = job.json()["key"]
+    httpx.get(f"{server}/v1/jobs/{key}?wait=60", timeout=90)
+    open_page(page, server + "/studies")
+    assert page.input_value("#example") != ""  # the API's first example fills the form
+    page.fill("#open-key", key)
+    page.click("#open")
+    page.wait_for_function(
+        "document.getElementById('job-status').textContent.startsWith('loaded result')",
+        timeout=180_000,
+    )
+    result = page.evaluate("window.pipeflowStudies.state.result")
+    assert result["request"]["samples"]["method"] == "saltelli"
+    # the form is the study's own request: collected again, it is that request
+    collected = page.evaluate(
+        "SchemaForm.collect(document.getElementById('fields'), window.pipeflowStudies.state.doc,"
+        " window.pipeflowStudies.state.schema)"
+    )
+    assert collected["samples"] == result["request"]["samples"]
+    assert collected["base"]["spec"]["time"] == spec["base"]["spec"]["time"]
+    assert page.input_value("select[name='samples.method']") == "saltelli"
+    assert page.input_value("input[name='samples.count']") == "8"
+    keys = page.eval_on_selector_all(
+        "[data-map-key='samples.parameters']", "es => es.map(e => e.value)"
+    )
+    assert keys == ["pipe.E", "pipe.M2"]
+    assert page.input_value("#example") == ""  # "(as in the link)", not an example
+    link = page.get_attribute("#share-link", "href") or ""
+    assert "key=" + key in link and "spec=" in link
+    page.locator("[data-group='samples']").first.scroll_into_view_if_needed()
+    screenshot(page, "studies-opened-by-key-form-filled")
+    # the report: Sobol' indices with intervals, standard errors, method and diagnostics
+    href = page.get_attribute("#report-html", "href")
+    assert href == f"v1/results/{key}/report.html"
+    html = httpx.get(f"{server}/{href}", timeout=120).text
+    assert "Sensitivity: Sobol&#x27; indices and their intervals" in html
+    assert "S1 ± half-width [95 % interval]" in html
+    assert "mean ± standard error of the mean" in html
+    for row in ("sample size N [-] (base points)", "seed", "number of evaluations (cases) [-]"):
+        assert f"<td>{row}</td>" in html, row
+    assert 'id="figure-study_histograms"' in html and 'id="figure-sobol_indices"' in html
+    page.goto(f"{server}/{href}")
+    page.locator("text=Method and diagnostics").scroll_into_view_if_needed()
+    screenshot(page, "study-report-method-and-diagnostics")
+    page.locator("#figure-sobol_indices").scroll_into_view_if_needed()
+    screenshot(page, "study-report-sobol-figure")
