@@ -25,7 +25,6 @@ from pydantic.json_schema import JsonSchemaValue
 from pydantic_core import CoreSchema
 
 from pipeflow import paper, profiles
-from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import InvalidField, PipeflowError
@@ -37,7 +36,7 @@ from pipeflow.modeshapes import (
     MAX_SHAPE_TIMES,
     MAX_SHAPE_VALUES,
 )
-from pipeflow.schema import messages, plausibility, units
+from pipeflow.schema import messages, units
 
 # the base of every request model, re-exported (``X as X``): importers of these names from
 # this module, where they were defined before pipeflow.schema.base, keep working
@@ -54,7 +53,7 @@ from pipeflow.schema.drawing import (
     drawing_field,
     from_drawing,
 )
-from pipeflow.simulation import Result, Simulation, simulate
+from pipeflow.simulation import Simulation
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
 
@@ -658,7 +657,7 @@ class SimulationSpec(StrictModel):
                 )
 
     def output_values(self) -> tuple[int, int, int, str]:
-        """The numbers of the answer (:func:`pipeflow.schema.documents.simulation`), an upper
+        """The numbers of the answer (:func:`pipeflow.computations.documents.simulation`), an upper
         bound: ``(per output time, eigenvalue and mode-shape numbers, total, terms)``.
 
         Per output time: t, the tip, each output position and, with ``output.modal``, d and
@@ -749,16 +748,6 @@ def _output_cost(
         budget="output budget",
         advice=advice,
     )
-
-
-def run_simulation(spec: SimulationSpec, progress: Progress | None = None) -> Result:
-    """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
-    the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
-    with request_fields(SIMULATION_FIELDS):
-        result = simulate(spec.to_simulation(), progress=progress)
-    # a value far outside the pipe's scales, likely meant in another unit (issue 34, item 8)
-    result.warnings.extend(plausibility.warnings(spec))
-    return result
 
 
 #: the paper's section-5 example (:mod:`pipeflow.paper`), v = 0.4 t m/s, w0 = 100 rad/s,

@@ -264,7 +264,7 @@ def get_path(model: Any, path: str) -> Any:
 
 def set_path(model: Any, path: str, value: Any) -> None:
     """Set the value at ``path`` of a request model in place, without validation (for
-    templates: see :class:`pipeflow.schema.study_runner.CaseKeys`)."""
+    templates: see :class:`pipeflow.computations.study_runner.CaseKeys`)."""
     parts = path.split(".")
     node = get_path(model, ".".join(parts[:-1])) if len(parts) > 1 else model
     if isinstance(node, list):
@@ -595,7 +595,7 @@ class StudySpec(StrictModel):
         model, in bulk: each distinct value of a path once, by that field's own validator
         (raises ValidationError naming the first bad value's override, as :meth:`expand`
         does).  Rules across fields are the case's own validation's, when the study runs
-        (:meth:`validate_case`: a failed row).  :attr:`~pipeflow.schema.registry.
+        (:meth:`validate_case`: a failed row).  :attr:`~pipeflow.computations.registry.
         Computation.check` runs this before a study is accepted (~1 us per distinct value:
         a few milliseconds for 10,000 cases)."""
         adapters = {p: _leaf_adapter(self.base.spec, p) for p in self.paths()}
