@@ -97,11 +97,11 @@ which propagates Z' = S(t) Z over a period.
 
 The package by concern: :mod:`~pipeflow.solvers.magnus.generator` (the Magnus generators,
 the order choice and the step plan), :mod:`~pipeflow.solvers.magnus.stepper` (one
-propagation, :func:`propagate`), :mod:`~pipeflow.solvers.magnus.control` (the step control,
-:func:`step_control`), :mod:`~pipeflow.solvers.magnus.dense` (dense output, an object:
-:class:`DenseOutput`), :mod:`~pipeflow.solvers.magnus.checkpoints`
-(:class:`MagnusCheckpoints`), :mod:`~pipeflow.solvers.magnus.metering` (what a metered
-caller is charged), :mod:`~pipeflow.solvers.magnus.solver` (:class:`Magnus`, the solver) and
+propagation, :func:`propagate`), :mod:`~pipeflow.solvers.magnus.control` (the solver
+:class:`Magnus` and its step control, :func:`step_control`),
+:mod:`~pipeflow.solvers.magnus.dense` (dense output, an object: :class:`DenseOutput`),
+:mod:`~pipeflow.solvers.magnus.checkpoints` (:class:`MagnusCheckpoints`),
+:mod:`~pipeflow.solvers.magnus.metering` (what a metered caller is charged) and
 :mod:`~pipeflow.solvers.magnus.stack` (many problems at once, :func:`solve_many`).
 """
 
@@ -112,6 +112,7 @@ from pipeflow.solvers.magnus.control import REFINED_FLOOR_RATE as REFINED_FLOOR_
 from pipeflow.solvers.magnus.control import RICHARDSON_DIVISOR as RICHARDSON_DIVISOR
 from pipeflow.solvers.magnus.control import ROUNDING_PER_STEP as ROUNDING_PER_STEP
 from pipeflow.solvers.magnus.control import SAFETY as SAFETY
+from pipeflow.solvers.magnus.control import Magnus as Magnus
 from pipeflow.solvers.magnus.control import MagnusRun as MagnusRun
 from pipeflow.solvers.magnus.control import StepControl as StepControl
 from pipeflow.solvers.magnus.control import step_control as step_control
@@ -133,5 +134,4 @@ from pipeflow.solvers.magnus.generator import load_scale as load_scale
 from pipeflow.solvers.magnus.metering import STEP_FIXED_S as STEP_FIXED_S
 from pipeflow.solvers.magnus.metering import STEP_PER_SIZE25_S as STEP_PER_SIZE25_S
 from pipeflow.solvers.magnus.metering import step_seconds as step_seconds
-from pipeflow.solvers.magnus.solver import Magnus as Magnus
 from pipeflow.solvers.magnus.stepper import propagate as propagate

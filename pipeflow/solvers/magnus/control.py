@@ -1,15 +1,16 @@
-"""The step control of the Magnus solver: the plan of each attempt, the error estimate
-(Richardson against a run with twice the step, then against the previous attempt), the
-refinement and the solver's output (the method: :mod:`pipeflow.solvers.magnus`).  One
-definition for the single run (:class:`~pipeflow.solvers.magnus.solver.Magnus`) and the
-stacked runs of a study (:mod:`pipeflow.solvers.magnus.stack`)."""
+"""The Magnus solver (:class:`Magnus`) and its step control: the plan of each attempt, the
+error estimate (Richardson against a run with twice the step, then against the previous
+attempt), the refinement and the solver's output (the method:
+:mod:`pipeflow.solvers.magnus`).  One definition of the control for the single run
+(:class:`Magnus`, which drives it with single propagations, resumable from its
+checkpoints) and the stacked runs of a study (:mod:`pipeflow.solvers.magnus.stack`)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Generator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,6 +19,7 @@ from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.solvers.base import (
     Problem,
+    Solver,
     SolverOutput,
     SolverStats,
     given_step,
@@ -25,6 +27,8 @@ from pipeflow.solvers.base import (
     step_budget,
     step_counts,
 )
+from pipeflow.solvers.magnus import stepper
+from pipeflow.solvers.magnus.checkpoints import MagnusCheckpoints
 from pipeflow.solvers.magnus.dense import DenseOutput
 from pipeflow.solvers.magnus.generator import (
     MagnusGenerator,
@@ -314,7 +318,7 @@ def _start(problem: Problem) -> _Control:
 
 
 def step_control(problem: Problem, stats: SolverStats) -> StepControl:
-    """The step control of :class:`~pipeflow.solvers.magnus.solver.Magnus` for one problem,
+    """The step control of :class:`Magnus` for one problem,
     as a generator: it yields each propagation it needs (a :class:`MagnusRun`) and is sent
     back the augmented states at the run's output times and the exponentials used; it
     returns the solver's output.  One definition for the single run
@@ -349,3 +353,34 @@ def step_control(problem: Problem, stats: SolverStats) -> StepControl:
             yield from run.observed(plan, check)
         substeps = run.refine(plan, Zaug)
     return run.output(plan, Zaug, stats)
+
+
+class Magnus(Solver):
+    name: ClassVar[str] = "magnus"
+    description: ClassVar[str] = (
+        "Magnus integrator of order 4 or 6 (2 or 3 Gauss points, chosen per interval) on "
+        "steps controlled for options.tolerance: accurate for time-variant flow and spin; "
+        "exact for constant."
+    )
+    option_names: ClassVar[tuple[str, ...]] = ("step", "max_steps", "tolerance")
+    estimates_own_error: ClassVar[bool] = True
+    error_advice: ClassVar[str] = "use a smaller tolerance or step"
+
+    def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
+        """Drive :func:`step_control` with :func:`propagate` (the stacked solver of
+        :mod:`pipeflow.solvers.magnus.stack` drives the same control over many problems)."""
+        control = step_control(problem, stats)
+        resume = MagnusCheckpoints(problem)
+        run = next(control)
+        try:
+            # a resume replays the deterministic control with the stored answers
+            for answer in resume.answers:
+                run = control.send(answer)
+            while True:
+                answer = stepper.propagate(problem, run.gen, run.t, run.plan, resume)
+                resume.answered(answer)
+                run = control.send(answer)
+        except StopIteration as stop:
+            out: SolverOutput = stop.value
+            out.diagnostics.update(resume.diagnostics())
+            return out
