@@ -65,6 +65,8 @@ def forcing(
     [1/s x m]: the spin-up load f_wdot dw0/dt of the model plus, with ``loads``, the external
     loads sum_k g_k p_k(t) (``c``: the coefficients at ``t`` when the caller has them).  The
     one definition: :meth:`Problem.forcing` and the Magnus generator's forcing use it."""
+    if loads is not None and c is None and loading.spin.is_constant:
+        return loads.vector(t)  # no spin-up load: the coefficients are not needed
     f = model.forcing(loading.coefficients(t) if c is None else c)
     if loads is not None:
         f = f + loads.vector(t)
