@@ -65,7 +65,7 @@ def best(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
 #: the child of one tree in --ab: times one paper-example document per line read
 _CHILD = """
 import sys, time
-from pipeflow.schema import documents
+from pipeflow.computations import documents
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.simulation import simulate
 spec = {k: v for k, v in PAPER_EXAMPLE.items() if k != "method"}
@@ -152,9 +152,9 @@ def ab(trees: list[str], rounds: int, what: str = "document") -> None:
 
 def parts(rounds: int) -> None:
     """--parts: the paper example's document time by part (module docstring)."""
-    import pipeflow.solvers.magnus as magnus
+    import pipeflow.solvers.magnus.generator as magnus
+    from pipeflow.computations import documents
     from pipeflow.linalg import TAYLOR_THETA, expm_stack
-    from pipeflow.schema import documents
     from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 
     spec = {k: v for k, v in PAPER_EXAMPLE.items() if k != "method"}

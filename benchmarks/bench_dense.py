@@ -26,8 +26,8 @@ import statistics
 import time
 from typing import Any
 
+from pipeflow.computations import documents
 from pipeflow.paper import PAPER_FLOW, PAPER_PIPE, PAPER_SPIN
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 

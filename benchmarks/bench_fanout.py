@@ -83,7 +83,7 @@ if str(ROOT) not in sys.path:
 
 import bench_service as BENCH  # noqa: E402  (the server start-up, timers, section writer)
 
-from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
+from pipeflow.computations.registry import COMPUTATIONS  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 TARGET = 1.6
@@ -275,7 +275,7 @@ def _traced_job(request: Any, db_url: str) -> dict[str, Any]:
     """The study job's path on a worker (see the module docstring, ``--timeline``): the
     job's phases [s since the epoch] and, per piece, its timing and arrival."""
     from pipeflow import parallel
-    from pipeflow.schema import study_runner
+    from pipeflow.computations import study_runner
     from service import encoding
     from service.engine.fanout import DaskHost
     from service.store import worker_store

@@ -57,8 +57,8 @@ import httpx
 import numpy as np
 from scipy import signal
 
+from pipeflow.computations import documents
 from pipeflow.model import Loading, build_model
-from pipeflow.schema import documents
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.simulation import simulate
 from service.launch import serve

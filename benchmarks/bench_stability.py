@@ -18,9 +18,9 @@ from typing import Any
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+from pipeflow.computations import documents
 from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import documents
 from pipeflow.stability import critical_velocities
 from pipeflow.stability.core import eigenvalues, nondimensional_pipe
 from pipeflow.stability.floquet import resonance_chart

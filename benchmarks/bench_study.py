@@ -57,7 +57,7 @@ in the same run, interleaved round by round (:func:`time_variant`):
   summaries), one batched product per output interval, the peak tip and the lowest
   eigenvalue of S(t_end); no error control, no branch tracking;
 - the library's study runner (``COMPUTATIONS["study"].execute``): the stacked magnus of
-  :mod:`pipeflow.solvers.magnus_stack` through :func:`pipeflow.batch.summaries`;
+  :mod:`pipeflow.solvers.magnus.stack` through :func:`pipeflow.batch.summaries`;
 - the per-case path the runner took before (each case ``execute`` + ``summarize``: the
   full result and its document), the same runner with the base's ``summarize_many`` off.
 """
@@ -88,10 +88,10 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 import bench_service as BENCH  # noqa: E402  (the server start-up, timers, section writer)
 
+from pipeflow.computations.registry import COMPUTATIONS  # noqa: E402
 from pipeflow.linalg import expm_stack  # noqa: E402
 from pipeflow.model import build_model  # noqa: E402
 from pipeflow.paper import PAPER_PIPE  # noqa: E402
-from pipeflow.schema.registry import COMPUTATIONS  # noqa: E402
 from pipeflow.schema.simulation import PAPER_EXAMPLE  # noqa: E402
 from pipeflow.schema.study import StudySpec  # noqa: E402
 
@@ -380,8 +380,8 @@ def _per_case_base() -> Any:
 def time_variant(side: int, modes: int, samples: int, rounds: int) -> dict[str, Any]:
     """Interleaved rounds of the floor, the library and the per-case path [s]."""
     from pipeflow.batch import time_variant_summaries
-    from pipeflow.schema.study_runner import run_study
-    from pipeflow.solvers.magnus_stack import solve_many
+    from pipeflow.computations.study_runner import run_study
+    from pipeflow.solvers.magnus.stack import solve_many
 
     spec = StudySpec.model_validate(tv_body(side, modes, samples))
     sims = [r.to_simulation() for r in (spec.validate_case(o)[0] for o in spec.overrides())]

@@ -51,7 +51,7 @@ WHOLE: list[tuple[str, str]] = [
     ("store: dispatcher (claim_waiting)", r"^JobStore\.claim_waiting "),
     ("store: other (monitor, heartbeats)", r"service/store/"),
     ("JSON encode (orjson)", r"service/encoding\.py"),
-    ("document (pipeflow.schema.documents)", r"pipeflow/schema/documents\.py"),
+    ("document (pipeflow.computations.documents)", r"pipeflow/computations/documents\.py"),
     ("simulate (numerics)", r"pipeflow/(?!schema/keys)"),
     ("Dask scheduler/client in the API process", r"distributed/|tornado/|psutil/"),
 ]

@@ -27,10 +27,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from pipeflow.computations import documents
 from pipeflow.io.plots import figure, to_bytes
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Profile, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 AMPLITUDES = (0.1, 0.2, 0.3, 0.4)  # a [m/s^(k+1)] for v = a t^k

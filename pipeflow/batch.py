@@ -50,7 +50,7 @@ from pipeflow.model import Loading, PipeModel, build_model
 from pipeflow.simulation import Simulation, SimulationStatus, trace_times, validate
 from pipeflow.solvers import Problem, SolverOutput
 from pipeflow.solvers.cma import _uniform_step
-from pipeflow.solvers.magnus_stack import MAX_RUNS, solve_many
+from pipeflow.solvers.magnus.stack import MAX_RUNS, solve_many
 from pipeflow.spectra import MARGINAL_RTOL, assign, decompose, max_growth_rates, order_lowest
 
 #: the methods whose constant-coefficient run is one eigen-decomposition (``auto`` runs cma)
@@ -301,9 +301,9 @@ def time_variant_summaries(sims: Sequence[Simulation]) -> list[CaseSummary | Non
     """The study rows of time-variant simulations (:func:`time_variant`), or None where the
     caller must run :func:`~pipeflow.simulation.simulate`.
 
-    In chunks of :data:`~pipeflow.solvers.magnus_stack.MAX_RUNS` cases (fewer where their
+    In chunks of :data:`~pipeflow.solvers.magnus.stack.MAX_RUNS` cases (fewer where their
     state histories would pass :data:`STACK_BYTES`): the states by
-    :func:`~pipeflow.solvers.magnus_stack.solve_many` (the magnus runs of the chunk
+    :func:`~pipeflow.solvers.magnus.stack.solve_many` (the magnus runs of the chunk
     stacked, each with the single run's step control: the same steps, estimate and
     refinements, so the same states to rounding), the tip and its peak from them, and the
     frozen spectra of the chunk at the single run's eigenvalue times in one batched

@@ -5,7 +5,7 @@ case: :func:`compare` runs the same :class:`~pipeflow.simulation.Simulation` wit
 method, times it, and reports each method's difference from the most accurate one.  It is
 a pure function returning a :class:`Comparison` (no I/O); its request model is
 :class:`pipeflow.schema.simulation.CompareSpec` (``POST /v1/compare``), its JSON form
-:func:`pipeflow.schema.documents.compare`.
+:func:`pipeflow.computations.documents.compare`.
 """
 
 from __future__ import annotations

@@ -52,7 +52,7 @@ class ModeShapes:
     shapes : Phi_j(x, t) [-], shape (T, B, P), max modulus 1 (see the module docstring).
     mode : mode number of each branch (``Traces.mode``), shape (B,); None: 1, 2, ...
 
-    JSON form: :func:`pipeflow.schema.documents.mode_shapes`.
+    JSON form: :func:`pipeflow.computations.documents.mode_shapes`.
     """
 
     t: FloatArray

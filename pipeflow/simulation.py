@@ -122,7 +122,7 @@ class Simulation:
 class Result:
     """Outputs of :func:`simulate` (SI units).
 
-    Its JSON form (the service's document) is :func:`pipeflow.schema.documents.simulation`;
+    Its JSON form (the service's document) is :func:`pipeflow.computations.documents.simulation`;
     in a notebook, the functions of :mod:`pipeflow.io.notebook` take this result or that
     JSON form (xarray/pandas are the ``notebook`` extra).
     """
@@ -156,7 +156,7 @@ class Result:
         branches of :attr:`frozen` (:func:`cma_exponents`).  Nothing in :func:`simulate`
         needs them (status, diagnostics and growth come from the frozen spectrum), so with
         time-varying coefficients their decompositions are deferred to the first use here
-        (the JSON form, :func:`pipeflow.schema.documents.simulation`, uses them); the value
+        (the JSON form, :func:`pipeflow.computations.documents.simulation`, uses them); the value
         is the same either way, and kept."""
         if callable(self.cma_exponents):
             self.cma_exponents = self.cma_exponents()

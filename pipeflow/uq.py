@@ -10,8 +10,9 @@ from the request models, as plain functions of arrays:
   independent uniform draws (:func:`numpy.random.default_rng`), or Saltelli's design for
   Sobol' indices (:func:`SALib.sample.sobol.sample`: ``count`` base points give
   ``count (2 D + 2)`` rows, in the order :func:`SALib.analyze.sobol.analyze` reads them);
-- :func:`ppf`: each distribution's inverse CDF, mapping a column of the design to values
-  (normal, truncated normal, uniform, lognormal; :mod:`scipy.stats`);
+- the distributions (:class:`Normal`, :class:`TruncatedNormal`, :class:`Uniform`,
+  :class:`Lognormal`: the request models' ``to_distribution()``) and :func:`ppf`, each one's
+  inverse CDF, mapping a column of the design to values (:mod:`scipy.stats`);
 - :func:`column_statistics`: mean, sample standard deviation, extremes and quantiles;
 - :func:`instability_probability`: a proportion with its binomial standard error;
 - :func:`sobol_indices`: first-order and total Sobol' indices of one output column over a
@@ -26,6 +27,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -83,33 +85,92 @@ def unit_design(method: str, count: int, dimension: int, seed: int) -> FloatArra
     return np.clip(np.asarray(u, dtype=float), EDGE, 1.0 - EDGE)
 
 
-def ppf(distribution: Mapping[str, Any], u: FloatArray) -> FloatArray:
-    """Values of ``distribution`` (its JSON form: ``distribution`` and its parameters) at
-    the probabilities ``u``:
+@dataclass(frozen=True)
+class Normal:
+    """N(mean, std^2), in the field's SI unit."""
 
-    - ``normal``: ``mean``, ``std``;
-    - ``truncated_normal``: the normal (``mean``, ``std``) restricted to [``low``, ``high``];
-    - ``uniform``: on [``low``, ``high``];
-    - ``lognormal``: ``ln X`` normal with mean ``ln median`` and standard deviation
-      ``sigma``."""
-    from scipy import stats  # here, as in unit_design
+    mean: float
+    std: float
 
-    d = distribution
-    kind = d["distribution"]
-    if kind == "normal":
-        out = stats.norm.ppf(u, loc=d["mean"], scale=d["std"])
-    elif kind == "truncated_normal":
-        a = (d["low"] - d["mean"]) / d["std"]
-        b = (d["high"] - d["mean"]) / d["std"]
-        out = stats.truncnorm.ppf(u, a, b, loc=d["mean"], scale=d["std"])
-        out = np.clip(out, d["low"], d["high"])  # rounding at the ends
-    elif kind == "uniform":
-        out = d["low"] + u * (d["high"] - d["low"])
-    elif kind == "lognormal":
-        out = d["median"] * np.exp(d["sigma"] * stats.norm.ppf(u))
-    else:
+    def ppf(self, u: FloatArray) -> FloatArray:
+        from scipy import stats  # here, as in unit_design
+
+        return np.asarray(stats.norm.ppf(u, loc=self.mean, scale=self.std), dtype=float)
+
+
+@dataclass(frozen=True)
+class TruncatedNormal:
+    """The normal N(mean, std^2) restricted to [low, high] (renormalised)."""
+
+    mean: float
+    std: float
+    low: float
+    high: float
+
+    def ppf(self, u: FloatArray) -> FloatArray:
+        from scipy import stats
+
+        a = (self.low - self.mean) / self.std
+        b = (self.high - self.mean) / self.std
+        out = stats.truncnorm.ppf(u, a, b, loc=self.mean, scale=self.std)
+        return np.asarray(np.clip(out, self.low, self.high), dtype=float)  # rounding at the ends
+
+
+@dataclass(frozen=True)
+class Uniform:
+    """Uniform on [low, high]."""
+
+    low: float
+    high: float
+
+    def ppf(self, u: FloatArray) -> FloatArray:
+        return np.asarray(self.low + u * (self.high - self.low), dtype=float)
+
+
+@dataclass(frozen=True)
+class Lognormal:
+    """ln X normal with mean ln(median) and standard deviation sigma [-]."""
+
+    median: float
+    sigma: float
+
+    def ppf(self, u: FloatArray) -> FloatArray:
+        from scipy import stats
+
+        return np.asarray(self.median * np.exp(self.sigma * stats.norm.ppf(u)), dtype=float)
+
+
+Distribution = Normal | TruncatedNormal | Uniform | Lognormal
+#: each distribution by its JSON name (the request's ``distribution``)
+DISTRIBUTIONS: dict[str, type[Distribution]] = {
+    "normal": Normal,
+    "truncated_normal": TruncatedNormal,
+    "uniform": Uniform,
+    "lognormal": Lognormal,
+}
+
+
+def distribution(data: Mapping[str, Any]) -> Distribution:
+    """The distribution of a JSON form (``distribution``: its name, and its parameters)."""
+    kind = data["distribution"]
+    if kind not in DISTRIBUTIONS:
         raise ValueError(f"unknown distribution {kind!r}")
-    return np.asarray(out, dtype=float)
+    return DISTRIBUTIONS[kind](**{k: v for k, v in data.items() if k != "distribution"})
+
+
+def ppf(distribution_: Distribution | Mapping[str, Any], u: FloatArray) -> FloatArray:
+    """Values of a distribution at the probabilities ``u`` (its inverse CDF):
+
+    - :class:`Normal`: ``mean``, ``std``;
+    - :class:`TruncatedNormal`: the normal (``mean``, ``std``) restricted to [``low``,
+      ``high``];
+    - :class:`Uniform`: on [``low``, ``high``];
+    - :class:`Lognormal`: ``ln X`` normal with mean ``ln median`` and standard deviation
+      ``sigma``.
+
+    A JSON form (a mapping) is read by :func:`distribution` first."""
+    d = distribution_ if not isinstance(distribution_, Mapping) else distribution(distribution_)
+    return d.ppf(u)
 
 
 def column_statistics(values: Sequence[float | None]) -> dict[str, Any]:

@@ -130,7 +130,7 @@ def _unwrap(data: Any) -> Any:
 
 
 def _sweep_kinds() -> tuple[str, ...]:
-    from pipeflow.schema.registry import SWEEP_KINDS
+    from pipeflow.computations.registry import SWEEP_KINDS
 
     return SWEEP_KINDS
 
@@ -147,14 +147,14 @@ def _is_result(data: Any) -> bool:
 
 
 def _kinds() -> tuple[str, ...]:
-    from pipeflow.schema.registry import COMPUTATIONS
+    from pipeflow.computations.registry import COMPUTATIONS
 
     return tuple(COMPUTATIONS)
 
 
 def _tagged_kinds() -> tuple[str, ...]:
     """The computations whose request model carries its name as ``kind``."""
-    from pipeflow.schema.registry import COMPUTATIONS
+    from pipeflow.computations.registry import COMPUTATIONS
 
     return tuple(n for n, c in COMPUTATIONS.items() if "kind" in c.request.model_fields)
 
@@ -188,7 +188,7 @@ def _run_local(kind: str, spec_data: Any, bar: ProgressBar) -> dict[str, Any]:
     """Validate ``spec_data`` as a request of the registry's computation ``kind``; run it."""
     from pydantic import ValidationError
 
-    from pipeflow.schema import registry
+    from pipeflow.computations import registry
 
     try:
         request = registry.parse(kind, spec_data)
@@ -714,7 +714,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         tp = None
         for note in getattr(exc, "__notes__", ()):
             if note.startswith(_REQUEST_TYPE_NOTE):
-                from pipeflow.schema import registry
+                from pipeflow.computations import registry
 
                 tp = registry.request_type(note.removeprefix(_REQUEST_TYPE_NOTE))
         for line in _describe_validation(exc, tp):

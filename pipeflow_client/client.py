@@ -182,9 +182,11 @@ Steps = Generator[Call | Pause, httpx.Response | None, T]
 
 def parse(kind: str, doc: Any) -> BaseModel:
     """``doc``, a result of the computation named ``kind``, validated with its response
-    model (:func:`pipeflow.schema.registry.response_type`: the models the service writes
+    model (:func:`pipeflow.computations.registry.response_type`: the models the service writes
     its documents with); raises pydantic's ValidationError naming the field."""
-    from pipeflow.schema.registry import response_type  # the computations' table, on first use
+    from pipeflow.computations.registry import (
+        response_type,
+    )  # the computations' table, on first use
 
     model: type[BaseModel] = response_type(kind)
     return model.model_validate(doc)

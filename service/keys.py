@@ -15,8 +15,8 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from pipeflow.computations.registry import Computation
 from pipeflow.schema.keys import canonical_key
-from pipeflow.schema.registry import Computation
 
 __all__ = ["KEY_MEMO_SIZE", "Keyed", "canonical_key", "keyed", "keyed_in_thread"]
 

@@ -62,7 +62,7 @@ def _no_worker(runner: Runner, exc: NoWorker) -> ProblemError:
 
 def job_cost(job: Keyed) -> float:
     """The estimated cost of ``job`` in units of its kind's cost bound, in [0, 1]
-    (:attr:`~pipeflow.schema.registry.Computation.estimate`: units / bound), what the
+    (:attr:`~pipeflow.computations.registry.Computation.estimate`: units / bound), what the
     cost-per-minute quota counts; 1 where the kind has no estimate (an unknown cost is
     taken at its bound)."""
     estimate = job.computation.estimate
@@ -130,7 +130,7 @@ async def check_quotas(
 
 async def check_request(job: Keyed) -> None:
     """The computation's validation too costly for the event loop
-    (:attr:`~pipeflow.schema.registry.Computation.check`, e.g. every case of a study), in a
+    (:attr:`~pipeflow.computations.registry.Computation.check`, e.g. every case of a study), in a
     thread; a failure is answered as the body's own validation errors are (422 naming the
     field)."""
     check = job.computation.check

@@ -272,7 +272,7 @@ def test_default_path_parts_smoke(capsys) -> None:  # type: ignore[no-untyped-de
     No time is asserted."""
     import numpy as np
 
-    import pipeflow.solvers.magnus as magnus
+    import pipeflow.solvers.magnus.generator as magnus
 
     expm, eigvals = magnus.expm_stack, np.linalg.eigvals
     _script("bench_default_path").parts(1)

@@ -1,6 +1,7 @@
 """The layers of the code base, read from the source with :mod:`ast` (nothing is imported).
 
-Four rules:
+The arrows: service -> computations (``pipeflow.computations``: what runs a request) ->
+schema (``pipeflow.schema``: the pydantic models) -> library, never back.  The rules:
 
 1. no import circle among the modules of ``pipeflow``, ``service``, ``pipeflow_client`` and
    ``pipeflow_cli``
@@ -12,10 +13,15 @@ Four rules:
 3. the engine (``service.engine``) imports nothing of the HTTP layer (``service.http``, the
    routes and what builds answers, fastapi, starlette): it returns plain outcomes and
    neutral error records, which only the HTTP layer turns into problem documents;
-4. the numerical library (``pipeflow`` outside ``pipeflow.schema`` and the presentation
-   layer ``pipeflow.io``) imports nothing of the schema (``pipeflow.schema``), deferred
-   imports included: it returns dataclasses, and the schema builds the documents from them
-   (``pipeflow.schema.documents``).
+4. the numerical library (``pipeflow`` outside ``pipeflow.schema``,
+   ``pipeflow.computations`` and the presentation layer ``pipeflow.io``) imports nothing of
+   the schema (``pipeflow.schema``) nor of the computations, deferred imports included: it
+   returns dataclasses, and the computations build the documents from them
+   (``pipeflow.computations.documents``);
+5. the schema imports nothing of the computations (the models are the contract; what runs
+   them sits one floor up);
+6. size: no module of ``pipeflow`` or ``service`` over :data:`MAX_MODULE_LINES` lines, no
+   class over :data:`MAX_CLASS_LINES` lines.
 """
 
 from __future__ import annotations
@@ -56,9 +62,15 @@ HTTP_LAYER = (
 
 #: the contract, which the numerical library must not import (rule 4)
 SCHEMA = "pipeflow.schema"
-#: the parts of ``pipeflow`` that may import the contract: itself and the presentation layer
-#: (a notebook view turns a local result into its document)
-SCHEMA_USERS = (SCHEMA, "pipeflow.io")
+#: what runs a request, one floor above the contract (rules 4 and 5)
+COMPUTATIONS = "pipeflow.computations"
+#: the parts of ``pipeflow`` that may import the contract and the computations: themselves
+#: and the presentation layer (a notebook view turns a local result into its document)
+SCHEMA_USERS = (SCHEMA, COMPUTATIONS, "pipeflow.io")
+
+#: the size rules (rule 6)
+MAX_MODULE_LINES = 800
+MAX_CLASS_LINES = 400
 
 
 @dataclass(frozen=True)
@@ -216,10 +228,17 @@ def test_library_imports_no_service_client_or_web_stack(tree_imports: list[Impor
 
 
 def test_library_imports_no_schema(tree_imports: list[Import]) -> None:
-    """The numerical library returns dataclasses; the schema builds the response documents
-    from them (``pipeflow.schema.documents``), never the other way round."""
-    bad = violations(tree_imports, "pipeflow", [SCHEMA], exempt=SCHEMA_USERS)
-    assert not bad, "the library imports the schema:\n" + "\n".join(bad)
+    """The numerical library returns dataclasses; the computations build the response
+    documents from them (``pipeflow.computations.documents``), never the other way round."""
+    bad = violations(tree_imports, "pipeflow", [SCHEMA, COMPUTATIONS], exempt=SCHEMA_USERS)
+    assert not bad, "the library imports the schema or the computations:\n" + "\n".join(bad)
+
+
+def test_schema_imports_no_computations(tree_imports: list[Import]) -> None:
+    """The models are the contract; what runs them (``pipeflow.computations``) imports the
+    schema, never the other way round."""
+    bad = violations(tree_imports, SCHEMA, [COMPUTATIONS])
+    assert not bad, "the schema imports the computations:\n" + "\n".join(bad)
 
 
 def test_client_and_command_line_stay_front_ends(tree_imports: list[Import]) -> None:
@@ -243,14 +262,15 @@ def test_the_tree_is_read(tree_imports: list[Import]) -> None:
     """The rules above see the code base (a wrong root would make them pass vacuously)."""
     modules = {imp.module for imp in tree_imports}
     assert {
-        "pipeflow.schema.study_runner",
+        "pipeflow.computations.study_runner",
+        "pipeflow.schema.study",
         "service.engine.task",
         "service.http.problems",
     } <= modules
     assert "pipeflow_cli.cli" in modules
     assert any(imp.target == "pipeflow.errors" for imp in tree_imports)
     assert any(
-        imp.module == "pipeflow.schema.documents" and imp.target == "pipeflow.simulation"
+        imp.module == "pipeflow.computations.documents" and imp.target == "pipeflow.simulation"
         for imp in tree_imports
     )
 
@@ -284,7 +304,14 @@ def test_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
             "pipeflow/schema/results.py": "",
             "pipeflow/schema/documents.py": "from pipeflow import a\nfrom . import results\n",
             "pipeflow/io/__init__.py": "",
-            "pipeflow/io/notebook.py": "def view():\n    from pipeflow.schema import documents\n",
+            "pipeflow/io/notebook.py": (
+                "def view():\n    from pipeflow.computations import documents\n"
+            ),
+            "pipeflow/h.py": "from pipeflow.computations import registry\n",
+            "pipeflow/schema/stability.py": "from pipeflow.computations import documents\n",
+            "pipeflow/computations/__init__.py": "",
+            "pipeflow/computations/registry.py": "from pipeflow.schema import results\n",
+            "pipeflow/computations/documents.py": "from pipeflow import a\n",
             "service/__init__.py": "",
             "service/http/__init__.py": "",
             "service/http/problems.py": "from service.engine import task\n",
@@ -303,11 +330,66 @@ def test_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
         "pipeflow.c:2 imports service.store",
         "pipeflow.e:2 imports fastapi",
     ]
-    assert violations(imports, "pipeflow", [SCHEMA], exempt=SCHEMA_USERS) == [
+    assert violations(imports, "pipeflow", [SCHEMA, COMPUTATIONS], exempt=SCHEMA_USERS) == [
         "pipeflow.f:2 imports pipeflow.schema.results",
         "pipeflow.g:1 imports pipeflow.schema.results",
         "pipeflow.g:2 imports pipeflow.schema",
+        "pipeflow.h:1 imports pipeflow.computations.registry",
+    ]
+    assert violations(imports, SCHEMA, [COMPUTATIONS]) == [
+        "pipeflow.schema.stability:1 imports pipeflow.computations.documents"
     ]
     assert violations(imports, "service.engine", HTTP_LAYER) == [
         "service.engine.task:1 imports service.http.problems"
+    ]
+
+
+# -- the size rules ------------------------------------------------------------------------
+
+
+def oversized(root: Path, packages: Iterable[str]) -> list[str]:
+    """``path: N lines`` for each module over :data:`MAX_MODULE_LINES` lines and
+    ``path:line class C: N lines`` for each class (nested ones too) over
+    :data:`MAX_CLASS_LINES` lines, from its ``class`` line (or first decorator) to its last
+    line (:mod:`ast` spans)."""
+    found: list[str] = []
+    for path in source_files(root, packages):
+        text = path.read_text(encoding="utf-8")
+        rel = path.relative_to(root).as_posix()
+        lines = len(text.splitlines())
+        if lines > MAX_MODULE_LINES:
+            found.append(f"{rel}: {lines} lines")
+        for node in ast.walk(ast.parse(text, filename=str(path))):
+            if isinstance(node, ast.ClassDef):
+                first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
+                span = (node.end_lineno or node.lineno) - first + 1
+                if span > MAX_CLASS_LINES:
+                    found.append(f"{rel}:{node.lineno} class {node.name}: {span} lines")
+    return found
+
+
+def test_no_module_or_class_over_the_size_limits() -> None:
+    """No module of the library or the service over 800 lines, no class over 400: a file
+    that grows past them is a room doing several jobs (split it by concern)."""
+    found = oversized(ROOT, ("pipeflow", "service"))
+    assert not found, "over the size limits:\n" + "\n".join(found)
+
+
+def test_size_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
+    body = "    x = 1\n" * MAX_CLASS_LINES
+    _write(
+        tmp_path,
+        {
+            "pipeflow/__init__.py": "",
+            "pipeflow/big.py": "x = 1\n" * (MAX_MODULE_LINES + 1),
+            "pipeflow/fits.py": "x = 1\n" * MAX_MODULE_LINES,
+            # a class of 401 lines (its line and 400 of body); one of 400 with its decorator
+            "service/__init__.py": "",
+            "service/wide.py": "class Wide:\n" + body,
+            "service/ok.py": "@dataclass\nclass Ok:\n" + "    x = 1\n" * (MAX_CLASS_LINES - 2),
+        },
+    )
+    assert oversized(tmp_path, ("pipeflow", "service")) == [
+        f"pipeflow/big.py: {MAX_MODULE_LINES + 1} lines",
+        f"service/wide.py:1 class Wide: {MAX_CLASS_LINES + 1} lines",
     ]

@@ -32,8 +32,9 @@ def _forced_run(scale: float) -> tuple[dict[str, Any], float]:
     the scaled load.  Returns the result document and the pipe's length L [m]."""
     import copy
 
-    from pipeflow.schema import documents
-    from pipeflow.schema.simulation import SimulationSpec, run_simulation
+    from pipeflow.computations import documents
+    from pipeflow.computations.simulation import simulate_spec
+    from pipeflow.schema.simulation import SimulationSpec
 
     book = json.loads((ROOT / "examples" / "forced_response.ipynb").read_text(encoding="utf-8"))
     [cell] = [
@@ -51,7 +52,7 @@ def _forced_run(scale: float) -> tuple[dict[str, Any], float]:
         else:
             load["force"]["amplitude"] = amplitude * scale
     spec = SimulationSpec.model_validate(body)
-    return documents.simulation(run_simulation(spec)), spec.pipe.L
+    return documents.simulation(simulate_spec(spec)), spec.pipe.L
 
 
 def test_the_forced_response_notebook_stays_in_the_linear_range() -> None:

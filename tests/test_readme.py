@@ -335,8 +335,8 @@ def test_the_figures_the_readme_quotes_are_current() -> None:
     the library, not the physics: the values themselves are tested against the paper and
     analytic references in tests/pipeflow/."""
     from pipeflow.basis import paper_scale, tip_values
+    from pipeflow.computations import documents
     from pipeflow.paper import PAPER_PIPE
-    from pipeflow.schema import documents
     from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
     from pipeflow.simulation import simulate
     from pipeflow.stability import critical_velocities

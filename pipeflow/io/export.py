@@ -1,6 +1,6 @@
 """CSV and Parquet export of a simulation result: time histories, eigenvalue traces, shapes.
 
-Works on the JSON form of a result (:func:`pipeflow.schema.documents.simulation`, which is
+Works on the JSON form of a result (:func:`pipeflow.computations.documents.simulation`, which is
 also what the service stores), so the command line, the service and a notebook export the
 same bytes.  Every table has one header row naming each column and its SI unit in
 brackets, e.g. ``t [s],tip_displacement [m]``; numbers are written with Python's shortest
@@ -35,7 +35,7 @@ Tables
     ``natural_frequency [rad/s]``, ``damping_ratio [-]`` and ``|H|`` at the peak per
     position (``magnitude(x=0.025) [m/N]``).
 ``study``
-    A design study's table (:mod:`pipeflow.schema.study_runner`): one row per case, its
+    A design study's table (:mod:`pipeflow.computations.study_runner`): one row per case, its
     columns as the result names them, each number's unit in brackets (``pipe.E [Pa]``,
     ``peak_tip_displacement [m]``); text and flag columns (``key``, ``status``) have none.
 

@@ -1,6 +1,6 @@
 """Results in a notebook: xarray Dataset, pandas DataFrame, matplotlib Figure.
 
-Works on the JSON form of a result (:func:`pipeflow.schema.documents.simulation`, which is
+Works on the JSON form of a result (:func:`pipeflow.computations.documents.simulation`, which is
 also what the service returns): every function takes that dictionary, a local
 :class:`~pipeflow.simulation.Result` or the client's :class:`pipeflow_client.SimulationResult`
 and gives the same objects (``to_xarray(result)``; the client's result offers them as
@@ -49,12 +49,12 @@ if TYPE_CHECKING:
 def document(result: Any) -> dict[str, Any]:
     """The JSON form of ``result``: a dictionary as it is, a :class:`NotebookViews`'s
     ``_document()``, else that of a local :class:`~pipeflow.simulation.Result`
-    (:func:`pipeflow.schema.documents.simulation`, imported on first use)."""
+    (:func:`pipeflow.computations.documents.simulation`, imported on first use)."""
     if isinstance(result, Mapping):
         return dict(result)
     if isinstance(result, NotebookViews):
         return result._document()
-    from pipeflow.schema import documents
+    from pipeflow.computations import documents
 
     return documents.simulation(result)
 

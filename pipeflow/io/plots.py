@@ -3,7 +3,7 @@
 The paper shows three kinds of figure for every case (Figs. 2-28): the tip displacement
 u(L, t), the damping sigma(t) and the fundamental frequency omega(t) of the system.  This
 module draws those, and a few more, from the JSON form of a result
-(:func:`pipeflow.schema.documents.simulation`, which is what the service stores), so the
+(:func:`pipeflow.computations.documents.simulation`, which is what the service stores), so the
 command line, the service and a notebook produce the same images.
 
 Figures are built on :class:`matplotlib.figure.Figure` with an Agg canvas, never through

@@ -1,7 +1,7 @@
 """A report of one result for a design review: HTML (figures embedded) or PDF.
 
 :func:`report` gathers what an engineer attaches to a review from a result's JSON form
-(:mod:`pipeflow.schema.documents`, what the service stores) and, when known, its request:
+(:mod:`pipeflow.computations.documents`, what the service stores) and, when known, its request:
 the inputs, the key numbers (status, critical velocity, peaks and damping ratios, growth
 rates, divergence, error estimate; a study's statistics with their standard errors and its
 Sobol' indices with their intervals, :mod:`pipeflow.io.study_report`), the figures

@@ -5,7 +5,7 @@ that starts unstable (e.g. divergence by fast spin at v = 0) has none, and its f
 instead where it is unstable at the start, every change of stability with its mechanism
 (loss: filled marker, gain: open; flutter: circle, divergence: square) and, on a swept axis,
 the unstable stretches shaded.  Drawn from the JSON results
-(:mod:`pipeflow.schema.documents`); results of earlier versions without the fields get the
+(:mod:`pipeflow.computations.documents`); results of earlier versions without the fields get the
 marks they can.
 """
 

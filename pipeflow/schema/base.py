@@ -100,7 +100,7 @@ class StrictModel(BaseModel):
         """The request's estimated cost against its bound (None: a part of a request).
         Every request model ends its validation with :meth:`within_budget`, which refuses
         it when the estimate exceeds the bound; the registry gives it as each entry's
-        :attr:`~pipeflow.schema.registry.Computation.estimate`."""
+        :attr:`~pipeflow.computations.registry.Computation.estimate`."""
         return None
 
     def within_budget(self) -> Self:

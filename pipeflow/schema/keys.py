@@ -6,7 +6,7 @@ request's normalised form (:meth:`pipeflow.schema.simulation.StrictModel.canonic
 defaults filled in, options the method ignores dropped).  Equivalent requests (key order,
 ``1`` vs ``1.0``, defaults omitted or spelled out) share a key; any change to a number
 that matters, or a new pipeflow version, changes it.  The service uses it as the job id,
-the cache key and the ETag; a study (:mod:`pipeflow.schema.study_runner`) keys each of its
+the cache key and the ETag; a study (:mod:`pipeflow.computations.study_runner`) keys each of its
 cases with it, so a case's key is the key the case has as a standalone request.
 """
 

@@ -28,12 +28,12 @@ def _names(model: type[BaseModel]) -> tuple[frozenset[str], frozenset[str]]:
 
 def document(model: type[BaseModel], /, **values: Any) -> dict[str, Any]:
     """``values`` as a JSON object of ``model`` (a result document or a part of one): the
-    one way :mod:`pipeflow.schema.documents` writes the library's results, so a key exists
+    one way :mod:`pipeflow.computations.documents` writes the library's results, so a key exists
     only as a field.
 
     Every name must be a field of ``model``, and every required field must be given but
     :data:`SERVICE_FIELDS` and ``kind`` (the computation's name, which
-    :meth:`~pipeflow.schema.registry.Computation.execute` adds); an optional field left out
+    :meth:`~pipeflow.computations.registry.Computation.execute` adds); an optional field left out
     is absent from the document.  The values are kept as given (JSON-ready, the caller's
     lists and numbers: nothing is converted or copied), in the order given (the order of
     the bytes the service sends).  Raises TypeError naming the model and the names.  Cost:

@@ -1,12 +1,12 @@
 """Response models: the JSON of every computation's result, as the service serves it.
 
-One model per result shape (:data:`pipeflow.schema.registry.COMPUTATIONS` names each
+One model per result shape (:data:`pipeflow.computations.registry.COMPUTATIONS` names each
 computation's), nested models for its parts.  They are the one definition of each
-document's keys: :mod:`pipeflow.schema.documents` writes the library's results with
+document's keys: :mod:`pipeflow.computations.documents` writes the library's results with
 :func:`document`, which takes a model and the values by field name and refuses a name the
 model lacks or a required field left out, on every call; the tests check that every field
 of every model is written by some real result.  The service adds ``key``, ``cached`` and ``plots``
-(:data:`SERVICE_FIELDS`), and :meth:`pipeflow.schema.registry.Computation.execute` puts
+(:data:`SERVICE_FIELDS`), and :meth:`pipeflow.computations.registry.Computation.execute` puts
 ``kind`` first.  The client (:mod:`pipeflow_client`) validates what it receives with the
 same models.  Every float is finite: where the library has no number (e.g. no critical
 velocity) the field is null.

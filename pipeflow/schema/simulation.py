@@ -24,8 +24,7 @@ from pydantic import (
 from pydantic.json_schema import JsonSchemaValue
 from pydantic_core import CoreSchema
 
-from pipeflow import paper, profiles
-from pipeflow._types import Progress
+from pipeflow import paper
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import InvalidField, PipeflowError
@@ -37,7 +36,7 @@ from pipeflow.modeshapes import (
     MAX_SHAPE_TIMES,
     MAX_SHAPE_VALUES,
 )
-from pipeflow.schema import messages, plausibility, units
+from pipeflow.schema import messages, units
 
 # the base of every request model, re-exported (``X as X``): importers of these names from
 # this module, where they were defined before pipeflow.schema.base, keep working
@@ -54,26 +53,26 @@ from pipeflow.schema.drawing import (
     drawing_field,
     from_drawing,
 )
-from pipeflow.simulation import Result, Simulation, simulate
+from pipeflow.schema.profiles import ConstantProfile as ConstantProfile
+from pipeflow.schema.profiles import HarmonicProfile as HarmonicProfile
+from pipeflow.schema.profiles import PolynomialProfile as PolynomialProfile
+from pipeflow.schema.profiles import ProfileSpec as ProfileSpec
+from pipeflow.schema.profiles import TableProfile as TableProfile
+from pipeflow.simulation import Simulation
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
 
 MAX_SAMPLES = 200_001
-MAX_TABLE_POINTS = 10_000
 MAX_POSITIONS = 64
 MAX_EIGEN_SAMPLES = 2001
-MAX_POLY_DEGREE = 8
 #: the most numbers one simulation's answer may hold (output times x series, eigenvalue
 #: traces, mode shapes: :meth:`SimulationSpec.cost`): about 45 MB of JSON (measured: 1.8
 #: million numbers, 200,001 samples x 7 positions, were 41 MB, 13 s and a 274 MB peak of
 #: the process; 200,001 samples x 145 series, 29 million numbers, had taken 2.7 GB and
 #: stored a 299 MB row); a comparison holds one run per method, so its methods share it
 MAX_OUTPUT_VALUES = 2_000_000
-#: bounds on profile values (m/s for v, rad/s for w0) and on total mass per length [kg/m]
-MAX_PROFILE_VALUE = 1e7
-MAX_COEFFICIENT = 1e9
+#: bound on total mass per length [kg/m]
 MIN_MASS = 1e-15
-BoundedValue = Annotated[float, Field(ge=-MAX_PROFILE_VALUE, le=MAX_PROFILE_VALUE)]
 #: the mounting of the pipe beyond the paper's model (issue 14; docs/model.md): one
 #: definition each, used by every simulation and stability request
 HubRadius = Annotated[
@@ -244,92 +243,6 @@ class PipeSpec(StrictModel):
             hub_radius=hub_radius,
             plane=plane,
         )
-
-
-class ConstantProfile(StrictModel):
-    """p(t) = value."""
-
-    kind: Literal["constant"] = "constant"
-    value: float = Field(
-        0.0,
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Value, in the unit of the quantity (m/s or rad/s).",
-    )
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.Constant(self.value)
-
-
-class PolynomialProfile(StrictModel):
-    """p(t) = sum_k coefficients[k] t^k with t in seconds (the paper's a, a t, a t^2)."""
-
-    kind: Literal["polynomial"] = "polynomial"
-    coefficients: list[Annotated[float, Field(ge=-MAX_COEFFICIENT, le=MAX_COEFFICIENT)]] = Field(
-        min_length=1,
-        max_length=MAX_POLY_DEGREE + 1,
-        description="c_0, c_1, ...: c_k in (unit of the quantity)/s^k, e.g. m/s^(k+1) for v.",
-    )
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.Polynomial(tuple(self.coefficients))
-
-
-class HarmonicProfile(StrictModel):
-    """p(t) = mean + amplitude sin(frequency t + phase): pulsating flow, oscillating spin."""
-
-    kind: Literal["harmonic"] = "harmonic"
-    mean: float = Field(
-        0.0,
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Mean value (m/s for v, rad/s for w0).",
-    )
-    amplitude: float = Field(
-        0.0,
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Amplitude (m/s for v, rad/s for w0).",
-    )
-    frequency: float = Field(0.0, ge=0, le=1e7, description="Angular frequency [rad/s].")
-    phase: float = Field(0.0, ge=-1e3, le=1e3, description="Phase at t = 0 [rad].")
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.Harmonic(self.mean, self.amplitude, self.frequency, self.phase)
-
-
-class TableProfile(StrictModel):
-    """Tabulated values interpolated in time; must start at t <= 0 and cover t_end."""
-
-    kind: Literal["table"] = "table"
-    t: list[float] = Field(
-        min_length=2, max_length=MAX_TABLE_POINTS, description="Strictly increasing times [s]."
-    )
-    values: list[BoundedValue] = Field(
-        min_length=2, max_length=MAX_TABLE_POINTS, description="Values at those times."
-    )
-    interpolation: Literal["linear", "cubic", "pchip"] = Field(
-        "linear", description="linear, cubic (not-a-knot spline) or pchip (monotone)."
-    )
-
-    @model_validator(mode="after")
-    def _check(self) -> TableProfile:
-        if len(self.t) != len(self.values):
-            raise InvalidField("t and values must have the same length", "t")
-        if any(b <= a for a, b in zip(self.t, self.t[1:], strict=False)):
-            raise InvalidField("t must be strictly increasing", "t")
-        if self.t[0] > 0:
-            raise InvalidField("the table must start at or before t = 0 s")
-        return self
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.table(self.t, self.values, self.interpolation)
-
-
-ProfileSpec = Annotated[
-    ConstantProfile | PolynomialProfile | HarmonicProfile | TableProfile,
-    Field(discriminator="kind"),
-]
 
 
 class RotationSpec(StrictModel):
@@ -658,7 +571,7 @@ class SimulationSpec(StrictModel):
                 )
 
     def output_values(self) -> tuple[int, int, int, str]:
-        """The numbers of the answer (:func:`pipeflow.schema.documents.simulation`), an upper
+        """The numbers of the answer (:func:`pipeflow.computations.documents.simulation`), an upper
         bound: ``(per output time, eigenvalue and mode-shape numbers, total, terms)``.
 
         Per output time: t, the tip, each output position and, with ``output.modal``, d and
@@ -749,16 +662,6 @@ def _output_cost(
         budget="output budget",
         advice=advice,
     )
-
-
-def run_simulation(spec: SimulationSpec, progress: Progress | None = None) -> Result:
-    """:func:`~pipeflow.simulation.simulate` on a validated spec; a library refusal names
-    the request field (``exc.field``, from :data:`SIMULATION_FIELDS`)."""
-    with request_fields(SIMULATION_FIELDS):
-        result = simulate(spec.to_simulation(), progress=progress)
-    # a value far outside the pipe's scales, likely meant in another unit (issue 34, item 8)
-    result.warnings.extend(plausibility.warnings(spec))
-    return result
 
 
 #: the paper's section-5 example (:mod:`pipeflow.paper`), v = 0.4 t m/s, w0 = 100 rad/s,

@@ -1,4 +1,4 @@
-"""Request models of the stability analyses, and how each runs (plain library calls).
+"""Request models of the stability analyses (what runs them: computations.stability).
 
 - ``POST /v1/stability``: :class:`StabilitySpec` (critical flow velocity at constant spin:
   every crossing of the stability boundary).
@@ -9,9 +9,8 @@
 
 Same conventions as :mod:`pipeflow.schema.simulation`: strict pydantic models with units in
 every description, bounds on everything a request can spend, :meth:`canonical` (defaults
-filled in) for the cache key.  Each model's ``run`` method is the plain library call; it
-returns the result's document (:mod:`pipeflow.schema.documents`) and takes a ``progress``
-callback (fraction in [0, 1]) that may raise :class:`pipeflow.errors.Cancelled`.
+filled in) for the cache key.  How each runs (the plain library call and its document) is
+:mod:`pipeflow.computations.stability`.
 """
 
 from __future__ import annotations
@@ -22,12 +21,10 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AliasChoices, ConfigDict, Field, Strict, model_validator
 
-from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidField
 from pipeflow.model import GROUPS, Pipe
 from pipeflow.paper import PAPER_PIPE_JSON
-from pipeflow.schema import documents
 from pipeflow.schema.simulation import (
     ConstantProfile,
     Cost,
@@ -38,16 +35,12 @@ from pipeflow.schema.simulation import (
     StrictModel,
     library_check,
 )
-from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import (
     MAX_CHART_WORK,
     chart_work,
-    floquet,
     period_of,
-    resonance_chart,
 )
-from pipeflow.stability.maps import MAX_MAP_WORK, beta_map, spin_map
-from pipeflow.stability.sweeps import Parameter, sweep
+from pipeflow.stability.maps import MAX_MAP_WORK
 
 #: the paper's section-5 pipe, for the schema examples
 #: (E, I, L, M1, M2 only: the paper's pipe needs none of the fields beyond its model)
@@ -206,18 +199,6 @@ class StabilitySpec(_Mounted):
         """One frozen spectrum per grid point (:func:`spectrum_cost`)."""
         return spectrum_cost(self.points, self.modes, ("points", "modes"), "points")
 
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.critical.critical_velocities`: its document."""
-        result = critical_velocities(
-            self.mounted_pipe(),
-            omega0=self.rotation.omega0.value,
-            velocity_range=self.velocity_range,
-            modes=self.modes,
-            points=self.points,
-            progress=progress,
-        )
-        return documents.critical_velocities(result)
-
 
 class _TrackedSweep(_Mounted):
     modes: Modes = 10
@@ -254,29 +235,6 @@ class _TrackedSweep(_Mounted):
         field = "max_points" if self.max_points is not None else "points"
         return spectrum_cost(most, self.modes, (field, "modes"), "points after refinement")
 
-    def _sweep(
-        self,
-        parameter: Parameter,
-        value_range: tuple[float, float],
-        fixed: float,
-        progress: Progress | None,
-        orders: tuple[float, ...] = (),
-    ) -> dict[str, Any]:
-        result = sweep(
-            self.mounted_pipe(),
-            parameter,
-            value_range,
-            fixed=fixed,
-            modes=self.modes,
-            tracked=self.tracked_modes,
-            points=self.points,
-            min_confidence=self.min_confidence,
-            max_points=self.max_points,
-            progress=progress,
-            orders=orders,
-        )
-        return documents.sweep(result)
-
 
 class ArgandSweep(_TrackedSweep):
     """Eigenvalues against flow velocity at constant spin (Argand diagram)."""
@@ -289,10 +247,6 @@ class ArgandSweep(_TrackedSweep):
     def _ranges(self) -> ArgandSweep:
         _check_range(self.velocity_range, "velocity_range", MAX_SPEED, "m/s")
         return self.within_budget()
-
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.sweeps.sweep` over flow velocity: its document."""
-        return self._sweep("velocity", self.velocity_range, self.rotation.omega0.value, progress)
 
 
 class CampbellSweep(_TrackedSweep):
@@ -312,12 +266,6 @@ class CampbellSweep(_TrackedSweep):
     def _ranges(self) -> CampbellSweep:
         _check_range(self.spin_range, "spin_range", MAX_SPIN, "rad/s")
         return self.within_budget()
-
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.sweeps.sweep` over spin: its document."""
-        return self._sweep(
-            "spin", self.spin_range, self.flow.velocity.value, progress, tuple(self.orders)
-        )
 
 
 class SpinMapSweep(_Mounted):
@@ -346,19 +294,6 @@ class SpinMapSweep(_Mounted):
             ("spin_points", "velocity_points", "modes"),
             f"{self.velocity_points} velocity_points x {self.spin_points} spin_points",
         )
-
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.maps.spin_map`: its document."""
-        result = spin_map(
-            self.mounted_pipe(),
-            self.velocity_range,
-            self.spin_range,
-            modes=self.modes,
-            velocity_points=self.velocity_points,
-            spin_points=self.spin_points,
-            progress=progress,
-        )
-        return documents.spin_map(result)
 
 
 class BetaMapSweep(StrictModel):
@@ -416,21 +351,6 @@ class BetaMapSweep(StrictModel):
             f"{self.beta_points} beta_points x {self.u_points} u_points",
         )
 
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.maps.beta_map`: its document."""
-        result = beta_map(
-            self.beta_range,
-            self.u_range,
-            gamma=self.gamma,
-            modes=self.modes,
-            beta_points=self.beta_points,
-            u_points=self.u_points,
-            progress=progress,
-            groups={name: getattr(self, name) for name in GROUPS},
-            plane=self.plane,
-        )
-        return documents.beta_map(result)
-
 
 class ResonanceChartSweep(_Mounted):
     """Floquet chart of pulsating flow v = mean + a sin(Omega t) over (a, Omega)."""
@@ -472,22 +392,6 @@ class ResonanceChartSweep(_Mounted):
             "frequency_points",
         )
 
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.floquet.resonance_chart`: its document."""
-        result = resonance_chart(
-            self.mounted_pipe(),
-            self.mean_velocity,
-            self.amplitude_range,
-            self.frequency_range,
-            omega0=self.rotation.omega0.value,
-            modes=self.modes,
-            amplitude_points=self.amplitude_points,
-            frequency_points=self.frequency_points,
-            tolerance=self.tolerance,
-            progress=progress,
-        )
-        return documents.resonance_chart(result)
-
 
 class PeriodicFlow(StrictModel):
     velocity: ConstantProfile | HarmonicProfile = Field(
@@ -528,21 +432,9 @@ class FloquetSweep(_Mounted):
         period = period_of(self.flow.velocity.to_profile(), self.rotation.omega0.to_profile())
         return chart_cost(self.mounted_pipe(), self.modes, 1, 2 * np.pi / period, "flow.velocity")
 
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """:func:`~pipeflow.stability.floquet.floquet`: its document."""
-        result = floquet(
-            self.mounted_pipe(),
-            self.flow.velocity.to_profile(),
-            self.rotation.omega0.to_profile(),
-            modes=self.modes,
-            tolerance=self.tolerance,
-            progress=progress,
-        )
-        return documents.floquet(result)
-
 
 #: the request models asked for by ``kind`` at ``/v1/sweeps`` (their registry entries
-#: are in :mod:`pipeflow.schema.registry`)
+#: are in :mod:`pipeflow.computations.registry`)
 SweepModel = (
     ArgandSweep | CampbellSweep | SpinMapSweep | BetaMapSweep | ResonanceChartSweep | FloquetSweep
 )

@@ -67,6 +67,14 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from pipeflow import uq
 from pipeflow.errors import InvalidField
+from pipeflow.schema.distributions import DISTRIBUTIONS as DISTRIBUTIONS
+from pipeflow.schema.distributions import Distribution as Distribution
+from pipeflow.schema.distributions import LognormalDistribution as LognormalDistribution
+from pipeflow.schema.distributions import NormalDistribution as NormalDistribution
+from pipeflow.schema.distributions import (
+    TruncatedNormalDistribution as TruncatedNormalDistribution,
+)
+from pipeflow.schema.distributions import UniformDistribution as UniformDistribution
 from pipeflow.schema.simulation import (
     PAPER_EXAMPLE,
     Cost,
@@ -133,52 +141,6 @@ class StabilityBase(StrictModel):
 
 
 BaseRequest = Annotated[SimulationBase | StabilityBase, Field(discriminator="kind")]
-
-
-class NormalDistribution(StrictModel):
-    """A normal distribution N(mean, std^2)."""
-
-    distribution: Literal["normal"] = Field(description="Normal: mean and std.")
-    mean: float = Field(description="Mean, in the field's own SI unit.")
-    std: float = Field(description="Standard deviation (> 0), in the field's own SI unit.")
-
-
-class TruncatedNormalDistribution(StrictModel):
-    """A normal distribution N(mean, std^2) restricted to [low, high] (renormalised)."""
-
-    distribution: Literal["truncated_normal"] = Field(
-        description="Truncated normal: the normal of mean and std restricted to [low, high]."
-    )
-    mean: float = Field(description="Mean of the untruncated normal, in the field's SI unit.")
-    std: float = Field(description="Its standard deviation (> 0), in the field's SI unit.")
-    low: float = Field(description="Lower end (< high), in the field's SI unit.")
-    high: float = Field(description="Upper end, in the field's SI unit.")
-
-
-class UniformDistribution(StrictModel):
-    """A uniform distribution on [low, high]."""
-
-    distribution: Literal["uniform"] = Field(description="Uniform on [low, high].")
-    low: float = Field(description="Lower end (< high), in the field's own SI unit.")
-    high: float = Field(description="Upper end, in the field's own SI unit.")
-
-
-class LognormalDistribution(StrictModel):
-    """A lognormal distribution: ln X ~ N(ln median, sigma^2)."""
-
-    distribution: Literal["lognormal"] = Field(
-        description="Lognormal: ln X normal with mean ln(median) and standard deviation sigma."
-    )
-    median: float = Field(description="Median (> 0), in the field's own SI unit.")
-    sigma: float = Field(description="Standard deviation of ln X (> 0) [-].")
-
-
-Distribution = Annotated[
-    NormalDistribution | TruncatedNormalDistribution | UniformDistribution | LognormalDistribution,
-    Field(discriminator="distribution"),
-]
-#: the distributions a sampled study draws from, by name
-DISTRIBUTIONS = ("normal", "truncated_normal", "uniform", "lognormal")
 
 
 class Samples(StrictModel):
@@ -264,7 +226,7 @@ def get_path(model: Any, path: str) -> Any:
 
 def set_path(model: Any, path: str, value: Any) -> None:
     """Set the value at ``path`` of a request model in place, without validation (for
-    templates: see :class:`pipeflow.schema.study_runner.CaseKeys`)."""
+    templates: see :class:`pipeflow.computations.study_runner.CaseKeys`)."""
     parts = path.split(".")
     node = get_path(model, ".".join(parts[:-1])) if len(parts) > 1 else model
     if isinstance(node, list):
@@ -424,7 +386,7 @@ class StudySpec(StrictModel):
                 yield {path: value for (path, _), value in zip(axes, values, strict=True)}
         elif self.samples is not None:
             paths = self.paths()
-            for row in self.sample_values().tolist():
+            for row in self._drawn:
                 yield dict(zip(paths, row, strict=True))
         else:
             yield from (dict(c) for c in self.cases or [])
@@ -465,13 +427,28 @@ class StudySpec(StrictModel):
     def sample_values(self) -> uq.FloatArray:
         """Sampling mode: each case's values (rows) of the parameters (columns, in
         :meth:`paths` order), in their SI units: the design through each inverse CDF."""
+        return np.array(self._drawn, dtype=float).reshape(len(self._drawn), -1)
+
+    @functools.cached_property
+    def _drawn(self) -> tuple[tuple[float, ...], ...]:
+        """:meth:`sample_values`' rows, drawn once per study: the check before a study is
+        accepted (:meth:`check`) and its run (:meth:`overrides`) read the same draws (kept
+        as tuples: a study compares equal to another by its fields, with or without its
+        draws).  Not pickled (:meth:`__getstate__`): the pieces shipped to workers carry
+        their own overrides."""
         s = self.samples
         u = self.unit_design()
         assert s is not None
         columns = [
-            uq.ppf(s.parameters[path].model_dump(), u[:, j]) for j, path in enumerate(self.paths())
+            uq.ppf(s.parameters[path].to_distribution(), u[:, j])
+            for j, path in enumerate(self.paths())
         ]
-        return np.column_stack(columns)
+        return tuple(map(tuple, np.column_stack(columns).tolist()))
+
+    def __getstate__(self) -> dict[Any, Any]:
+        state = super().__getstate__()
+        state["__dict__"] = {k: v for k, v in state["__dict__"].items() if k != "_drawn"}
+        return state
 
     def expand(self) -> list[Case]:
         """Every case as a validated request of the base kind (raises ValidationError naming
@@ -595,7 +572,7 @@ class StudySpec(StrictModel):
         model, in bulk: each distinct value of a path once, by that field's own validator
         (raises ValidationError naming the first bad value's override, as :meth:`expand`
         does).  Rules across fields are the case's own validation's, when the study runs
-        (:meth:`validate_case`: a failed row).  :attr:`~pipeflow.schema.registry.
+        (:meth:`validate_case`: a failed row).  :attr:`~pipeflow.computations.registry.
         Computation.check` runs this before a study is accepted (~1 us per distinct value:
         a few milliseconds for 10,000 cases)."""
         adapters = {p: _leaf_adapter(self.base.spec, p) for p in self.paths()}

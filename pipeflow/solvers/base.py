@@ -16,7 +16,7 @@ from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.loads import ExternalForcing
 from pipeflow.model import Coefficients, Loading, PipeModel
-from pipeflow.solvers.checkpoint import Checkpoints
+from pipeflow.solvers.checkpoint import Checkpointer, Checkpoints, fingerprint
 
 #: hard ceilings that no option may lift (they bound what one request can cost)
 MAX_STEPS_CEILING = 20_000_000
@@ -54,6 +54,25 @@ def given_step(options: Options) -> float | None:
     return step
 
 
+def forcing(
+    model: PipeModel,
+    loading: Loading,
+    loads: ExternalForcing | None,
+    t: FloatArray,
+    c: Coefficients | None = None,
+) -> FloatArray:
+    """The forcing f(t) of z' = S(t) z + f(t) at the times ``t`` [s], shape ``(len(t), 2n)``
+    [1/s x m]: the spin-up load f_wdot dw0/dt of the model plus, with ``loads``, the external
+    loads sum_k g_k p_k(t) (``c``: the coefficients at ``t`` when the caller has them).  The
+    one definition: :meth:`Problem.forcing` and the Magnus generator's forcing use it."""
+    if loads is not None and c is None and loading.spin.is_constant:
+        return loads.vector(t)  # no spin-up load: the coefficients are not needed
+    f = model.forcing(loading.coefficients(t) if c is None else c)
+    if loads is not None:
+        f = f + loads.vector(t)
+    return f
+
+
 @dataclass(frozen=True)
 class Problem:
     """One linear initial-value problem z' = S(t) z + f(t) in balanced coordinates.
@@ -81,10 +100,23 @@ class Problem:
     def forcing(self, t: FloatArray, c: Coefficients | None = None) -> FloatArray:
         """f(t) at the times ``t`` [s], shape ``(len(t), 2n)`` [1/s x m]: spin-up and loads
         (``c``: the coefficients at ``t`` when the caller has them)."""
-        f = self.model.forcing(self.loading.coefficients(t) if c is None else c)
-        if self.loads is not None:
-            f = f + self.loads.vector(t)
-        return f
+        return forcing(self.model, self.loading, self.loads, t, c)
+
+    def checkpointer(self, solver: str) -> Checkpointer:
+        """``solver``'s side of :attr:`checkpoints` for this solve, its blobs told apart by
+        the fingerprint of what determines the numbers: output times, initial state,
+        options, the state-matrix pieces and the coefficients (and forcing) at the output
+        times."""
+
+        def identity() -> str:
+            c = self.loading.coefficients(self.t)
+            arrays = [self.t, self.z0, self.model.state_pieces, self.model.f_wdot]
+            arrays += [c.weights(), c.wdot]
+            if self.loads is not None:
+                arrays.append(self.loads.vector(self.t))
+            return fingerprint(solver, self.options, arrays)
+
+        return Checkpointer(solver, self.checkpoints, identity)
 
     def report(self, fraction: float) -> None:
         if self.progress is not None:

@@ -47,15 +47,12 @@ import io
 import json
 import logging
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextvars import ContextVar
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from pipeflow.solvers.base import Problem
 
 log = logging.getLogger("pipeflow.checkpoint")
 
@@ -112,21 +109,15 @@ class Snapshot:
     arrays: dict[str, np.ndarray]
 
 
-def fingerprint(solver: str, problem: Problem) -> str:
-    """SHA-256 of what determines the solve's numbers: ``solver``, output times, initial
-    state, options, the state-matrix pieces and the coefficients (and forcing) at the
-    output times."""
+def fingerprint(solver: str, options: object, arrays: Iterable[Any]) -> str:
+    """SHA-256 of what determines a solve's numbers: ``solver``, its ``options`` (their
+    repr) and ``arrays`` (:meth:`pipeflow.solvers.base.Problem.checkpointer` gives the output
+    times, initial state, state-matrix pieces and the coefficients and forcing at the output
+    times)."""
     h = hashlib.sha256()
-    h.update(f"{FORMAT}:{solver}:{problem.options!r}".encode())
-    t = np.ascontiguousarray(problem.t, dtype=float)
-    pieces = (t, problem.z0, problem.model.state_pieces, problem.model.f_wdot)
-    for a in pieces:
+    h.update(f"{FORMAT}:{solver}:{options!r}".encode())
+    for a in arrays:
         h.update(np.ascontiguousarray(a, dtype=float).tobytes())
-    c = problem.loading.coefficients(t)
-    h.update(np.ascontiguousarray(c.weights()).tobytes())
-    h.update(np.ascontiguousarray(c.wdot).tobytes())
-    if problem.loads is not None:
-        h.update(np.ascontiguousarray(problem.loads.vector(t)).tobytes())
     return h.hexdigest()
 
 
@@ -159,10 +150,14 @@ class Checkpointer:
     (:meth:`restore`), and writes new ones when one is due (:meth:`due`, :meth:`save`).
     Without checkpoints every call is a no-op and :meth:`due` is always False."""
 
-    def __init__(self, solver: str, problem: Problem) -> None:
-        self.checkpoints = problem.checkpoints
+    def __init__(
+        self, solver: str, checkpoints: Checkpoints | None, identity: Callable[[], str]
+    ) -> None:
+        """``identity``: the solve's fingerprint (:func:`fingerprint`), computed when a blob
+        is read or written."""
+        self.checkpoints = checkpoints
         self.solver = solver
-        self.problem = problem
+        self._identity = identity
         self._fingerprint: str | None = None
         self.last = time.monotonic()  # the solve's start, then the last save [monotonic s]
         self.saves = 0
@@ -174,7 +169,7 @@ class Checkpointer:
 
     def _print(self) -> str:
         if self._fingerprint is None:
-            self._fingerprint = fingerprint(self.solver, self.problem)
+            self._fingerprint = self._identity()
         return self._fingerprint
 
     def restore(self) -> Snapshot | None:

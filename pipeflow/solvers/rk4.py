@@ -27,7 +27,6 @@ from pipeflow.solvers.base import (
     step_budget,
     step_counts,
 )
-from pipeflow.solvers.checkpoint import Checkpointer
 
 #: default fraction of the largest stable step used when the user gives none
 SAFETY = 0.9
@@ -131,7 +130,7 @@ class RK4(Solver):
         block = max(16, _BLOCK_ENTRIES // (3 * model.size**2))
         if invariant:
             S_const = model.state_matrix(loading.coefficients(np.zeros(1)))[0]
-        cp = Checkpointer("rk4", problem)
+        cp = problem.checkpointer("rk4")
         k0, b_start = 0, 0  # where to start: output interval, step within it
         snap = cp.restore()
         if snap is not None:

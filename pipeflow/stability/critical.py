@@ -54,7 +54,7 @@ class Crossing:
     flow_number : u = v L sqrt(M2/EI) [-] (None if M2 = 0).
     dimensionless_frequency : omega sqrt((M1+M2) L^4 / EI) [-].
 
-    JSON form: :func:`pipeflow.schema.documents.crossing`.
+    JSON form: :func:`pipeflow.computations.documents.crossing`.
     """
 
     velocity: float
@@ -70,7 +70,7 @@ class Crossing:
 @dataclass
 class CriticalVelocity:
     """Result of :func:`critical_velocities` (SI units; JSON form:
-    :func:`pipeflow.schema.documents.critical_velocities`).
+    :func:`pipeflow.computations.documents.critical_velocities`).
 
     critical_velocity : first loss of stability in the range [m/s] (v >= 0 part), or None
         when there is none.  If the pipe is already unstable at the start of the range

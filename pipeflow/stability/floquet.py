@@ -136,7 +136,7 @@ def _initial_steps(model: PipeModel, period: float) -> int:
 @dataclass
 class Floquet:
     """Floquet analysis of one periodic case (SI units; JSON form:
-    :func:`pipeflow.schema.documents.floquet`).
+    :func:`pipeflow.computations.documents.floquet`).
 
     period : T [s]; monodromy : Phi (balanced coordinates); multipliers : lambda, sorted by
     decreasing modulus; exponents : mu = log(lambda)/T [1/s]; steps : Magnus steps per
@@ -293,7 +293,7 @@ class ResonanceChart:
     (amplitudes[i], frequencies[j]); growth_rate = log(max |lambda|)/T [1/s]; unstable :
     max |lambda| > 1 beyond the error band; :meth:`unstable_regions` : the connected unstable
     regions with the frozen-frequency resonance condition nearest to each tongue's tip.
-    JSON form: :func:`pipeflow.schema.documents.resonance_chart`.
+    JSON form: :func:`pipeflow.computations.documents.resonance_chart`.
     """
 
     pipe: Pipe

@@ -112,7 +112,7 @@ def _first_loss(crossings: list[BoundaryCrossing]) -> float | None:
 @dataclass
 class SpinMap:
     """Critical flow velocities against spin (SI units; JSON form:
-    :func:`pipeflow.schema.documents.spin_map`).
+    :func:`pipeflow.computations.documents.spin_map`).
 
     spins : w0 [rad/s]; velocities : v grid [m/s]; growth[i, k] : max sigma [1/s] at
     (spins[i], velocities[k]); crossings[i] : the boundary crossings at spins[i] for v >= 0;
@@ -230,7 +230,7 @@ def spin_map(
 @dataclass
 class BetaMap:
     """u_cr(beta) at fixed non-dimensional spin gamma (JSON form:
-    :func:`pipeflow.schema.documents.beta_map`).
+    :func:`pipeflow.computations.documents.beta_map`).
 
     For each beta: every crossing of the stability boundary in flow number u [-] (several
     where the curve is S-shaped), the non-dimensional frequency there, and u_cr (first loss).

@@ -198,7 +198,7 @@ def pipe_stability(
 @dataclass
 class Sweep:
     """Tracked eigenvalues along a sweep (SI units; JSON form:
-    :func:`pipeflow.schema.documents.sweep`).
+    :func:`pipeflow.computations.documents.sweep`).
 
     parameter : "velocity" (Argand: values in m/s at constant spin ``fixed`` rad/s) or
         "spin" (Campbell: values in rad/s at constant flow velocity ``fixed`` m/s).

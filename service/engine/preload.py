@@ -107,8 +107,8 @@ def warm_up() -> None:
     the job would then pay (and report) it."""
     started = time.perf_counter()
     try:
+        from pipeflow.computations.registry import COMPUTATIONS
         from pipeflow.errors import ErrorRecord, classify
-        from pipeflow.schema.registry import COMPUTATIONS
         from pipeflow.schema.simulation import PAPER_EXAMPLE
         from service import encoding
 
@@ -214,7 +214,7 @@ def ping() -> dict[str, Any]:
         "pid": os.getpid(),
         "threads": {name: os.environ.get(name) for name in THREAD_VARIABLES},
         "numpy_loaded": "numpy" in sys.modules,
-        "registry_loaded": "pipeflow.schema.registry" in sys.modules,
+        "registry_loaded": "pipeflow.computations.registry" in sys.modules,
         "warmed_up": _warmed_up[0],
         "stores": sorted(_open_stores()),
         "malloc_trim_threshold": os.environ.get(ALLOCATOR_VARIABLE),

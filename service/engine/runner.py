@@ -53,9 +53,9 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.errors import ErrorRecord, StorageError
 from pipeflow.parallel import metered
-from pipeflow.schema.registry import COMPUTATIONS
 from service import observability
 from service.engine.preload import MODULE as PRELOAD
 from service.engine.task import HANDED_OFF, Accept, Outcome, TaskConfig, run_job

@@ -63,7 +63,7 @@ HANDED_OFF = "handed off to a worker by the fast lane"
 work_log = logging.getLogger("service.worker")
 
 if TYPE_CHECKING:
-    from pipeflow.schema.registry import Computation
+    from pipeflow.computations.registry import Computation
 
 
 @dataclass(frozen=True)

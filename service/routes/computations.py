@@ -1,4 +1,4 @@
-"""The computing routes, generated from :data:`pipeflow.schema.registry.COMPUTATIONS` and
+"""The computing routes, generated from :data:`pipeflow.computations.registry.COMPUTATIONS` and
 the service's table of where each is asked for (:data:`service.routes.endpoints.ENDPOINTS`).
 
 Every endpoint gets ``POST /v1/<path>`` (the result, or a job when the
@@ -22,7 +22,7 @@ from fastapi import APIRouter, Body, Depends
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel
 
-from pipeflow.schema.registry import (
+from pipeflow.computations.registry import (
     COMPUTATIONS,
     Computation,
     computation_for,

@@ -1,6 +1,6 @@
 """Where each computation of the registry is asked for: its URL path, tag and operation ids.
 
-The registry (:data:`pipeflow.schema.registry.COMPUTATIONS`) names computations only; this
+The registry (:data:`pipeflow.computations.registry.COMPUTATIONS`) names computations only; this
 table (:data:`ENDPOINTS`, keyed by computation name) maps each served one to its
 :class:`Endpoint`.  Several computations share one endpoint when their request models are
 told apart by ``kind`` (``/v1/sweeps``).  The routes (:mod:`service.routes.computations`),
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pipeflow.schema.registry import COMPUTATIONS, SWEEP_KINDS, Computation
+from pipeflow.computations.registry import COMPUTATIONS, SWEEP_KINDS, Computation
 
 
 @dataclass(frozen=True)

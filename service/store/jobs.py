@@ -163,10 +163,9 @@ class Claim:
     job: Job | None
 
 
-class JobStore(StoreConnection):
-    """Job records and their leases (see the module docstring)."""
-
-    # -- jobs (replica side) --------------------------------------------------------------
+class JobRecords(StoreConnection):
+    """Job records, the replica side: created, shared or reset before a computation is
+    accepted (the queue and the leases build on it: :class:`JobQueue`, :class:`JobStore`)."""
 
     def _job(self, conn: Connection, key: str, *, lock: bool = False) -> Job | None:
         row = conn.execute(_JOB_LOCKED if lock else _JOB, {"b_key": key}).first()
@@ -287,7 +286,36 @@ class JobStore(StoreConnection):
             keep_stored=keep_stored,
         )
 
-    # -- the durable queue -------------------------------------------------------------
+    def _finish(
+        self,
+        conn: Connection,
+        key: str,
+        status: str,
+        error: dict[str, Any] | None,
+        owner: str | None,
+    ) -> bool:
+        """:meth:`finish_job` inside the transaction ``conn``."""
+        params = {
+            "b_key": key,
+            "b_owner": owner,
+            "b_status": status,
+            "b_error": json.dumps(error) if error else None,
+            "b_now": time.time(),
+        }
+        statement = _FINISH[owner is not None, status == "succeeded"]
+        done = conn.execute(statement, params).rowcount
+        if done:
+            conn.execute(_DELETE_CHECKPOINTS, {"b_key": key})
+        return bool(done)
+
+    @staticmethod
+    def _stored(conn: Connection, key: str) -> bool:
+        """Whether the results table holds ``key`` (read in ``conn``'s transaction)."""
+        return conn.execute(_STORED, {"b_key": key}).first() is not None
+
+
+class JobQueue(JobRecords):
+    """The durable queue and the records' reads and upkeep (see the module docstring)."""
 
     @staticmethod
     def _is_waiting() -> Any:
@@ -463,28 +491,6 @@ class JobStore(StoreConnection):
         with self._write() as conn:
             return self._finish(conn, key, status, error, owner)
 
-    def _finish(
-        self,
-        conn: Connection,
-        key: str,
-        status: str,
-        error: dict[str, Any] | None,
-        owner: str | None,
-    ) -> bool:
-        """:meth:`finish_job` inside the transaction ``conn``."""
-        params = {
-            "b_key": key,
-            "b_owner": owner,
-            "b_status": status,
-            "b_error": json.dumps(error) if error else None,
-            "b_now": time.time(),
-        }
-        statement = _FINISH[owner is not None, status == "succeeded"]
-        done = conn.execute(statement, params).rowcount
-        if done:
-            conn.execute(_DELETE_CHECKPOINTS, {"b_key": key})
-        return bool(done)
-
     def mark_succeeded(self, key: str, kind: str, spec: dict[str, Any]) -> None:
         """Record a job whose result is already stored (a resubmission of a cached run)."""
         created, _ = _queued(kind, spec, False)
@@ -502,11 +508,6 @@ class JobStore(StoreConnection):
                     updated=now,
                 ),
             )
-
-    @staticmethod
-    def _stored(conn: Connection, key: str) -> bool:
-        """Whether the results table holds ``key`` (read in ``conn``'s transaction)."""
-        return conn.execute(_STORED, {"b_key": key}).first() is not None
 
     def get_job(self, key: str) -> Job | None:
         with self._read() as conn:
@@ -590,7 +591,10 @@ class JobStore(StoreConnection):
                 conn.execute(select(func.coalesce(func.sum(jobs.c.attempts), 0))).scalar_one()
             )
 
-    # -- jobs (task side: the attempt that computes) ---------------------------------------
+
+class JobStore(JobQueue):
+    """Job records and their leases (see the module docstring): the task side, the attempt
+    that computes, on top of the records and the queue."""
 
     def claim(self, key: str, owner: str, worker: str, stale_after_s: float) -> Claim:
         """Take the job's lease for the attempt ``owner`` running on ``worker``.

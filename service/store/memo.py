@@ -1,6 +1,6 @@
 """The service's :class:`pipeflow.parallel.Memo`: results of pieces in the result store.
 
-A study keeps one summary per case (:mod:`pipeflow.schema.study_runner`) under a memo key
+A study keeps one summary per case (:mod:`pipeflow.computations.study_runner`) under a memo key
 ``<kind>:<key>`` (``study_case:<the case's own key>``); here each is a row of the results
 table of that kind, JSON compressed like every result, read and written in batches (one
 query per look-up, one transaction per write).  The memo keys never match a result's key
@@ -12,7 +12,7 @@ a failed write is logged (the store is marked unhealthy and the computation's ow
 write reports it).
 
 A memo travels with the pieces of a study to the workers that run them (each piece looks
-up and writes its own cases, :mod:`pipeflow.schema.study_runner`): it pickles as its
+up and writes its own cases, :mod:`pipeflow.computations.study_runner`): it pickles as its
 store's URL and reopens as the worker process's own store of that database
 (:func:`service.store.worker_store`), never as a copy of a connection.
 """

@@ -76,7 +76,7 @@ TINY["study"] = {
 
 def tiny_request(name: str) -> BaseModel:
     """The validated tiny request of computation ``name`` (its ``kind`` added if it has one)."""
-    from pipeflow.schema.registry import COMPUTATIONS
+    from pipeflow.computations.registry import COMPUTATIONS
 
     model = COMPUTATIONS[name].request
     body = TINY[name]

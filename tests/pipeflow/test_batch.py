@@ -7,7 +7,7 @@ that includes v = 0, w0 = 0, flows past the critical velocity (diverged: stopped
 bound), slow growth under fast spin (diverging), a tip mass, damping,
 the 'tip' initial shape and a tight divergence bound.
 
-Time-variant cases (the stacked magnus, :mod:`pipeflow.solvers.magnus_stack`) are held to
+Time-variant cases (the stacked magnus, :mod:`pipeflow.solvers.magnus.stack`) are held to
 the same 1e-10, not only to their tolerance: the stacked run takes each case's own step
 control, so the same steps, orders, attempts and estimates as the single run (asserted on
 the diagnostics), and the same step exponentials; only the order of the additions in the
@@ -25,19 +25,19 @@ import numpy as np
 import pytest
 
 from pipeflow.batch import eligible, lti_summaries, summaries, time_variant
+from pipeflow.computations import documents
+from pipeflow.computations.registry import COMPUTATIONS, summarize_simulation
+from pipeflow.computations.study_runner import Piece, run_cases
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.loads import PointForce
 from pipeflow.model import Loading, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Harmonic, polynomial
-from pipeflow.schema import documents
-from pipeflow.schema.registry import COMPUTATIONS, summarize_simulation
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
-from pipeflow.schema.study_runner import Piece, run_cases
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options, Problem, SolverOutput
 from pipeflow.solvers.base import relative_difference
-from pipeflow.solvers.magnus_stack import solve_many
+from pipeflow.solvers.magnus.stack import solve_many
 
 RTOL = 1e-10
 

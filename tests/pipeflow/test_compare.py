@@ -1,5 +1,5 @@
 """pipeflow.compare: one case, several methods, their cost and their distance to the best
-(checked on its document, pipeflow.schema.documents.compare)."""
+(checked on its document, pipeflow.computations.documents.compare)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import json
 import pytest
 
 from pipeflow.compare import compare
+from pipeflow.computations import documents
 from pipeflow.errors import InvalidInput
-from pipeflow.schema import documents
 from tests.pipeflow.cases import PAPER_FLOWS, paper_sim
 
 

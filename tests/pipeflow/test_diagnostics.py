@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.diagnostics import WARN_THRESHOLD, check_indices
 from pipeflow.model import build_model
 from pipeflow.profiles import Constant, Harmonic
-from pipeflow.schema import documents
 from pipeflow.simulation import Result, simulate
 from tests.pipeflow.cases import PAPER_FLOWS, paper_sim, reference_run
 

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from pipeflow.computations import documents
 from pipeflow.model import GROUPS, Pipe, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
 from tests.pipeflow import collocation

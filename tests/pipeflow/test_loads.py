@@ -24,6 +24,8 @@ import pytest
 from pydantic import ValidationError
 
 from pipeflow.basis import mode_shapes
+from pipeflow.computations import documents
+from pipeflow.computations.simulation import simulate_spec
 from pipeflow.errors import InvalidInput
 from pipeflow.loads import (
     BASE_ACCELERATION_NOTE,
@@ -38,10 +40,9 @@ from pipeflow.loads import (
 from pipeflow.model import Loading, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Harmonic, polynomial, table
-from pipeflow.schema import documents
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.results import SimulationResponse
-from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec, run_simulation
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options
 from pipeflow.solvers.base import relative_difference
@@ -362,7 +363,7 @@ def test_schema_runs_and_echoes_loads() -> None:
     spec = SimulationSpec.model_validate(_request(loads=loads))
     sim = spec.to_simulation()
     assert isinstance(sim.loads[1], DistributedForce) and sim.loads[1].end is None
-    r = run_simulation(spec)
+    r = simulate_spec(spec)
     out = documents.simulation(r)
     assert [x["kind"] for x in out["loads"]] == [x["kind"] for x in loads]
     assert out["loads"][1]["end"] == L and out["loads"][0]["position"] == L

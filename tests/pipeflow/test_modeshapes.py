@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from pipeflow.basis import mode_shapes as cantilever_shapes
+from pipeflow.computations import documents
 from pipeflow.errors import InvalidInput
 from pipeflow.io.export import to_csv
 from pipeflow.io.plots import available_plots, render
 from pipeflow.model import Loading, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 L = PAPER_PIPE.L

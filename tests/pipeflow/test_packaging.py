@@ -21,7 +21,8 @@ def test_library_imports_no_extra() -> None:
     code = (
         "import sys, json\n"
         "import pipeflow, pipeflow.simulation, pipeflow.compare, pipeflow.stability\n"
-        "import pipeflow.schema.registry, pipeflow.io.export, pipeflow.io.plots, pipeflow_cli\n"
+        "import pipeflow.computations.registry, pipeflow.io.export, pipeflow.io.plots\n"
+        "import pipeflow_cli\n"
         f"print(json.dumps([m for m in {list(EXTRAS)!r} if m in sys.modules]))\n"
     )
     out = subprocess.run(
@@ -40,7 +41,7 @@ def test_results_do_not_load_the_presentation_layer() -> None:
         "from pipeflow.simulation import Simulation, simulate\n"
         "result = simulate(Simulation(PAPER_PIPE, modes=2, t_end=0.01, samples=11))\n"
         "assert not [m for m in sys.modules if m.startswith('pipeflow.schema')]\n"
-        "from pipeflow.schema import documents\n"
+        "from pipeflow.computations import documents\n"
         "documents.simulation(result)\n"
         "print(json.dumps(sorted(m for m in sys.modules if m.startswith('pipeflow.io'))))\n"
     )

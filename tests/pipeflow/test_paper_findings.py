@@ -11,8 +11,8 @@ import itertools
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Result, simulate
 from tests.pipeflow.cases import paper_sim
 

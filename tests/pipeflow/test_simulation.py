@@ -9,12 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.errors import PipeflowError
 from pipeflow.io.json import json_safe
 from pipeflow.model import Loading, build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial, table
-from pipeflow.schema import documents
 from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields
 from pipeflow.simulation import Simulation, simulate
 from pipeflow.solvers import Options

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.schema.simulation import SimulationSpec
 from pipeflow.simulation import simulate
 from tests.live import ROOT, need

@@ -20,7 +20,7 @@ from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
 
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.computations.registry import COMPUTATIONS
 from service import deps
 from service.engine import Flight, Runner
 from service.engine.task import Outcome

@@ -1,6 +1,6 @@
 """Computations used only by the tests: cheap, controllable stand-ins for long simulations.
 
-Registered in :data:`pipeflow.schema.registry.COMPUTATIONS` on import, without an endpoint
+Registered in :data:`pipeflow.computations.registry.COMPUTATIONS` on import, without an endpoint
 (no route); the worker processes import this module by reference when they unpickle the
 functions.
 """
@@ -13,7 +13,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from pipeflow._types import Progress
-from pipeflow.schema.registry import Computation, register
+from pipeflow.computations.registry import Computation, register
 
 
 class SleepResult(BaseModel):

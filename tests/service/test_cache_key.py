@@ -8,7 +8,7 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
-from pipeflow.schema.registry import SIMULATION, STABILITY
+from pipeflow.computations.registry import SIMULATION, STABILITY
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.schema.stability import StabilitySpec
 from service.keys import keyed

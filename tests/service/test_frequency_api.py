@@ -22,10 +22,10 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.frequency import PointForce, frequency_grid, frequency_response, resonances
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.schema.frequency import HAMMER_EXAMPLE, FrequencyResponseSpec
-from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow_cli.cli import main as cli_main
 from pipeflow_client import AsyncClient, Client, ServiceError
 from service.keys import keyed

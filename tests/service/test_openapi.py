@@ -79,7 +79,7 @@ def test_operations_errors_and_example() -> None:
 def test_the_client_paths_are_the_services_endpoint_table() -> None:
     """The client's name -> path table (it cannot import the service) agrees with the
     service's, and both cover the registry's served computations."""
-    from pipeflow.schema.registry import SWEEP_KINDS
+    from pipeflow.computations.registry import SWEEP_KINDS
     from pipeflow_client.client import PATHS
     from pipeflow_client.client import SWEEP_KINDS as CLIENT_SWEEP_KINDS
     from service.routes.endpoints import ENDPOINTS, endpoints

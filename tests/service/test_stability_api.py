@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from pipeflow.schema.registry import COMPUTATIONS, STABILITY, SWEEP_KINDS, parse
+from pipeflow.computations.registry import COMPUTATIONS, STABILITY, SWEEP_KINDS, parse
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 from service.keys import keyed
 from tests.service.conftest import make_client, wait_job, wait_ready

@@ -220,7 +220,7 @@ def _close(a: Any, b: Any, rel: float = 1e-12) -> bool:
 
 
 def test_a_sampled_study_gives_the_librarys_statistics_and_sensitivity(api: TestClient) -> None:
-    from pipeflow.schema import registry
+    from pipeflow.computations import registry
 
     body = {
         "base": {"kind": "simulation", "spec": {**BASE, "time": {"t_end": 0.02, "samples": 5}}},

@@ -13,11 +13,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.io.animation import mode_shape_gif, phases
 from pipeflow.io.plots import PlotError
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 pytest.importorskip("matplotlib")

@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.io.export import (
     SIMULATION_TABLES,
     ExportError,
@@ -19,7 +20,6 @@ from pipeflow.io.export import (
 )
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 

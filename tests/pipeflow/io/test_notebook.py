@@ -9,12 +9,12 @@ import sys
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.io.export import SIMULATION_TABLES, table
 from pipeflow.io.notebook import inputs_of, plot, to_dataframe, to_xarray
 from pipeflow.io.plots import PLOTS
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Result, Simulation, simulate
 
 xr = pytest.importorskip("xarray")  # the notebook extra; in the dev extra, so CI runs these
@@ -100,7 +100,7 @@ def test_dataframes_are_the_export_tables(result: Result, name: str) -> None:
 
 def test_the_io_functions_take_a_result_or_its_json(result: Result) -> None:
     """pipeflow.io.notebook's functions take a local Result (its document written by
-    pipeflow.schema.documents) or that document, and give the same views."""
+    pipeflow.computations.documents) or that document, and give the same views."""
     doc = documents.simulation(result)
     # the document carries no request: the local result's inputs are given to it
     assert to_xarray(result).identical(to_xarray(doc, inputs=inputs_of(result)))

@@ -15,11 +15,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipeflow.computations.registry import COMPUTATIONS, SWEEP_KINDS, computation_for, parse
 from pipeflow.io.export import to_parquet
 from pipeflow.io.notebook import to_dataframe, to_xarray
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant
-from pipeflow.schema.registry import COMPUTATIONS, SWEEP_KINDS, computation_for, parse
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 from pipeflow.schema.study import StudySpec
 from pipeflow.simulation import Simulation, simulate
@@ -141,7 +141,7 @@ def test_parquet_read_by_pandas_keeps_the_units() -> None:
 
     pytest.importorskip("pyarrow")
     r = simulate(Simulation(PAPER_PIPE, Constant(5.0), Constant(100.0), modes=3, samples=11))
-    from pipeflow.schema import documents
+    from pipeflow.computations import documents
 
     doc = documents.simulation(r)
     for table in ("history", "eigenvalues"):

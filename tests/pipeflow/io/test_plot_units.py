@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipeflow.computations.registry import SWEEP_KINDS, computation_for, parse
 from pipeflow.io.plots import PlotError, figure
-from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
 from pipeflow.schema.stability import PAPER_PIPE_JSON
 
 pytest.importorskip("matplotlib")

@@ -10,10 +10,10 @@ from typing import Any
 
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.io.plots import PlotError, available_plots, figure, render, to_bytes
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -124,7 +124,7 @@ def test_paper_figures_example_script(tmp_path: Path) -> None:
 
 def test_stability_plots() -> None:
     """Argand/Campbell sweeps and the stability maps of pipeflow.schema.stability draw."""
-    from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
+    from pipeflow.computations.registry import SWEEP_KINDS, computation_for, parse
     from pipeflow.schema.stability import PAPER_PIPE_JSON
 
     cases = {
@@ -217,7 +217,7 @@ def test_campbell_and_argand_mark_the_crossings() -> None:
     """The Campbell figure draws one dashed line per excitation order (legend "1x", "2x"),
     the crossings and a damping-ratio colour bar; the Argand figure marks the critical point
     (the paper pipe at 100 rad/s: 27.69 m/s by flutter, as in the README)."""
-    from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
+    from pipeflow.computations.registry import SWEEP_KINDS, computation_for, parse
     from pipeflow.schema.stability import PAPER_PIPE_JSON
 
     def parse_sweep(body: dict[str, Any]) -> Any:

@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.io.plots import figure, render
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 pytest.importorskip("matplotlib")

@@ -15,11 +15,11 @@ from typing import Any
 import pytest
 
 from pipeflow import __version__
+from pipeflow.computations import documents
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.io.report import report, to_html, to_pdf
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant
-from pipeflow.schema import documents
-from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 from pipeflow.simulation import Simulation, simulate
 

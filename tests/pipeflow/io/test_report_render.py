@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.io.report import report, to_pdf
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.simulation import Simulation, simulate
 
 pytest.importorskip("matplotlib")

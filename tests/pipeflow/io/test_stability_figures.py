@@ -14,10 +14,10 @@ from typing import Any
 
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.io.plots import figure, render
 from pipeflow.io.report import report
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import documents
 from pipeflow.stability import critical_velocities, spin_map, sweep
 
 pytest.importorskip("matplotlib")

@@ -11,10 +11,10 @@ from typing import Any
 import pytest
 from pydantic import ValidationError
 
+from pipeflow.computations import registry
+from pipeflow.computations.registry import COMPUTATIONS, SWEEP_KINDS
 from pipeflow.errors import InvalidInput
 from pipeflow.model import Pipe
-from pipeflow.schema import registry
-from pipeflow.schema.registry import COMPUTATIONS, SWEEP_KINDS
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from pipeflow.solvers import SOLVERS
 

@@ -1,6 +1,6 @@
 """The response models are the one definition of the result documents' keys.
 
-:mod:`pipeflow.schema.documents` writes every document of the library's results with
+:mod:`pipeflow.computations.documents` writes every document of the library's results with
 :func:`pipeflow.schema.results.document`, which refuses a name its model lacks and a
 required field left out; and every field of every response model (nested ones included)
 is written by some real result below.  A key added on one side only fails here: in
@@ -17,8 +17,8 @@ from typing import Any
 import pytest
 from pydantic import BaseModel
 
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.schema import results as r
-from pipeflow.schema.registry import COMPUTATIONS
 from tests.pipeflow.cases import TINY
 
 SIM = TINY["simulation"]
@@ -209,7 +209,7 @@ def test_document_refuses_a_name_the_model_lacks_and_a_missing_required_field() 
 
 
 def test_the_documents_are_written_through_document(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A key pipeflow.schema.documents writes that its model lacks fails as it is written."""
+    """A key pipeflow.computations.documents writes that its model lacks fails as it is written."""
     monkeypatch.setattr(
         r.Crossing,
         "model_fields",

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from pipeflow.computations import documents
+from pipeflow.computations.registry import STABILITY, SWEEP_KINDS, computation_for, parse
 from pipeflow.model import GROUPS, Pipe
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import documents
-from pipeflow.schema.registry import STABILITY, SWEEP_KINDS, computation_for, parse
 from pipeflow.schema.results import StabilityDimensionless
 from pipeflow.schema.simulation import SimulationSpec
 from pipeflow.schema.stability import PAPER_PIPE_JSON, BetaMapSweep, StabilitySpec

@@ -13,8 +13,9 @@ import copy
 import math
 from typing import Any
 
+from pipeflow.computations.simulation import simulate_spec
 from pipeflow.schema import plausibility
-from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec, run_simulation
+from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 
 
 def _spec(**changes: Any) -> SimulationSpec:
@@ -35,7 +36,7 @@ def test_first_bending_frequency_by_hand() -> None:
 
 def test_a_spin_meant_in_rpm_is_warned_about_in_the_result() -> None:
     spec = _spec(rotation__omega0={"kind": "constant", "value": 3000.0})
-    result = run_simulation(spec)
+    result = simulate_spec(spec)
     (warning,) = [w for w in result.warnings if w.startswith("rotation.omega0")]
     assert warning == (
         "rotation.omega0 = 3000 rad/s is 10.3x the pipe's first bending frequency "

@@ -7,10 +7,10 @@ import typing
 
 import pytest
 
+from pipeflow.computations import registry
+from pipeflow.computations.registry import COMPUTATIONS, SIMULATION, SWEEP_KINDS
 from pipeflow.errors import InvalidInput
 from pipeflow.io.plots import available_plots
-from pipeflow.schema import registry
-from pipeflow.schema.registry import COMPUTATIONS, SIMULATION, SWEEP_KINDS
 from pipeflow.schema.simulation import PAPER_EXAMPLE, MethodOptions, SimulationSpec
 from pipeflow.solvers import Options
 from tests.pipeflow.cases import TINY, tiny_request

@@ -7,9 +7,9 @@ import json
 import pytest
 from pydantic import ValidationError
 
+from pipeflow.computations.registry import STABILITY as STABILITY_COMPUTATION
+from pipeflow.computations.registry import SWEEP_KINDS, computation_for, parse
 from pipeflow.errors import Cancelled
-from pipeflow.schema.registry import STABILITY as STABILITY_COMPUTATION
-from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 
 

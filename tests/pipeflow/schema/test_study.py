@@ -19,13 +19,13 @@ import pytest
 from pydantic import ValidationError
 
 from pipeflow import parallel
+from pipeflow.computations import registry
+from pipeflow.computations import study_runner as study_module
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.errors import Cancelled
 from pipeflow.io.export import available_tables, to_csv
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import registry
-from pipeflow.schema import study_runner as study_module
 from pipeflow.schema.keys import canonical_key
-from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.results import StudyResponse
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
@@ -50,7 +50,7 @@ def study(**body: Any) -> StudySpec:
 
 def errors(body: dict[str, Any]) -> list[tuple[tuple[Any, ...], str]]:
     """The errors of ``body``: its model validation, else its case check (both run by
-    :func:`pipeflow.schema.registry.parse`, the service runs the check in a thread)."""
+    :func:`pipeflow.computations.registry.parse`, the service runs the check in a thread)."""
     with pytest.raises(ValidationError) as info:
         StudySpec.model_validate(body).check()
     return [(tuple(e["loc"]), e["msg"]) for e in info.value.errors()]

@@ -1,4 +1,4 @@
-"""How a shipped study is cut into pieces (pipeflow.schema.study_runner.plan) and that the
+"""How a shipped study is cut into pieces (pipeflow.computations.study_runner.plan) and that the
 cut does not change a row.
 
 The plan is checked against its definition (every case exactly once, contiguous, sizes
@@ -18,8 +18,8 @@ from typing import Any
 import pytest
 
 from pipeflow import parallel
-from pipeflow.schema import study_runner as sr
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.computations import study_runner as sr
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.schema.study import StudySpec
 

@@ -17,7 +17,7 @@ Each validation names its source and tolerance:
    uniform on [-pi, pi], a = 7, b = 0.1 (Ishigami & Homma 1990; SALib's test function
    ``SALib.test_functions.Ishigami``): analytic S1 = 0.3139, 0.4424, 0 and ST = 0.5576,
    0.4424, 0.2437, computed through the study's own path from a sample table to indices
-   (:func:`pipeflow.schema.study_runner.sensitivity` over the spec's design), within the
+   (:func:`pipeflow.computations.study_runner.sensitivity` over the spec's design), within the
    95 % confidence half-width the estimator reports.
 3. The same seed gives the same cases and key, another seed other ones.
 4. Every bad input is one error naming its field.
@@ -35,12 +35,12 @@ from pydantic import ValidationError
 from scipy import stats
 
 from pipeflow import uq
+from pipeflow.computations import registry
+from pipeflow.computations.study_runner import Column, sensitivity, statistics
 from pipeflow.paper import PAPER_PIPE_JSON
-from pipeflow.schema import registry
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.results import StudyResponse
 from pipeflow.schema.study import MAX_CASES, StudySpec
-from pipeflow.schema.study_runner import Column, sensitivity, statistics
 
 #: lambda_1 of a clamped-free beam: the first root of cos x cosh x = -1
 LAMBDA_1 = 1.8751040687119611

@@ -67,13 +67,13 @@ def interrupted(sim: Simulation, cp: Memory) -> None:
 def exponentials(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[], int]]:
     """Counts the matrices magnus exponentiates (its one call of expm_stack)."""
     count = [0]
-    real = magnus.expm_stack
+    real = magnus.generator.expm_stack
 
     def counted(a: np.ndarray) -> np.ndarray:
         count[0] += a.shape[0]
         return real(a)
 
-    monkeypatch.setattr(magnus, "expm_stack", counted)
+    monkeypatch.setattr(magnus.generator, "expm_stack", counted)
 
     def read_and_reset() -> int:
         n, count[0] = count[0], 0

@@ -196,7 +196,7 @@ def test_no_attempt_propagates_more_steps_than_the_budget(
     max_steps before any is made.  Before the fix the third was not counted: with
     max_steps = 600 one attempt propagated 400 + 200 + 100 = 700 steps.  Counted at the
     seam (``magnus.propagate``), whichever way the run ends (result or BudgetExceeded)."""
-    from pipeflow.solvers import magnus
+    from pipeflow.solvers.magnus import stepper as magnus
 
     t = np.linspace(0.0, 0.2, 201)
     attempts: list[int] = []
@@ -410,7 +410,7 @@ def test_refined_attempt_is_checked_against_the_previous_one(
     against a converged run within 3x.  Pulsating flow v = 2 + sin 50 t, 4 modes, 0.2 s,
     tolerance 1e-10: three attempts (400, 22,400 and 38,800 steps), estimate 8.6e-12,
     error 1e-13 (measured)."""
-    from pipeflow.solvers import magnus
+    from pipeflow.solvers.magnus import stepper as magnus
 
     t = np.linspace(0.0, 0.2, 401)
     calls: list[int] = []

@@ -17,6 +17,7 @@ from pipeflow.paper import PAPER_FLOWS
 from pipeflow.profiles import Constant
 from pipeflow.simulation import simulate
 from pipeflow.solvers import magnus
+from pipeflow.solvers.magnus import stepper
 from tests.pipeflow.cases import paper_sim
 
 #: v = 0.4 t on 4 modes, 0.25 s, 501 samples: a few milliseconds, several propagations
@@ -27,13 +28,13 @@ def _counting_products(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """Steps whose exponentials :func:`magnus.propagate` multiplied, per call of
     ``product_of_steps`` (only propagate calls it)."""
     seen: list[int] = []
-    real = magnus.product_of_steps
+    real = stepper.product_of_steps
 
     def counting(E: Any) -> Any:
         seen.append(int(E.shape[0] * E.shape[1]))
         return real(E)
 
-    monkeypatch.setattr(magnus, "product_of_steps", counting)
+    monkeypatch.setattr(stepper, "product_of_steps", counting)
     return seen
 
 

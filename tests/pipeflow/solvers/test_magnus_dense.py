@@ -20,7 +20,7 @@ from pipeflow.profiles import Constant, Harmonic, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem, SolverOutput, magnus
 from pipeflow.solvers.base import relative_difference
 from pipeflow.solvers.magnus import PILOT_STEPS, dense_refine, dense_selection
-from pipeflow.solvers.magnus_stack import solve_many
+from pipeflow.solvers.magnus.stack import solve_many
 from tests.pipeflow.cases import paper_sim
 from tests.pipeflow.solvers.test_checkpoint import Memory, interrupted, run
 from tests.pipeflow.solvers.test_magnus import _forced_problem
@@ -202,7 +202,7 @@ def test_fill_estimate_bounds_the_fill_at_every_sample(monkeypatch: pytest.Monke
     The exact fill reports a smaller fill error (measured: 9.3e-12 and 3.4e-14)."""
     t = np.linspace(0.0, 1.0, 10001)
     linear = SOLVERS["magnus"].solve(_problem(4, t))
-    monkeypatch.setattr(magnus, "FILL_SHARE", 0.0)
+    monkeypatch.setattr(magnus.dense, "FILL_SHARE", 0.0)
     exact = SOLVERS["magnus"].solve(_problem(4, t))
     fast, slow = linear.diagnostics["dense_output"], exact.diagnostics["dense_output"]
     assert fast["method"] == "propagator linear in the sample"

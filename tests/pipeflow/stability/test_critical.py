@@ -11,10 +11,10 @@ import math
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.errors import InvalidInput
 from pipeflow.model import Pipe, build_model
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import documents
 from pipeflow.stability import critical_velocities, eigenvalues
 from pipeflow.stability.core import nondimensional_pipe
 

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import documents
 from pipeflow.stability import critical_velocities
 from pipeflow.stability.core import nondimensional_pipe
 from pipeflow.stability.maps import beta_map, spin_map

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from pipeflow.computations import documents
 from pipeflow.errors import InvalidInput
 from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import documents
 from pipeflow.spectra import track
 from pipeflow.stability.core import eigenvalues, growth_rate, nondimensional_pipe, state_matrices
 from pipeflow.stability.sweeps import sweep

@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
+from pipeflow.computations.registry import summarize_stability
 from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
-from pipeflow.schema import documents
-from pipeflow.schema.registry import summarize_stability
 from pipeflow.stability import beta_map, critical_velocities, spin_map, sweep
 from pipeflow.stability.core import eigenvalues
 from pipeflow.stability.critical import CriticalVelocity

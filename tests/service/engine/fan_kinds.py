@@ -2,7 +2,7 @@
 parent runs, one slow and silent elsewhere, so the parent's process has a free thread while
 the parent waits (another job starts there) and the job overruns its limit.
 
-Registered in :data:`pipeflow.schema.registry.COMPUTATIONS` on import, without a route; the
+Registered in :data:`pipeflow.computations.registry.COMPUTATIONS` on import, without a route; the
 workers import this module by reference when they unpickle the functions."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from pipeflow import parallel
 from pipeflow._types import Progress
-from pipeflow.schema.registry import Computation, register
+from pipeflow.computations.registry import Computation, register
 
 
 class FanSpec(BaseModel):

@@ -20,7 +20,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from pipeflow import parallel
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.schema.stability import PAPER_PIPE_JSON
 from service import encoding
 from service.engine.fanout import PIECE_PREFIX

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from pipeflow.schema.registry import COMPUTATIONS, run_time_simulation
+from pipeflow.computations.registry import COMPUTATIONS, run_time_simulation
 from tests.service.conftest import SMALL, make_client, wait_job, wait_ready
 
 #: a closed-form (constant flow and spin) simulation: estimated at a few milliseconds

@@ -25,7 +25,7 @@ from typing import Any
 import httpx
 import pytest
 
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from service.keys import keyed
 from service.launch import free_port

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from pipeflow.schema.registry import COMPUTATIONS, metered_run_time_simulation
+from pipeflow.computations.registry import COMPUTATIONS, metered_run_time_simulation
 from service.engine.runner import _run_in_lane
 from service.engine.task import Accept, TaskConfig, run_job
 from service.keys import keyed

@@ -27,7 +27,7 @@ import httpx
 import numpy as np
 import pytest
 
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.schema.simulation import PAPER_EXAMPLE
 from tests.service.processes import FAST_RECOVERY, job_record, kill_group, server, wait_job
 

@@ -212,7 +212,7 @@ def test_cost_per_minute_quota_answers_429_until_the_window_moves(c: TestClient)
 def test_the_cost_of_a_request_is_its_estimate_over_its_bound() -> None:
     """job_cost is Computation.estimate's units / bound (here the paper's example, a small
     fraction) and 1 for a kind without an estimate."""
-    from pipeflow.schema.registry import COMPUTATIONS
+    from pipeflow.computations.registry import COMPUTATIONS
     from service.keys import keyed
     from service.orchestration import job_cost
     from tests.service.kinds_for_tests import SLEEP, SleepSpec

@@ -30,7 +30,7 @@ import httpx
 import pytest
 import yaml
 
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.computations.registry import COMPUTATIONS
 from service.engine import preload
 from service.keys import keyed
 from service.launch import ROOT, free_port

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
+from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.io.json import json_safe
-from pipeflow.schema.registry import COMPUTATIONS
 from pipeflow.schema.simulation import SimulationSpec
 from service import encoding
 from tests.service.conftest import SMALL

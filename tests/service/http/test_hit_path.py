@@ -166,7 +166,7 @@ def test_workers_are_warm_before_ready(tmp_path: Path) -> None:
 def test_request_key_memo_equals_the_key() -> None:
     """The memoised key is the salted RFC 8785 hash of the request's normal form for every
     spec, first call and memo hit alike."""
-    from pipeflow.schema.registry import COMPUTATIONS
+    from pipeflow.computations.registry import COMPUTATIONS
     from pipeflow.schema.simulation import SimulationSpec
     from service.keys import canonical_key, keyed
 

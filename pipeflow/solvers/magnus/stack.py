@@ -42,12 +42,8 @@ from pipeflow.solvers.base import (
     SolverOutput,
     SolverStats,
 )
-from pipeflow.solvers.magnus import (
-    MagnusRun,
-    StepControl,
-    augmented_initial_state,
-    step_control,
-)
+from pipeflow.solvers.magnus.control import MagnusRun, StepControl, step_control
+from pipeflow.solvers.magnus.generator import augmented_initial_state
 
 #: most runs propagated together (bounds the window's propagators: 16 runs x 256
 #: intervals x 21^2 entries = 14 MB at the paper's 10 modes) [-]

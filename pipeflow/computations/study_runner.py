@@ -18,7 +18,7 @@ cases it leaves (``None``) run one by one as above.  Pieces hold up to
 :data:`BATCH_CHUNK_CASES` cases when the base says the study's cases are ``batchable``
 (constant coefficients: microseconds a case), else :data:`CHUNK_CASES` (time-variant cases,
 tens of milliseconds each: 16 fill one stacked magnus,
-:data:`pipeflow.solvers.magnus_stack.MAX_RUNS`, and keep every worker busy).  On a host
+:data:`pipeflow.solvers.magnus.stack.MAX_RUNS`, and keep every worker busy).  On a host
 that ships its pieces, a large batchable study is cut by :func:`plan` instead (large
 pieces first, small ones last; each summarised :data:`BATCH_CASES` cases at a time).  One
 failing case does not fail the study: its row says ``failed`` with the problem's type,
@@ -138,7 +138,7 @@ TRAILING = (
 
 class BaseComputation(Protocol):
     """What a study needs of its base computation (a registry entry, see
-    :class:`~pipeflow.schema.registry.Computation`): its name (the cases' key kind), how
+    :class:`~pipeflow.computations.registry.Computation`): its name (the cases' key kind), how
     to run one case, and how to reduce a case's result to its summary columns."""
 
     @property

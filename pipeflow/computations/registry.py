@@ -2,7 +2,7 @@
 
 An entry (:class:`Computation`) names the request model, the response model, the function
 that runs it (a plain library call: validated request in, the JSON-ready dict of the
-response model out, written by :mod:`pipeflow.schema.documents`), its cost
+response model out, written by :mod:`pipeflow.computations.documents`), its cost
 bound, its plots and CSV tables, its examples, where library parameter names land in the
 request (:attr:`Computation.fields`) and, for the computations a design study can vary,
 its study summary (:attr:`Computation.summary_columns`, :attr:`Computation.summarize`).
@@ -26,14 +26,26 @@ from typing import Annotated, Any, Union
 from pydantic import BaseModel, Field, TypeAdapter
 
 from pipeflow._types import Progress
-from pipeflow.batch import eligible, summaries
-from pipeflow.compare import MAX_METHODS, compare
+from pipeflow.compare import MAX_METHODS
+from pipeflow.computations import stability as stability_runs
+from pipeflow.computations.simulation import SIMULATION_SUMMARY as SIMULATION_SUMMARY
+from pipeflow.computations.simulation import (
+    metered_run_time_simulation as metered_run_time_simulation,
+)
+from pipeflow.computations.simulation import run_compare as run_compare
+from pipeflow.computations.simulation import run_simulation as run_simulation
+from pipeflow.computations.simulation import run_time_simulation as run_time_simulation
+from pipeflow.computations.simulation import simulation_batchable as simulation_batchable
+from pipeflow.computations.simulation import summarize_simulation as summarize_simulation
+from pipeflow.computations.simulation import summarize_simulations as summarize_simulations
+from pipeflow.computations.stability import STABILITY_SUMMARY as STABILITY_SUMMARY
+from pipeflow.computations.stability import summarize_stability as summarize_stability
+from pipeflow.computations.study_runner import Column, run_study
 from pipeflow.errors import PipeflowError
 from pipeflow.frequency import MAX_FREQUENCIES
 from pipeflow.io.export import FREQUENCY_TABLES, SIMULATION_TABLES
 from pipeflow.io.json import json_safe
 from pipeflow.io.plots import available_plots
-from pipeflow.schema import documents
 from pipeflow.schema import frequency as f
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
@@ -46,7 +58,6 @@ from pipeflow.schema.simulation import (
     SimulationSpec,
     request_field,
 )
-from pipeflow.schema.simulation import run_simulation as simulate_request
 from pipeflow.schema.stability import STABILITY_FIELDS
 from pipeflow.schema.study import (
     MAX_CASES,
@@ -55,8 +66,6 @@ from pipeflow.schema.study import (
     STUDY_EXAMPLE,
     StudySpec,
 )
-from pipeflow.schema.study_runner import Column, run_study
-from pipeflow.simulation import Simulation
 from pipeflow.stability.floquet import MAX_CHART_WORK, MAX_STEPS
 from pipeflow.stability.maps import MAX_MAP_WORK
 
@@ -126,7 +135,7 @@ class Computation:
         """Run a validated request: the JSON-ready result (every float finite or null) with
         ``kind`` first where :attr:`response` has one and the names of its figures in
         ``plots``.  The run's dict is already a document of :attr:`response`
-        (:mod:`pipeflow.schema.documents` writes it with
+        (:mod:`pipeflow.computations.documents` writes it with
         :func:`pipeflow.schema.results.document`); it is not validated
         again here (a design study runs this per case).
 
@@ -220,121 +229,6 @@ def computation_for(request: BaseModel) -> Computation:
 # -- the computations --------------------------------------------------------------------
 
 
-def _peak(values: Sequence[float | None]) -> float | None:
-    finite = [abs(v) for v in values if v is not None]
-    return max(finite) if finite else None
-
-
-def _last(values: Sequence[float | None]) -> float | None:
-    return values[-1] if values else None
-
-
-def run_simulation(spec: SimulationSpec, progress: Progress | None) -> dict[str, Any]:
-    """:func:`pipeflow.simulation.simulate`, its document
-    (:func:`pipeflow.schema.documents.simulation`)."""
-    return documents.simulation(simulate_request(spec, progress))
-
-
-#: run time of the closed-form (constant coefficients) simulation, measured on one core of
-#: the 2-core reference machine: 1.9-2.1 ms at 5 modes, 2.1-3.7 ms at 10, 2.9-6.1 ms at 20
-#: modes over 501-2001 samples; fixed part [s] and part per sample and squared mode [s]
-LTI_FIXED_S = 2e-3
-LTI_PER_SAMPLE_MODE2_S = 1e-8
-
-
-def run_time_simulation(spec: SimulationSpec) -> float | None:
-    """:attr:`Computation.run_time` of a simulation: only the closed form has one (constant
-    flow and spin, ``auto`` or ``cma``: one eigen-decomposition, then one matrix product
-    per sample); a time-variant run's cost depends on the step control (the paper's
-    example: 37 ms to 6.4 s over 5-20 modes, 501-2001 samples, 1-4 s; fewer samples can
-    cost more), so it has none."""
-    constant = all(
-        profile.kind == "constant" for profile in (spec.flow.velocity, spec.rotation.omega0)
-    )
-    if not constant or spec.method not in ("auto", "cma") or spec.loads:
-        return None  # a forced run's convolution costs with its loads' time scales
-    samples = spec.time.samples + spec.output.eigen_samples
-    return LTI_FIXED_S + LTI_PER_SAMPLE_MODE2_S * samples * spec.modes**2
-
-
-#: run time of one frozen eigenvalue stack entry (``numpy.linalg.eigvals`` of an n x n
-#: state matrix, n = 2 x modes) on one core of the 2-core reference machine, fixed + per n^3
-#: [s]: measured 12, 47, 208 and 1,720 us at n = 10, 20, 40, 80 (this gives 10, 45, 325 and
-#: 2,565 us); a time-variant run computes two stacks of ``output.eigen_samples`` (the traced
-#: spectrum and the CMA exponents)
-EIGVALS_FIXED_S = 5e-6
-EIGVALS_PER_N3_S = 5e-9
-
-
-def metered_run_time_simulation(spec: SimulationSpec) -> float | None:
-    """:attr:`Computation.metered_run_time` of a simulation: a time-variant run of
-    ``magnus`` (``auto``'s choice there) without loads meters its propagations
-    (:func:`pipeflow.solvers.magnus.propagate`); the rest is the closed form's output
-    work (:data:`LTI_FIXED_S`, :data:`LTI_PER_SAMPLE_MODE2_S`) and two eigenvalue stacks
-    (the paper's example: 22 ms estimated, 21 ms measured beside 38 ms of propagations)."""
-    if spec.method not in ("auto", "magnus") or spec.loads:
-        return None  # other solvers do not meter; a forced run's cost follows its loads
-    n = 2 * spec.modes
-    stack = max(2, min(spec.output.eigen_samples, spec.time.samples))  # as simulate() does
-    samples = spec.time.samples + stack
-    eigen = 2 * stack * (EIGVALS_FIXED_S + EIGVALS_PER_N3_S * n**3)
-    return LTI_FIXED_S + LTI_PER_SAMPLE_MODE2_S * samples * spec.modes**2 + eigen
-
-
-#: a simulation's row in a design study
-SIMULATION_SUMMARY = (
-    Column("peak_tip_displacement", "m", "max |u(L, t)| over the output times."),
-    Column(
-        "final_sigma_1",
-        "1/s",
-        "Damping sigma of the fundamental (branch 1 of the "
-        "frozen spectrum) at the last output time t_end; > 0: growing.",
-    ),
-    Column("final_omega_1", "rad/s", "Frequency omega of the fundamental at t_end."),
-    Column("method_used", "", "The solver that ran (what 'auto' chose)."),
-    Column("result_status", "", "The simulation's status: ok, diverging, diverged or overflow."),
-)
-
-
-def summarize_simulation(result: dict[str, Any]) -> dict[str, Any]:
-    """A simulation result (JSON) reduced to :data:`SIMULATION_SUMMARY`."""
-    fundamental = result["fundamental"]
-    return {
-        "peak_tip_displacement": _peak(result["tip_displacement"]),
-        "final_sigma_1": _last(fundamental["sigma"]),
-        "final_omega_1": _last(fundamental["omega"]),
-        "method_used": result["method_used"],
-        "result_status": result["status"],
-    }
-
-
-def summarize_simulations(requests: Sequence[SimulationSpec]) -> list[dict[str, Any] | None]:
-    """The study rows of the constant-coefficient and time-variant cases among ``requests``
-    by stacked computations (:func:`pipeflow.batch.summaries`, equal to
-    :func:`summarize_simulation` of each one's result); None for the others."""
-    sims: list[Simulation | None] = []
-    for spec in requests:
-        try:
-            sims.append(spec.to_simulation())
-        except Exception:  # the single run reports it
-            sims.append(None)
-    found = iter(summaries([s for s in sims if s is not None]))
-    out: list[dict[str, Any] | None] = []
-    for sim in sims:
-        row = next(found) if sim is not None else None
-        out.append(None if row is None else {"status": "ok", **vars(row)})
-    return out
-
-
-def simulation_batchable(spec: SimulationSpec) -> bool:
-    """Whether :func:`summarize_simulations` computes ``spec`` itself
-    (:func:`pipeflow.batch.eligible`)."""
-    try:
-        return eligible(spec.to_simulation())
-    except Exception:
-        return False
-
-
 SIMULATION = register(
     Computation(
         name="simulation",
@@ -373,12 +267,6 @@ SIMULATION = register(
 )
 
 
-def run_compare(spec: CompareSpec, progress: Progress | None) -> dict[str, Any]:
-    """:func:`pipeflow.compare.compare` of the request's simulation and methods, its
-    document (:func:`pipeflow.schema.documents.compare`)."""
-    return documents.compare(compare(spec.simulation.to_simulation(), spec.methods, progress))
-
-
 COMPARE = register(
     Computation(
         name="compare",
@@ -403,11 +291,10 @@ COMPARE = register(
 )
 
 
-def run_analysis(
-    spec: s.StabilitySpec | s.SweepModel | f.FrequencyResponseSpec, progress: Progress | None
+def run_frequency_response(
+    spec: f.FrequencyResponseSpec, progress: Progress | None
 ) -> dict[str, Any]:
-    """A stability analysis, sweep or frequency response: its model's ``run`` (the plain
-    library call)."""
+    """A frequency response: its model's ``run`` (the plain library call)."""
     return spec.run(progress)
 
 
@@ -419,53 +306,12 @@ PAPER_STABILITY: dict[str, Any] = {
     "velocity_range": [0.0, 60.0],
 }
 
-#: a critical-velocity analysis's row in a design study
-STABILITY_SUMMARY = (
-    Column(
-        "critical_velocity",
-        "m/s",
-        "First loss of stability from the start of the range, where the pipe is stable "
-        "(null: none; or already unstable at the start, see stable_at_start).",
-    ),
-    Column("critical_mode", "-", "The mode that loses stability there."),
-    Column("critical_kind", "", "flutter or divergence."),
-    Column(
-        "critical_frequency",
-        "rad/s",
-        "Frequency omega of the branch that loses stability, at the critical velocity (0 for "
-        "divergence).",
-    ),
-    Column("stable_at_start", "", "Stable at the start of the v >= 0 part of the range."),
-    Column("stable_throughout", "", "Stable over the whole v >= 0 part of the range."),
-)
-
-
-def summarize_stability(result: dict[str, Any]) -> dict[str, Any]:
-    """A critical-velocity result (JSON) reduced to :data:`STABILITY_SUMMARY`.  A pipe
-    already unstable at the start of its range has no critical velocity here (the result's
-    ``critical_velocity`` is then a loss after stability is regained: not a threshold from
-    rest to be compared, averaged or ranked)."""
-    critical = result["critical_velocity"] if result["stable_at_start"] else None
-    first = next(
-        (c for c in result["crossings"] if c["direction"] == "loss" and c["velocity"] == critical),
-        None,
-    )
-    return {
-        "critical_velocity": critical,
-        "critical_mode": first["mode"] if first else None,
-        "critical_kind": first["kind"] if first else None,
-        "critical_frequency": first["frequency"] if first else None,
-        "stable_at_start": result["stable_at_start"],
-        "stable_throughout": result["stable_throughout"],
-    }
-
-
 STABILITY = register(
     Computation(
         name="stability",
         request=s.StabilitySpec,
         response=r.StabilityResponse,
-        run=run_analysis,
+        run=stability_runs.run_critical,
         budget=f"one frozen spectrum per point: points x (2 modes)^3 <= {MAX_MAP_WORK:g} "
         "(spectrum work)",
         estimate=s.StabilitySpec.cost,
@@ -504,7 +350,7 @@ def _sweep(
             name=name,
             request=model,
             response=response,
-            run=run_analysis,
+            run=stability_runs.RUNS[model],
             budget=budget,
             estimate=model.cost,
             plots=plots,
@@ -617,7 +463,7 @@ FREQUENCY_RESPONSE = register(
         name="frequency_response",
         request=f.FrequencyResponseSpec,
         response=r.FrequencyResponseResponse,
-        run=run_analysis,
+        run=run_frequency_response,
         estimate=f.FrequencyResponseSpec.cost,
         budget=f"response.positions x frequencies x operating points <= {f.MAX_FRF_VALUES:,} "
         f"values, frequencies being the list's length or count + 3 x modes x operating points "
@@ -643,7 +489,7 @@ FREQUENCY_RESPONSE = register(
 
 
 def run_study_request(spec: StudySpec, progress: Progress | None) -> dict[str, Any]:
-    """:func:`pipeflow.schema.study_runner.run_study` with the base computation of the
+    """:func:`pipeflow.computations.study_runner.run_study` with the base computation of the
     registry (cases fanned out on the current host)."""
     return run_study(spec, COMPUTATIONS[spec.base_kind], progress)
 
