@@ -17,10 +17,10 @@ from typing import Any
 
 import pytest
 
+from pipeflow.computations import registry
 from pipeflow.io import report
 from pipeflow.io.plots import figure
 from pipeflow.paper import PAPER_PIPE_JSON
-from pipeflow.schema import registry
 from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.study import StudySpec
 
