@@ -15,7 +15,12 @@ Four rules:
 4. the numerical library (``pipeflow`` outside ``pipeflow.schema`` and the presentation
    layer ``pipeflow.io``) imports nothing of the schema (``pipeflow.schema``), deferred
    imports included: it returns dataclasses, and the schema builds the documents from them
-   (``pipeflow.schema.documents``).
+   (``pipeflow.schema.documents``);
+5. the engine by role: its parts (cluster, lane, drive, dispatcher, watches, monitor)
+   import neither each other nor the runner, which owns and wires them with callbacks;
+   its floor (flight, outcome, lifecycle) imports none of the parts; ``lifecycle`` (the job
+   and task states) imports nothing of the project, and it is all the store imports of
+   the engine.
 """
 
 from __future__ import annotations
@@ -59,6 +64,16 @@ SCHEMA = "pipeflow.schema"
 #: the parts of ``pipeflow`` that may import the contract: itself and the presentation layer
 #: (a notebook view turns a local result into its document)
 SCHEMA_USERS = (SCHEMA, "pipeflow.io")
+
+
+#: the engine's parts (rule 5): each is handed what it needs by the runner
+ENGINE_PARTS = tuple(
+    f"service.engine.{m}" for m in ("cluster", "lane", "drive", "dispatcher", "watches", "monitor")
+)
+#: the floor below them, and the one module of it the store may import
+ENGINE_FLOOR = tuple(f"service.engine.{m}" for m in ("flight", "outcome", "lifecycle"))
+LIFECYCLE = "service.engine.lifecycle"
+RUNNER = "service.engine.runner"
 
 
 @dataclass(frozen=True)
@@ -195,6 +210,27 @@ def violations(
     ]
 
 
+def engine_violations(imports: Iterable[Import]) -> list[str]:
+    """``module:line imports target`` for each import that breaks rule 5."""
+    bad = []
+    for imp in imports:
+        upward = (
+            within(imp.module, ENGINE_PARTS)
+            and imp.target != imp.module
+            and within(imp.target, (*ENGINE_PARTS, RUNNER))
+        )
+        upward |= within(imp.module, ENGINE_FLOOR) and within(imp.target, (*ENGINE_PARTS, RUNNER))
+        upward |= imp.module == LIFECYCLE and within(imp.target, PACKAGES)
+        upward |= (
+            within(imp.module, ["service.store"])
+            and within(imp.target, ["service.engine"])
+            and imp.target != LIFECYCLE
+        )
+        if upward:
+            bad.append(f"{imp.module}:{imp.line} imports {imp.target}")
+    return bad
+
+
 # -- the rules, on the tree ----------------------------------------------------------------
 
 
@@ -237,6 +273,15 @@ def test_client_and_command_line_stay_front_ends(tree_imports: list[Import]) -> 
 def test_engine_imports_no_http_layer(tree_imports: list[Import]) -> None:
     bad = violations(tree_imports, "service.engine", HTTP_LAYER)
     assert not bad, "the engine imports the HTTP layer:\n" + "\n".join(bad)
+
+
+def test_engine_parts_are_wired_by_the_runner(tree_imports: list[Import]) -> None:
+    """The engine's parts talk through the callbacks the runner hands them, never by
+    importing each other; the floor and the store import none of them."""
+    bad = engine_violations(tree_imports)
+    assert not bad, "the engine's parts import each other (or upwards):\n" + "\n".join(bad)
+    imported = {imp.target for imp in tree_imports if imp.module == RUNNER}
+    assert set(ENGINE_PARTS) <= imported  # the rule sees the parts: they exist by these names
 
 
 def test_the_tree_is_read(tree_imports: list[Import]) -> None:
@@ -310,4 +355,34 @@ def test_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
     ]
     assert violations(imports, "service.engine", HTTP_LAYER) == [
         "service.engine.task:1 imports service.http.problems"
+    ]
+
+
+def test_engine_rule_catches_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
+    _write(
+        tmp_path,
+        {
+            "service/__init__.py": "",
+            "service/store/__init__.py": "",
+            "service/store/jobs.py": (
+                "from service.engine.lifecycle import JobState  # allowed\n"
+                "from service.engine import task\n"
+            ),
+            "service/engine/__init__.py": "",
+            "service/engine/task.py": "",
+            "service/engine/lifecycle.py": "import enum\nfrom service import settings\n",
+            "service/engine/flight.py": "from service.engine import lifecycle, monitor\n",
+            "service/engine/lane.py": "from service.engine import flight\n",  # allowed
+            "service/engine/monitor.py": "def f():\n    from service.engine.lane import x\n",
+            "service/engine/drive.py": "from service.engine.runner import Runner\n",
+            "service/engine/runner.py": "from service.engine import drive, lane, monitor\n",
+            "service/settings.py": "",
+        },
+    )
+    assert engine_violations(all_imports(tmp_path, ("service",))) == [
+        "service.engine.drive:1 imports service.engine.runner",
+        "service.engine.flight:1 imports service.engine.monitor",
+        "service.engine.lifecycle:2 imports service.settings",
+        "service.engine.monitor:2 imports service.engine.lane",
+        "service.store.jobs:2 imports service.engine.task",
     ]

@@ -37,6 +37,7 @@ from service.engine.outcome import (
     raise_unless_succeeded,
     result_of,
 )
+from service.keys import Keyed
 from service.settings import Settings
 from service.store import Job, StorageError, Store
 
@@ -272,6 +273,29 @@ class Driver:
                 break  # not computing: the task finds the record cancelled when it starts
             await self._wait(flight, waiter)
         raise ComputationCancelled("cancelled by request")
+
+    async def join(
+        self, flight: Flight, job: Keyed, force: bool, principal: str | None, cost: float
+    ) -> None:
+        """Another request for the job of ``flight``: its record is accepted again (a
+        finished one gets a new generation), but for a run that has just stored its result
+        (a request that missed the store a moment before it was written: the flight
+        answers it; resetting would compute twice); the flight is told."""
+        flight.joined = True
+        await asyncio.to_thread(
+            functools.partial(
+                self.store.enqueue_job,
+                flight.key,
+                job.computation.name,
+                job.canonical,
+                refresh=force,
+                keep_stored=not force,
+                principal=principal,
+                cost=cost,
+                dispatcher=self.replica,
+            )
+        )
+        flight.changed.set()
 
     async def _enqueue(self, flight: Flight, **how: bool) -> Job:
         """The flight's job record written (``Store.enqueue_job``, off the event loop):

@@ -119,6 +119,25 @@ class Monitor:
                 self.flights.wake(key)
         return records
 
+    async def release_finished(self, wait_s: float = 1.0) -> None:
+        """Free the slots of flights whose job record has already ended (e.g. failed by a
+        worker's watchdog) without waiting for the next look: wake them and give them up
+        to ``wait_s`` [s] to leave.  A store that cannot be read frees nothing."""
+        keys = list(self.flights)
+        try:
+            records = await asyncio.to_thread(self.store.jobs_by_key, keys)
+        except StorageError:
+            return
+        ended = []
+        for key in keys:
+            job, flight = records.get(key), self.flights.get(key)
+            if flight is not None and flight.task is not None and job is not None:
+                if not job.active:
+                    flight.changed.set()
+                    ended.append(flight.task)
+        if ended:
+            await asyncio.wait(ended, timeout=wait_s)
+
     async def worker_lost(self, address: str) -> None:
         """Dask's worker-loss signal: the leases of the jobs that worker was running end
         now (their computation is taken over at once, by Dask's rescheduled task or a

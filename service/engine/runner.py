@@ -91,6 +91,11 @@ __all__ = [
 ]
 
 
+def _view(part: str, name: str, doc: str | None = None) -> Any:
+    """A read-only property of the runner showing the attribute ``name`` of its ``part``."""
+    return property(lambda self: getattr(getattr(self, part), name), doc=doc)
+
+
 class Runner:
     """The replica's side of the engine (the name is the routes' seam: ``RunnerDep``).
 
@@ -302,7 +307,7 @@ class Runner:
         await self.flights.cancelled_gone(key)
         flight = self.flights.get(key)
         if flight is None and not recover and self.flights.saturated:
-            await self._release_finished()
+            await self.monitor.release_finished()
             flight = self.flights.get(key)
         if flight is None:
             if not recover and self.flights.saturated:
@@ -312,25 +317,8 @@ class Runner:
                 new, lambda f: self.driver.drive(f, force=force, recover=recover)
             )
         elif not recover and not flight.hit:
-            # (a flight that found its result stored answers from it: nothing to write)
-            # joining: a finished record is accepted again (a new generation), but for a
-            # run that has just stored its result (a request that missed the store a moment
-            # before it was written: the flight answers it; resetting would compute twice)
-            flight.joined = True
-            await asyncio.to_thread(
-                functools.partial(
-                    self.store.enqueue_job,
-                    key,
-                    job.computation.name,
-                    job.canonical,
-                    refresh=force,
-                    keep_stored=not force,
-                    principal=principal,
-                    cost=cost,
-                    dispatcher=self.replica,
-                )
-            )
-            flight.changed.set()
+            # joining (a flight that found its result stored answers from it: no write)
+            await self.driver.join(flight, job, force, principal, cost)
         await flight.accepted.wait()
         assert flight.task is not None
         if flight.task.done() and not flight.task.cancelled():
@@ -368,25 +356,6 @@ class Runner:
         assert flight.task is not None
         body = await self.result(flight.task)
         return body, flight.hit
-
-    async def _release_finished(self, wait_s: float = 1.0) -> None:
-        """Free the slots of flights whose job record has already ended (e.g. failed by a
-        worker's watchdog) without waiting for the monitor's next tick: wake them and give
-        them up to ``wait_s`` [s] to leave.  A store that cannot be read frees nothing."""
-        keys = list(self.flights)
-        try:
-            records = await asyncio.to_thread(self.store.jobs_by_key, keys)
-        except StorageError:
-            return
-        ended = []
-        for key in keys:
-            job, flight = records.get(key), self.flights.get(key)
-            if flight is not None and flight.task is not None and job is not None:
-                if not job.active:
-                    flight.changed.set()
-                    ended.append(flight.task)
-        if ended:
-            await asyncio.wait(ended, timeout=wait_s)
 
     def cancel(self, key: str) -> None:
         """Mark the run of ``key`` (if any) as asked to stop; see :meth:`submit`.  The job
@@ -483,51 +452,16 @@ class Runner:
         """Computations this replica started (Dask tasks and lane runs; single flight)."""
         return self._tasks + self.lane.claimed
 
-    @property
-    def client(self) -> Any:
-        return self.cluster.client
-
-    @property
-    def nannies_restored(self) -> int:
-        return self.cluster.nannies_restored
-
-    @property
-    def lane_runs(self) -> int:
-        return self.lane.runs
-
-    @property
-    def lane_handoffs(self) -> int:
-        return self.lane.handoffs
-
-    @property
-    def dispatched(self) -> int:
-        return self.dispatcher.dispatched
-
-    @property
-    def waiting(self) -> int:
-        """Long polls held open now (bounded by ``max_job_waiters``)."""
-        return self.watches.waiting
-
-    @property
-    def _connected(self) -> asyncio.Event:
-        return self.cluster.connected
-
-    @property
-    def _cluster(self) -> Any:
-        return self.cluster.cluster
-
-    @property
-    def _flights(self) -> dict[str, Flight]:
-        return self.flights.table
-
-    @property
-    def _lane_busy(self) -> int:
-        return self.lane.busy
-
-    @property
-    def _watches(self) -> dict[str, Any]:
-        return self.watches.by_key
-
-    @property
-    def _drained(self) -> bool:
-        return self.dispatcher.drained
+    # read-only views of the parts' state, under the names tests and diagnostics use
+    client = _view("cluster", "client")
+    nannies_restored = _view("cluster", "nannies_restored")
+    lane_runs = _view("lane", "runs")
+    lane_handoffs = _view("lane", "handoffs")
+    dispatched = _view("dispatcher", "dispatched")
+    waiting = _view("watches", "waiting", "long polls held open now")
+    _connected = _view("cluster", "connected")
+    _cluster = _view("cluster", "cluster")
+    _flights = _view("flights", "table")
+    _lane_busy = _view("lane", "busy")
+    _watches = _view("watches", "by_key")
+    _drained = _view("dispatcher", "drained")
