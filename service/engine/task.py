@@ -315,7 +315,7 @@ def run_job(
 
     ``request_id`` (of the request that started the computation) is set for the log
     lines written meanwhile (:data:`service.observability.REQUEST_ID`).  ``store``: run
-    in the API process (the fast lane, :mod:`service.engine.runner`) with its store: the
+    in the API process (the fast lane, :mod:`service.engine.lane`) with its store: the
     same lease, record and result, but a computation that overruns its limit without
     stopping fails its job and is abandoned, not killed with the process, and the
     answer carries the result's body.  ``accept``: the job's record is written by this
@@ -464,7 +464,7 @@ def _compute(
         if beat.stop == LeaseState.LOST:
             return (TaskStatus.LOST, "another attempt took over the job", None)
         return (TaskStatus.CANCELLED, str(exc) or "cancelled", None)
-    except OverAllowance as exc:  # the fast lane's allowance (service.engine.runner)
+    except OverAllowance as exc:  # the fast lane's allowance (service.engine.lane)
         return (TaskStatus.HANDOFF, str(exc), None)
     except StorageError as exc:  # a failed store is no failure of the computation
         return (
