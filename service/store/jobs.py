@@ -529,7 +529,8 @@ class JobStore(StoreConnection):
         with self._read() as conn:
             rows = conn.execute(select(jobs.c.status, func.count()).group_by(jobs.c.status)).all()
         counts = {str(status): int(n) for status, n in rows}
-        return {status: counts.get(status, 0) for status in STATUSES}
+        # plain keys: a StrEnum key is refused by orjson (a value is written as its value)
+        return {status.value: counts.get(status, 0) for status in STATUSES}
 
     def jobs_by_key(self, keys: Sequence[str]) -> dict[str, Job]:
         """The records of ``keys`` that exist (one query: the replica's monitor)."""
