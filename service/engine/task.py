@@ -53,7 +53,7 @@ from pipeflow.errors import Cancelled, ErrorRecord, OverAllowance, StorageError,
 from pipeflow.solvers.checkpoint import checkpointing
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
-from service.engine.lifecycle import ClaimOutcome, JobState, LeaseState, TaskStatus
+from service.engine.lifecycle import ClaimOutcome, Counted, JobState, LeaseState, TaskStatus
 from service.engine.outcome import Outcome
 from service.store import Claim, Job, Store, worker_store
 from service.store.checkpoints import StoreCheckpoints
@@ -68,6 +68,10 @@ work_log = logging.getLogger("service.worker")
 
 if TYPE_CHECKING:
     from pipeflow.schema.registry import Computation
+
+#: the ``outcome`` of the "computation finished" log line: ok | error as the metrics count
+#: them, else the run's status (cancelled, lost, handoff)
+_LOGGED = {TaskStatus.SUCCEEDED: Counted.OK, TaskStatus.FAILED: Counted.ERROR}
 
 
 @dataclass(frozen=True)
@@ -382,7 +386,7 @@ def _run_job(
             "computation finished",
             extra={
                 "key": key,
-                "outcome": status,
+                "outcome": _LOGGED.get(status, status),
                 "duration_ms": round(seconds * 1e3, 3),
                 "lane": "api" if inline is not None else "worker",
             },
