@@ -352,7 +352,7 @@ def _study_cluster(stack: ExitStack, workers: int) -> Any:
     its preload), closed with ``stack``."""
     from distributed import Client, LocalCluster
 
-    from service.engine.runner import PRELOAD
+    from service.engine.preload import MODULE as PRELOAD
 
     cluster = stack.enter_context(
         LocalCluster(

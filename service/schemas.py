@@ -4,15 +4,18 @@ request and result models are pipeflow's (:mod:`pipeflow.schema`)."""
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import AfterValidator, BaseModel, Field, WithJsonSchema
 
+from service.engine.lifecycle import JobState
 from service.http.problems import Problem
 from service.routes.endpoints import served
-from service.store.jobs import JobState
 
 KEY_PATTERN = r"^[0-9a-f]{64}$"
+#: a job's states (:class:`JobState`, validated as one) inline in the document, as a Literal
+#: of them shows (no schema of its own: the document is unchanged)
+_INLINE_STATES = {"enum": [s.value for s in JobState], "title": "Status", "type": "string"}
 
 
 class JobStatus(BaseModel):
@@ -24,7 +27,7 @@ class JobStatus(BaseModel):
         + ", ".join(f"'{c.name}'" for c in served())
         + "."
     )
-    status: JobState
+    status: Annotated[str, AfterValidator(JobState), WithJsonSchema(_INLINE_STATES)]
     progress: float = Field(ge=0, le=1, description="Fraction done [-].")
     created: datetime = Field(description="When the job was (last) accepted (UTC).")
     started: datetime | None = Field(description="When its current run started (UTC).")

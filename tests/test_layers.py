@@ -22,6 +22,11 @@ schema (``pipeflow.schema``: the pydantic models) -> library, never back.  The r
    them sits one floor up);
 6. size: no module of ``pipeflow`` or ``service`` over :data:`MAX_MODULE_LINES` lines, no
    class over :data:`MAX_CLASS_LINES` lines.
+7. the engine by role: its parts (cluster, lane, drive, dispatcher, watches, monitor)
+   import neither each other nor the runner, which owns and wires them with callbacks;
+   its floor (flight, outcome, lifecycle) imports none of the parts; ``lifecycle`` (the job
+   and task states) imports nothing of the project, and it is all the store imports of
+   the engine.
 """
 
 from __future__ import annotations
@@ -71,6 +76,16 @@ SCHEMA_USERS = (SCHEMA, COMPUTATIONS, "pipeflow.io")
 #: the size rules (rule 6)
 MAX_MODULE_LINES = 800
 MAX_CLASS_LINES = 400
+
+
+#: the engine's parts (rule 7): each is handed what it needs by the runner
+ENGINE_PARTS = tuple(
+    f"service.engine.{m}" for m in ("cluster", "lane", "drive", "dispatcher", "watches", "monitor")
+)
+#: the floor below them, and the one module of it the store may import
+ENGINE_FLOOR = tuple(f"service.engine.{m}" for m in ("flight", "outcome", "lifecycle"))
+LIFECYCLE = "service.engine.lifecycle"
+RUNNER = "service.engine.runner"
 
 
 @dataclass(frozen=True)
@@ -207,6 +222,27 @@ def violations(
     ]
 
 
+def engine_violations(imports: Iterable[Import]) -> list[str]:
+    """``module:line imports target`` for each import that breaks rule 7."""
+    bad = []
+    for imp in imports:
+        upward = (
+            within(imp.module, ENGINE_PARTS)
+            and imp.target != imp.module
+            and within(imp.target, (*ENGINE_PARTS, RUNNER))
+        )
+        upward |= within(imp.module, ENGINE_FLOOR) and within(imp.target, (*ENGINE_PARTS, RUNNER))
+        upward |= imp.module == LIFECYCLE and within(imp.target, PACKAGES)
+        upward |= (
+            within(imp.module, ["service.store"])
+            and within(imp.target, ["service.engine"])
+            and imp.target != LIFECYCLE
+        )
+        if upward:
+            bad.append(f"{imp.module}:{imp.line} imports {imp.target}")
+    return bad
+
+
 # -- the rules, on the tree ----------------------------------------------------------------
 
 
@@ -256,6 +292,15 @@ def test_client_and_command_line_stay_front_ends(tree_imports: list[Import]) -> 
 def test_engine_imports_no_http_layer(tree_imports: list[Import]) -> None:
     bad = violations(tree_imports, "service.engine", HTTP_LAYER)
     assert not bad, "the engine imports the HTTP layer:\n" + "\n".join(bad)
+
+
+def test_engine_parts_are_wired_by_the_runner(tree_imports: list[Import]) -> None:
+    """The engine's parts talk through the callbacks the runner hands them, never by
+    importing each other; the floor and the store import none of them."""
+    bad = engine_violations(tree_imports)
+    assert not bad, "the engine's parts import each other (or upwards):\n" + "\n".join(bad)
+    imported = {imp.target for imp in tree_imports if imp.module == RUNNER}
+    assert set(ENGINE_PARTS) <= imported  # the rule sees the parts: they exist by these names
 
 
 def test_the_tree_is_read(tree_imports: list[Import]) -> None:
@@ -392,4 +437,34 @@ def test_size_rules_catch_violations_in_a_synthetic_tree(tmp_path: Path) -> None
     assert oversized(tmp_path, ("pipeflow", "service")) == [
         f"pipeflow/big.py: {MAX_MODULE_LINES + 1} lines",
         f"service/wide.py:1 class Wide: {MAX_CLASS_LINES + 1} lines",
+    ]
+
+
+def test_engine_rule_catches_violations_in_a_synthetic_tree(tmp_path: Path) -> None:
+    _write(
+        tmp_path,
+        {
+            "service/__init__.py": "",
+            "service/store/__init__.py": "",
+            "service/store/jobs.py": (
+                "from service.engine.lifecycle import JobState  # allowed\n"
+                "from service.engine import task\n"
+            ),
+            "service/engine/__init__.py": "",
+            "service/engine/task.py": "",
+            "service/engine/lifecycle.py": "import enum\nfrom service import settings\n",
+            "service/engine/flight.py": "from service.engine import lifecycle, monitor\n",
+            "service/engine/lane.py": "from service.engine import flight\n",  # allowed
+            "service/engine/monitor.py": "def f():\n    from service.engine.lane import x\n",
+            "service/engine/drive.py": "from service.engine.runner import Runner\n",
+            "service/engine/runner.py": "from service.engine import drive, lane, monitor\n",
+            "service/settings.py": "",
+        },
+    )
+    assert engine_violations(all_imports(tmp_path, ("service",))) == [
+        "service.engine.drive:1 imports service.engine.runner",
+        "service.engine.flight:1 imports service.engine.monitor",
+        "service.engine.lifecycle:2 imports service.settings",
+        "service.engine.monitor:2 imports service.engine.lane",
+        "service.store.jobs:2 imports service.engine.task",
     ]

@@ -508,7 +508,7 @@ class StudySpec(StrictModel):
                 "operating_velocity",
             )
         if self.samples is not None:
-            self._check_samples(self.samples)
+            _check_samples(self.samples)
         if self.grid is not None and self.count() > MAX_CASES:
             sizes = " x ".join(str(len(v)) for _, v in sorted(self.grid.items()))
             raise InvalidField(
@@ -677,36 +677,37 @@ class StudySpec(StrictModel):
             out["operating_velocity"] = self.operating_velocity
         return out
 
-    def _check_samples(self, samples: Samples) -> None:
-        """Each distribution's parameters, and the case count of a Saltelli design."""
-        errors = []
-        for path, d in samples.parameters.items():
-            loc = ("samples", "parameters", path)
-            checks: list[tuple[str, bool, str]] = []
-            if isinstance(d, NormalDistribution | TruncatedNormalDistribution):
-                checks.append(("std", d.std > 0, f"std must be > 0 (got {d.std!r})"))
-            if isinstance(d, LognormalDistribution):
-                checks.append(("median", d.median > 0, f"median must be > 0 (got {d.median!r})"))
-                checks.append(("sigma", d.sigma > 0, f"sigma must be > 0 (got {d.sigma!r})"))
-            if isinstance(d, UniformDistribution | TruncatedNormalDistribution):
-                checks.append(
-                    ("low", d.low < d.high, f"low ({d.low!r}) must be below high ({d.high!r})")
-                )
-            for name, ok, text in checks:
-                if not ok:
-                    message = f"{path}: {d.distribution} {text}"
-                    errors.append(_error("distribution_invalid", (*loc, name), message, path))
-        dims = len(samples.parameters)
-        cases = uq.rows(samples.method, samples.count, dims)
-        if cases > MAX_CASES:
-            largest = MAX_CASES // (2 * dims + 2)
-            message = (
-                f"saltelli: {samples.count} base points x (2 x {dims} + 2) = {cases} cases, "
-                f"more than {MAX_CASES}: count is at most {largest} for {dims} parameters"
+
+def _check_samples(samples: Samples) -> None:
+    """Each distribution's parameters, and the case count of a Saltelli design."""
+    errors = []
+    for path, d in samples.parameters.items():
+        loc = ("samples", "parameters", path)
+        checks: list[tuple[str, bool, str]] = []
+        if isinstance(d, NormalDistribution | TruncatedNormalDistribution):
+            checks.append(("std", d.std > 0, f"std must be > 0 (got {d.std!r})"))
+        if isinstance(d, LognormalDistribution):
+            checks.append(("median", d.median > 0, f"median must be > 0 (got {d.median!r})"))
+            checks.append(("sigma", d.sigma > 0, f"sigma must be > 0 (got {d.sigma!r})"))
+        if isinstance(d, UniformDistribution | TruncatedNormalDistribution):
+            checks.append(
+                ("low", d.low < d.high, f"low ({d.low!r}) must be below high ({d.high!r})")
             )
-            errors.append(_error("too_many_cases", ("samples", "count"), message, cases))
-        if errors:
-            raise ValidationError.from_exception_data("StudySpec", errors)
+        for name, ok, text in checks:
+            if not ok:
+                message = f"{path}: {d.distribution} {text}"
+                errors.append(_error("distribution_invalid", (*loc, name), message, path))
+    dims = len(samples.parameters)
+    cases = uq.rows(samples.method, samples.count, dims)
+    if cases > MAX_CASES:
+        largest = MAX_CASES // (2 * dims + 2)
+        message = (
+            f"saltelli: {samples.count} base points x (2 x {dims} + 2) = {cases} cases, "
+            f"more than {MAX_CASES}: count is at most {largest} for {dims} parameters"
+        )
+        errors.append(_error("too_many_cases", ("samples", "count"), message, cases))
+    if errors:
+        raise ValidationError.from_exception_data("StudySpec", errors)
 
 
 def field_unit(model: type[BaseModel], path: str) -> str:

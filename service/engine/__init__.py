@@ -1,9 +1,21 @@
 """The engine: computations as Dask tasks, driven to a terminal job record.
 
-The replica's side is :class:`Runner` (:mod:`service.engine.runner`); the Dask task of one
-computation is :func:`service.engine.task.run_job`; what a worker process loads at start
-is :mod:`service.engine.preload` (``dask worker --preload-nanny service.engine.preload``); a
-computation's fan-out over the cluster is :mod:`service.engine.fanout`.
+The replica's side is :class:`Runner` (:mod:`service.engine.runner`), a coordinator that
+owns the engine's parts and wires them with callbacks (no part imports another)::
+
+    Runner ──owns──> Cluster     (cluster.py: Dask client, workers, warm-up, admission)
+       │             FastLane    (lane.py: small computations in threads; can be off)
+       │             Driver      (drive.py: one flight's job to a terminal record)
+       │             Dispatcher  (dispatcher.py: the durable queue, as slots free up)
+       │             Watches     (watches.py: long polls)
+       │             Monitor     (monitor.py: changes, heartbeats, stale leases)
+       └──owns──> Flights        (flight.py: single flight, the floor they share)
+    floor: flight.py, outcome.py (Outcome, the request's errors), lifecycle.py (states)
+
+The Dask task of one computation is :func:`service.engine.task.run_job`; what a worker
+process loads at start is :mod:`service.engine.preload` (``dask worker --preload-nanny
+service.engine.preload``); a computation's fan-out over the cluster is
+:mod:`service.engine.fanout`.
 
 The engine speaks no HTTP: a failed computation is a neutral
 :class:`pipeflow.errors.ErrorRecord`, which only the HTTP layer (:mod:`service.http`)

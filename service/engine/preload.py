@@ -2,7 +2,7 @@
 way of starting workers.
 
 ``dask worker ADDRESS --nthreads 1 --preload-nanny service.engine.preload`` (the README's and
-docker-compose.yml's command) and the embedded cluster (:mod:`service.engine.runner`) load
+docker-compose.yml's command) and the embedded cluster (:mod:`service.engine.cluster`) load
 this module in the nanny, before it spawns its worker process; :func:`dask_setup` there sets
 the worker's environment (:func:`nanny_setup`) and loads the module again in the worker
 (:func:`worker_setup`).  The worker's environment:

@@ -14,13 +14,15 @@ job that seceded for its fan-out frees its thread, so another job's task may hav
 there, and one job's limit must never cost another job anything (issue 22, defect 3).
 Until then the overdue thread holds the process's thread, so no new task starts there.
 
-The return value is small (the body goes to the store): an :class:`Outcome`, whose
-``status`` is ``succeeded`` | ``failed`` | ``cancelled`` | ``done`` (someone finished it
-already) | ``elsewhere`` (a live attempt holds the lease) | ``lost`` (another attempt took
-the lease) | ``storage`` (the store refused a write) | ``handoff`` (the fast lane's
-metered computation would pass its allowance: stopped, its lease given up with the reason,
-the job left for a worker) | ``hit`` (the fast lane looked the result up first and found it
-stored: nothing written, the body answered).  Errors travel as neutral
+The return value is small (the body goes to the store): an :class:`Outcome`
+(:mod:`service.engine.outcome`), whose ``status`` (a :class:`TaskStatus`) is ``succeeded``
+| ``failed`` | ``cancelled`` | ``done`` (someone finished it already) | ``elsewhere`` (a
+live attempt holds the lease) | ``queued`` (the fast lane found an active record first:
+not claimed) | ``lost`` (another attempt took the lease) | ``storage`` (the store refused
+a write) | ``handoff`` (the fast lane's metered computation would pass its allowance:
+stopped, its lease given up with the reason, the job left for a worker) | ``hit`` (the
+fast lane looked the result up first and found it stored: nothing written, the body
+answered).  Errors travel as neutral
 :class:`pipeflow.errors.ErrorRecord` values (made by :func:`pipeflow.errors.classify`),
 never as pickled exceptions, and the job record stores them as such: only the HTTP layer
 turns a record into a problem document.  A computation that fans out
@@ -51,6 +53,8 @@ from pipeflow.errors import Cancelled, ErrorRecord, OverAllowance, StorageError,
 from pipeflow.solvers.checkpoint import checkpointing
 from service import encoding, observability
 from service.engine.fanout import DaskHost, in_worker
+from service.engine.lifecycle import ClaimOutcome, Counted, JobState, LeaseState, TaskStatus
+from service.engine.outcome import Outcome
 from service.store import Claim, Job, Store, worker_store
 from service.store.checkpoints import StoreCheckpoints
 from service.store.memo import StoreMemo
@@ -65,28 +69,9 @@ work_log = logging.getLogger("service.worker")
 if TYPE_CHECKING:
     from pipeflow.computations.registry import Computation
 
-
-@dataclass(frozen=True)
-class Outcome:
-    """What one run of :func:`run_job` reports to the replica that submitted it.
-
-    ``status``: see the module docstring (``exception``: the task itself failed to run,
-    made by the replica); ``error``: why it failed (``failed``: as the job record stores
-    it; ``storage``: the store's failure, ``data["full"]``); ``seconds`` [s]: how long the
-    computation ran (None when it did not); ``note``: the job's status (``done``,
-    ``elsewhere``), why it stopped (``cancelled``, ``lost``) or what went wrong
-    (``exception``).
-    """
-
-    status: str
-    error: ErrorRecord | None = None
-    seconds: float | None = None
-    note: str | None = None
-    #: this run stored the result and finished the record as succeeded (in one transaction)
-    finished: bool = False
-    #: the result's JSON, only from a run in the API process (the fast lane) that finished
-    #: the record itself: the request is answered with it, no read of the store
-    body: bytes | None = None
+#: the ``outcome`` of the "computation finished" log line: ok | error as the metrics count
+#: them, else the run's status (cancelled, lost, handoff)
+_LOGGED = {TaskStatus.SUCCEEDED: Counted.OK, TaskStatus.FAILED: Counted.ERROR}
 
 
 @dataclass(frozen=True)
@@ -181,8 +166,8 @@ class _Heartbeat:
             state = self.store.heartbeat(self.key, self.owner, self.progress)
         except StorageError:
             return True  # the store recovers by itself; the lease may go stale meanwhile
-        if state != "ok":
-            self.stop = "cancelled by request" if state == "cancelled" else state
+        if state != LeaseState.OK:
+            self.stop = "cancelled by request" if state == LeaseState.CANCELLED else state
         return True
 
     def _abandon_overdue(self) -> None:
@@ -194,7 +179,7 @@ class _Heartbeat:
         self.stop = "runtime limit"
         self.store.finish_job(
             self.key,
-            "failed",
+            JobState.FAILED,
             ErrorRecord.runtime_limit(self.cfg.timeout_s).to_dict(),
             owner=self.owner,
         )
@@ -220,7 +205,7 @@ class _Heartbeat:
             with contextlib.suppress(StorageError):  # the lease goes stale: still failed
                 self.store.finish_job(
                     self.key,
-                    "failed",
+                    JobState.FAILED,
                     ErrorRecord.runtime_limit(self.cfg.timeout_s, killed=True).to_dict(),
                     owner=self.owner,
                 )
@@ -334,7 +319,7 @@ def run_job(
 
     ``request_id`` (of the request that started the computation) is set for the log
     lines written meanwhile (:data:`service.observability.REQUEST_ID`).  ``store``: run
-    in the API process (the fast lane, :mod:`service.engine.runner`) with its store: the
+    in the API process (the fast lane, :mod:`service.engine.lane`) with its store: the
     same lease, record and result, but a computation that overruns its limit without
     stopping fails its job and is abandoned, not killed with the process, and the
     answer carries the result's body.  ``accept``: the job's record is written by this
@@ -360,8 +345,8 @@ def _run_job(
         if accept is None:
             claim = store.claim(key, owner, _worker_address(), cfg.stale_after_s)
         elif accept.look_up and (stored := store.get_result(key)) is not None:
-            accept.claimed(Claim("hit", None))
-            return Outcome("hit", body=stored)
+            accept.claimed(Claim(ClaimOutcome.HIT, None))
+            return Outcome(TaskStatus.HIT, body=stored)
         else:
             claim = store.enqueue_and_claim(
                 key,
@@ -377,13 +362,15 @@ def _run_job(
     except StorageError as exc:
         if accept is not None:
             accept.claimed(exc)
-        return Outcome("storage", classify(exc))
+        return Outcome(TaskStatus.STORAGE, classify(exc))
     if accept is not None:
         accept.claimed(claim)
-    if claim.outcome == "stored":
-        return Outcome("succeeded")  # computed by an earlier attempt; the claim finished it
-    if claim.outcome != "claimed":
-        return Outcome(claim.outcome, note=claim.job.status if claim.job else None)
+    match claim.outcome:
+        case ClaimOutcome.STORED:  # computed by an earlier attempt; the claim finished it
+            return Outcome(TaskStatus.SUCCEEDED)
+        case ClaimOutcome.DONE | ClaimOutcome.ELSEWHERE | ClaimOutcome.QUEUED:  # not ours
+            note = claim.job.status if claim.job else None
+            return Outcome(TaskStatus(claim.outcome), note=note)
     assert claim.job is not None
     try:
         beat = _Heartbeat(store, key, owner, cfg, inline=inline is not None, worker=_worker())
@@ -399,14 +386,14 @@ def _run_job(
             "computation finished",
             extra={
                 "key": key,
-                "outcome": status,
+                "outcome": _LOGGED.get(status, status),
                 "duration_ms": round(seconds * 1e3, 3),
                 "lane": "api" if inline is not None else "worker",
             },
         )
-        if status == "lost":
-            return Outcome("lost", note=str(payload))
-        if status == "ok":
+        if status == TaskStatus.LOST:
+            return Outcome(TaskStatus.LOST, note=str(payload))
+        if status == TaskStatus.SUCCEEDED:
             assert isinstance(payload, bytes)
             # one transaction; the API process's own store keeps the body out of its memory
             # front (its hits are answered from the hit cache)
@@ -414,32 +401,32 @@ def _run_job(
                 key, owner, computation.name, payload, remember=inline is None
             )
             body = payload if done and inline is not None else None
-            return Outcome("succeeded", seconds=seconds, finished=done, body=body)
-        if status == "handoff":
+            return Outcome(TaskStatus.SUCCEEDED, seconds=seconds, finished=done, body=body)
+        if status == TaskStatus.HANDOFF:
             # the lane's allowance stopped it before the work that would pass it: the record
             # stays active, unowned, with the reason, and the attempt is given back (a
             # hand-off must not use up one of the starts a dying worker may take); the
             # replica submits it to a worker
             why = str(payload)
             store.release(key, owner, f"{HANDED_OFF}: {why}", refund=True)
-            return Outcome("handoff", seconds=seconds, note=why)
-        if status == "cancelled":
+            return Outcome(TaskStatus.HANDOFF, seconds=seconds, note=why)
+        if status == TaskStatus.CANCELLED:
             store.release(key, owner)  # the record already says cancelled (by the request)
-            return Outcome("cancelled", seconds=seconds, note=str(payload))
+            return Outcome(TaskStatus.CANCELLED, seconds=seconds, note=str(payload))
         assert error is not None
-        store.finish_job(key, "failed", error.to_dict(), owner=owner)
-        return Outcome("failed", error, seconds)
+        store.finish_job(key, JobState.FAILED, error.to_dict(), owner=owner)
+        return Outcome(TaskStatus.FAILED, error, seconds)
     except StorageError as exc:
-        return Outcome("storage", classify(exc))
+        return Outcome(TaskStatus.STORAGE, classify(exc))
 
 
 def _compute(
     computation: Computation, request: Any, beat: _Heartbeat, cfg: TaskConfig, job: Job
-) -> tuple[str, bytes | str | None, ErrorRecord | None]:
-    """``("ok", json bytes, None)`` | ``("error", None, record)`` | ``("cancelled" | "lost" |
-    "handoff", why, None)``.  A long solve checkpoints into the store under ``job``'s key
-    and generation and resumes from an earlier attempt's checkpoint; the result's
-    diagnostics then say which attempt of the job resumed (``resumed_attempt``)."""
+) -> tuple[TaskStatus, bytes | str | None, ErrorRecord | None]:
+    """``(SUCCEEDED, json bytes, None)`` | ``(FAILED, None, record)`` | ``(CANCELLED | LOST |
+    HANDOFF, why, None)`` (:class:`TaskStatus`).  A long solve checkpoints into the store
+    under ``job``'s key and generation and resumes from an earlier attempt's checkpoint;
+    the result's diagnostics then say which attempt of the job resumed (``resumed_attempt``)."""
 
     def progress(fraction: float) -> None:
         if time.monotonic() > beat.deadline:
@@ -477,16 +464,20 @@ def _compute(
             result = computation.execute(request, progress)
     except Cancelled as exc:
         if time.monotonic() > beat.deadline:
-            return ("error", None, ErrorRecord.runtime_limit(cfg.timeout_s))
-        if beat.stop == "lost":
-            return ("lost", "another attempt took over the job", None)
-        return ("cancelled", str(exc) or "cancelled", None)
-    except OverAllowance as exc:  # the fast lane's allowance (service.engine.runner)
-        return ("handoff", str(exc), None)
+            return (TaskStatus.FAILED, None, ErrorRecord.runtime_limit(cfg.timeout_s))
+        if beat.stop == LeaseState.LOST:
+            return (TaskStatus.LOST, "another attempt took over the job", None)
+        return (TaskStatus.CANCELLED, str(exc) or "cancelled", None)
+    except OverAllowance as exc:  # the fast lane's allowance (service.engine.lane)
+        return (TaskStatus.HANDOFF, str(exc), None)
     except StorageError as exc:  # a failed store is no failure of the computation
-        return ("error", None, ErrorRecord.internal(f"internal error: StorageError: {exc}"))
+        return (
+            TaskStatus.FAILED,
+            None,
+            ErrorRecord.internal(f"internal error: StorageError: {exc}"),
+        )
     except Exception as exc:
-        return ("error", None, classify(exc))
+        return (TaskStatus.FAILED, None, classify(exc))
     fan_out = host.diagnostics() if host is not None else None
     if fan_out is not None and isinstance(result.get("diagnostics"), dict):
         result["diagnostics"] = {**result["diagnostics"], "fan_out": fan_out}
@@ -494,6 +485,8 @@ def _compute(
     if isinstance(diagnostics, dict) and "resumed_from_time" in diagnostics:
         result["diagnostics"] = {**diagnostics, "resumed_attempt": job.attempts}
     try:
-        return ("ok", encoding.dumps(result), None)  # non-finite numbers -> null (the one rule)
+        # non-finite numbers -> null (the one rule)
+        return (TaskStatus.SUCCEEDED, encoding.dumps(result), None)
     except Exception as exc:
-        return ("error", None, ErrorRecord.internal(f"internal error: {type(exc).__name__}: {exc}"))
+        error = ErrorRecord.internal(f"internal error: {type(exc).__name__}: {exc}")
+        return (TaskStatus.FAILED, None, error)

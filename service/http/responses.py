@@ -18,6 +18,7 @@ from typing import Any, Generic, Protocol, TypeVar
 from fastapi import Response
 from fastapi.responses import JSONResponse
 
+from service.engine.lifecycle import JobState
 from service.http.problems import stored_problem
 from service.schemas import JobStatus
 from service.store import Job
@@ -222,7 +223,7 @@ def job_document(job: Job) -> dict[str, Any]:
         "finished": _time(job.finished),
         "updated": _time(job.updated),
         "error": stored_problem(job.error) if job.error is not None else None,
-        "result": f"/v1/results/{job.key}" if job.status == "succeeded" else None,
+        "result": f"/v1/results/{job.key}" if job.status == JobState.SUCCEEDED else None,
         "attempts": job.attempts,
         "last_retry_reason": job.last_retry_reason,
     }

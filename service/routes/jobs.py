@@ -14,6 +14,7 @@ from fastapi import APIRouter, Depends, Path, Query
 from fastapi.responses import JSONResponse
 
 from service.deps import RunnerDep, StoreDep
+from service.engine.lifecycle import JobState
 from service.http.access import CallerDep, not_owner, unknown_job, visible_job
 from service.http.negotiation import JSON, accepts
 from service.http.problems import ProblemError, responses
@@ -85,7 +86,7 @@ async def cancel_job(key: Key, store: StoreDep, runner: RunnerDep, who: CallerDe
     runner.job_changed(key)  # its long polls answer (cancelled, or its final status)
     if after is None:
         raise unknown_job(key)
-    if after.status in ("succeeded", "failed"):
+    if after.status in (JobState.SUCCEEDED, JobState.FAILED):
         raise ProblemError(409, f"job {key} already {after.status}", slug="job-finished")
     if after.active:  # another client's run now
         raise not_owner(key)

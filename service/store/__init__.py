@@ -81,7 +81,7 @@ class Store(ResultStore, GrantStore):
         packed = self.pack(items)  # before the transaction: not while holding the write lock
         with self._write() as conn:
             evicted = self._put_results(conn, packed)
-            done = self._finish(conn, key, "succeeded", None, owner)
+            done = self._finish(conn, key, JobState.SUCCEEDED, None, owner)
         self._remember_put(items, evicted, keep=remember)
         return done
 

@@ -17,7 +17,7 @@ import time
 
 from sqlalchemy import bindparam, delete, select, update
 
-from service.store.jobs import ACTIVE, Job, JobStore
+from service.store.jobs import ACTIVE, Job, JobState, JobStore
 from service.store.tables import checkpoints, job_grants, jobs
 
 _GRANTED = select(job_grants.c.generation).where(
@@ -64,7 +64,7 @@ class GrantStore(JobStore):
                 .where(*cond)
                 .values(
                     cancel=1,
-                    status="cancelled",
+                    status=JobState.CANCELLED,
                     finished=now,
                     updated=now,
                     error=json.dumps({"detail": "cancelled by request"}),

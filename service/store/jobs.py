@@ -19,10 +19,11 @@ import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, get_args
+from typing import Any
 
 from sqlalchemy import Connection, Row, bindparam, case, delete, func, select, update
 
+from service.engine.lifecycle import ACTIVE, STATUSES, ClaimOutcome, JobState, LeaseState
 from service.store.connection import StoreConnection
 from service.store.tables import checkpoints, jobs, results
 
@@ -36,7 +37,9 @@ _STORED = select(results.c.key).where(results.c.key == bindparam("b_key"))
 #: whether any job waits in the durable queue (the dispatcher's read after every
 #: computation that ends: built inline, 0.6 ms CPU per call, prebuilt 0.26 ms in-process)
 _ANY_WAITING = (
-    select(jobs.c.key).where((jobs.c.status == "queued") & jobs.c.dispatcher.is_(None)).limit(1)
+    select(jobs.c.key)
+    .where((jobs.c.status == JobState.QUEUED) & jobs.c.dispatcher.is_(None))
+    .limit(1)
 )
 _DELETE_CHECKPOINTS = delete(checkpoints).where(checkpoints.c.key == bindparam("b_key"))
 
@@ -61,10 +64,6 @@ def _finish_statement(owned: bool, succeeded: bool) -> Any:
     )
 
 
-#: a job's status: the one definition (the job record's column, the HTTP job document)
-JobState = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-STATUSES: tuple[str, ...] = get_args(JobState)
-ACTIVE = ("queued", "running")  # not yet ended
 #: the ``dispatcher`` of a job driven at once by whoever wrote it (:meth:`JobStore.enqueue_job`
 #: without a replica id: tests, tools)
 DRIVEN = "direct"
@@ -79,7 +78,7 @@ class Job:
     key: str
     kind: str
     spec: dict[str, Any]
-    status: str
+    status: JobState
     progress: float
     error: dict[str, Any] | None
     created: float
@@ -106,7 +105,7 @@ class Job:
             key=m["key"],
             kind=m["kind"],
             spec=json.loads(m["spec"]),
-            status=m["status"],
+            status=JobState(m["status"]),
             progress=float(m["progress"]),
             error=json.loads(m["error"]) if m["error"] else None,
             created=m["created"],
@@ -134,7 +133,7 @@ class Job:
     @property
     def waiting(self) -> bool:
         """Accepted into the durable queue, not yet taken by a replica."""
-        return self.status == "queued" and self.dispatcher is None
+        return self.status == JobState.QUEUED and self.dispatcher is None
 
 
 @dataclass(frozen=True)
@@ -159,7 +158,7 @@ class Claim:
     :meth:`Store.enqueue_and_claim` also ``"queued"`` (an active record was there first:
     not claimed)."""
 
-    outcome: str
+    outcome: ClaimOutcome
     job: Job | None
 
 
@@ -194,7 +193,7 @@ class JobRecords(StoreConnection):
         resettable = [jobs.c.key == key, jobs.c.status.notin_(ACTIVE)]
         if keep_stored:
             stored = select(results.c.key).where(results.c.key == key).exists()
-            resettable.append(~((jobs.c.status == "succeeded") & stored))
+            resettable.append(~((jobs.c.status == JobState.SUCCEEDED) & stored))
         return bool(conn.execute(update(jobs).where(*resettable).values(**reset)).rowcount)
 
     def enqueue_job(
@@ -219,7 +218,9 @@ class JobRecords(StoreConnection):
             self._queue(conn, key, kind, spec, refresh, principal, cost, dispatcher, keep_stored)
             conn.execute(
                 update(jobs)
-                .where(jobs.c.key == key, jobs.c.status == "queued", jobs.c.dispatcher.is_(None))
+                .where(
+                    jobs.c.key == key, jobs.c.status == JobState.QUEUED, jobs.c.dispatcher.is_(None)
+                )
                 .values(dispatcher=dispatcher)
             )
             job = self._job(conn, key)
@@ -255,16 +256,20 @@ class JobRecords(StoreConnection):
             columns = _queued(kind, spec, refresh, principal, cost, dispatcher)
             if not refresh and self._stored(conn, key):
                 if self._create_or_reset(conn, key, *columns):
-                    self._finish(conn, key, "succeeded", None, None)
-                    return Claim("stored", self._job(conn, key))
-                return Claim("queued", self._job(conn, key))
+                    self._finish(conn, key, JobState.SUCCEEDED, None, None)
+                    return Claim(ClaimOutcome.STORED, self._job(conn, key))
+                return Claim(ClaimOutcome.QUEUED, self._job(conn, key))
             created, reset = columns
             lease = dict(
-                status="running", started=created["created"], owner=owner, worker=worker, attempts=1
+                status=JobState.RUNNING,
+                started=created["created"],
+                owner=owner,
+                worker=worker,
+                attempts=1,
             )
             changed = self._create_or_reset(conn, key, created | lease, reset | lease)
             job = self._job(conn, key)
-        return Claim("claimed" if changed else "queued", job)
+        return Claim(ClaimOutcome.CLAIMED if changed else ClaimOutcome.QUEUED, job)
 
     def _queue(
         self,
@@ -290,7 +295,7 @@ class JobRecords(StoreConnection):
         self,
         conn: Connection,
         key: str,
-        status: str,
+        status: JobState,
         error: dict[str, Any] | None,
         owner: str | None,
     ) -> bool:
@@ -302,7 +307,7 @@ class JobRecords(StoreConnection):
             "b_error": json.dumps(error) if error else None,
             "b_now": time.time(),
         }
-        statement = _FINISH[owner is not None, status == "succeeded"]
+        statement = _FINISH[owner is not None, status == JobState.SUCCEEDED]
         done = conn.execute(statement, params).rowcount
         if done:
             conn.execute(_DELETE_CHECKPOINTS, {"b_key": key})
@@ -320,7 +325,7 @@ class JobQueue(JobRecords):
     @staticmethod
     def _is_waiting() -> Any:
         """A job waiting in the durable queue (as :data:`_ANY_WAITING` asks)."""
-        return (jobs.c.status == "queued") & jobs.c.dispatcher.is_(None)
+        return (jobs.c.status == JobState.QUEUED) & jobs.c.dispatcher.is_(None)
 
     def queue_job(
         self,
@@ -357,7 +362,7 @@ class JobQueue(JobRecords):
         for a free slot of any replica, in their turn, instead of being driven by whichever
         replica notices first, beyond its slots.  Returns their keys."""
         cond = [
-            jobs.c.status == "queued",
+            jobs.c.status == JobState.QUEUED,
             jobs.c.dispatcher.is_not(None),
             jobs.c.owner.is_(None),
             jobs.c.heartbeat.is_(None) | (jobs.c.heartbeat < time.time() - stale_after_s),
@@ -481,7 +486,7 @@ class JobQueue(JobRecords):
     def finish_job(
         self,
         key: str,
-        status: str,
+        status: JobState,
         error: dict[str, Any] | None = None,
         *,
         owner: str | None = None,
@@ -499,9 +504,9 @@ class JobQueue(JobRecords):
             self._create_or_reset(
                 conn,
                 key,
-                created | dict(status="succeeded", progress=1.0, started=now, finished=now),
+                created | dict(status=JobState.SUCCEEDED, progress=1.0, started=now, finished=now),
                 dict(
-                    status="succeeded",
+                    status=JobState.SUCCEEDED,
                     progress=1.0,
                     error=None,
                     finished=func.coalesce(jobs.c.finished, now),
@@ -525,7 +530,8 @@ class JobQueue(JobRecords):
         with self._read() as conn:
             rows = conn.execute(select(jobs.c.status, func.count()).group_by(jobs.c.status)).all()
         counts = {str(status): int(n) for status, n in rows}
-        return {status: counts.get(status, 0) for status in STATUSES}
+        # plain keys: a StrEnum key is refused by orjson (a value is written as its value)
+        return {status.value: counts.get(status, 0) for status in STATUSES}
 
     def jobs_by_key(self, keys: Sequence[str]) -> dict[str, Job]:
         """The records of ``keys`` that exist (one query: the replica's monitor)."""
@@ -558,7 +564,7 @@ class JobQueue(JobRecords):
         with self._write() as conn:
             conn.execute(
                 update(jobs)
-                .where(jobs.c.key.in_(list(keys)), jobs.c.status == "queued")
+                .where(jobs.c.key.in_(list(keys)), jobs.c.status == JobState.QUEUED)
                 .values(heartbeat=time.time())
             )
 
@@ -610,17 +616,17 @@ class JobStore(JobQueue):
         with self._write() as conn:
             job = self._job(conn, key, lock=True)
             if job is None or not job.active or job.cancel:
-                return Claim("done", job)
+                return Claim(ClaimOutcome.DONE, job)
             if job.owner == owner:
-                return Claim("claimed", job)
+                return Claim(ClaimOutcome.CLAIMED, job)
             age = now - (job.heartbeat or 0.0)
             if job.owner is not None and age < stale_after_s:
-                return Claim("elsewhere", job)
+                return Claim(ClaimOutcome.ELSEWHERE, job)
             if not job.refresh and self._stored(conn, key):
                 # computed by an earlier attempt (which died before finishing the record):
                 # finished here, in the claim's transaction
-                self._finish(conn, key, "succeeded", None, None)
-                return Claim("stored", self._job(conn, key))
+                self._finish(conn, key, JobState.SUCCEEDED, None, None)
+                return Claim(ClaimOutcome.STORED, self._job(conn, key))
             reason = job.last_retry_reason
             if job.owner is not None:
                 reason = (
@@ -631,7 +637,7 @@ class JobStore(JobQueue):
                 update(jobs)
                 .where(jobs.c.key == key)
                 .values(
-                    status="running",
+                    status=JobState.RUNNING,
                     started=now,
                     updated=now,
                     heartbeat=now,
@@ -642,9 +648,9 @@ class JobStore(JobQueue):
                     last_retry_reason=reason,
                 )
             )
-            return Claim("claimed", self._job(conn, key))
+            return Claim(ClaimOutcome.CLAIMED, self._job(conn, key))
 
-    def heartbeat(self, key: str, owner: str, progress: float | None = None) -> str:
+    def heartbeat(self, key: str, owner: str, progress: float | None = None) -> LeaseState:
         """Renew the lease (and record ``progress`` in [0, 1]): ``"ok"``, ``"cancelled"``
         (stop: the job was cancelled) or ``"lost"`` (another attempt owns the job now)."""
         now = time.time()
@@ -658,17 +664,17 @@ class JobStore(JobQueue):
                 .where(
                     jobs.c.key == key,
                     jobs.c.owner == owner,
-                    jobs.c.status == "running",
+                    jobs.c.status == JobState.RUNNING,
                     jobs.c.cancel == 0,
                 )
                 .values(**values)
             ).rowcount
             if renewed:
-                return "ok"
+                return LeaseState.OK
             job = self._job(conn, key)
-        if job is not None and (job.cancel or job.status == "cancelled"):
-            return "cancelled"
-        return "lost"
+        if job is not None and (job.cancel or job.status == JobState.CANCELLED):
+            return LeaseState.CANCELLED
+        return LeaseState.LOST
 
     def release(
         self, key: str, owner: str, reason: str | None = None, refund: bool = False
@@ -700,7 +706,7 @@ class JobStore(JobQueue):
                     jobs.c.key == key,
                     jobs.c.generation == generation,
                     jobs.c.owner == owner,
-                    jobs.c.status == "running",
+                    jobs.c.status == JobState.RUNNING,
                 )
                 .with_for_update()
             ).first()
@@ -764,7 +770,7 @@ def _queued(
     created: dict[str, Any] = dict(
         kind=kind,
         spec=json.dumps(spec),
-        status="queued",
+        status=JobState.QUEUED,
         progress=0.0,
         created=now,
         updated=now,
