@@ -26,6 +26,7 @@ from pipeflow.frequency import PointForce, frequency_grid, frequency_response, r
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.schema.frequency import HAMMER_EXAMPLE, FrequencyResponseSpec
 from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.statics import static_deflection
 from pipeflow_cli.cli import main as cli_main
 from pipeflow_client import AsyncClient, Client, ServiceError
 from service.keys import keyed
@@ -135,6 +136,39 @@ def test_answer_equals_the_library_call_then_a_cache_hit(api: TestClient) -> Non
     # a different number that matters is a different key
     other = api.post("/v1/frequency-responses", json=_body(modes=5))
     assert other.headers["x-cache"] == "MISS" and other.json()["key"] != key
+
+
+def test_residual_flexibility_switch(api: TestClient) -> None:
+    """No flow: the default adds the truncated modes' static response (the library's
+    ``residual=None``); ``residual_flexibility: false`` is the plain modal sum, another key."""
+    values = [0.0, 100.0, 900.0]
+    base = _body(flow={"velocity": {"kind": "constant", "value": 0.0}})
+    base["frequencies"] = {"values": values}
+    docs = {}
+    for flag in (None, False):
+        body = base if flag is None else {**base, "residual_flexibility": flag}
+        r = api.post("/v1/frequency-responses", json=body)
+        assert r.status_code == 200, r.text
+        docs[flag] = r.json()
+    for flag, applied in ((None, True), (False, False)):
+        (point,) = docs[flag]["operating_points"]
+        assert point["diagnostics"]["residual_flexibility"] is applied
+        ref = frequency_response(
+            PAPER_PIPE,
+            0.0,
+            100.0,
+            load=PointForce(L),
+            positions=[L],
+            frequencies=values,
+            modes=6,
+            residual=flag,
+        )
+        _same(point["responses"][0]["real"], ref.H[0].real)
+    assert docs[None]["key"] != docs[False]["key"]
+    # W = 0: exactly the static solution of the continuous pipe (tests/pipeflow/test_statics)
+    exact = static_deflection(PAPER_PIPE, 0.0, 100.0, [L], force_at=L)[0]
+    tip0 = docs[None]["operating_points"][0]["responses"][0]["real"][0]
+    assert tip0 == pytest.approx(exact, rel=1e-12)
 
 
 def test_explicit_values_are_answered_at_exactly_those_frequencies(api: TestClient) -> None:
