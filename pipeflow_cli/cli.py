@@ -270,9 +270,21 @@ def cmd_example(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_file_format(args: argparse.Namespace, result: dict[str, Any]) -> bool:
+    """Write ``result`` as UFF or netCDF when ``--format`` asks for it (True if so)."""
+    if args.format not in ("uff", "netcdf"):
+        return False
+    from pipeflow.io.formats import to_netcdf, to_uff
+
+    _write(args.output, to_uff(result) if args.format == "uff" else to_netcdf(result))
+    return True
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     result = _result_for(args, _read_json(args.spec))
-    if args.format in ("csv", "parquet"):
+    if _write_file_format(args, result):
+        pass
+    elif args.format in ("csv", "parquet"):
         from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
@@ -386,7 +398,9 @@ def study_report(result: dict[str, Any]) -> list[str]:
 def cmd_study(args: argparse.Namespace) -> int:
     data = _unwrap(_read_json(args.spec))
     result = _result_for(args, data, "study", ("study",))
-    if args.format in ("csv", "parquet"):
+    if _write_file_format(args, result):
+        pass
+    elif args.format in ("csv", "parquet"):
         from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
@@ -402,7 +416,9 @@ def cmd_study(args: argparse.Namespace) -> int:
 def cmd_frequency_response(args: argparse.Namespace) -> int:
     data = _unwrap(_read_json(args.spec))
     result = _result_for(args, data, "frequency_response", ("frequency_response",))
-    if args.format in ("csv", "parquet"):
+    if _write_file_format(args, result):
+        pass
+    elif args.format in ("csv", "parquet"):
         from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
@@ -527,9 +543,11 @@ def build_parser() -> argparse.ArgumentParser:
     kind_flag(sp, "simulation")
     sp.add_argument(
         "--format",
-        choices=("json", "csv", "parquet"),
+        choices=("json", "csv", "parquet", "uff", "netcdf"),
         default="json",
-        help="output format (parquet: units in the column metadata; needs pipeflow[parquet])",
+        help="output format (parquet: units in the column metadata, needs pipeflow[parquet]; "
+        "uff: dataset 58 per FRF curve, 55 per mode shape; netcdf: the xarray layout; both "
+        "need pipeflow[formats])",
     )
     sp.add_argument(
         "--table",
@@ -615,9 +633,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("spec", help="study spec JSON file ('-': stdin)")
     sp.add_argument(
         "--format",
-        choices=("json", "csv", "parquet"),
+        choices=("json", "csv", "parquet", "netcdf"),
         default="json",
-        help="output format: the result JSON, or the study table (one row per case)",
+        help="output format: the result JSON, the study table (one row per case), or netCDF",
     )
     json_output_flags(sp)
     sp.set_defaults(func=cmd_study)
@@ -639,9 +657,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("spec", help="frequency-response spec JSON file ('-': stdin)")
     sp.add_argument(
         "--format",
-        choices=("json", "csv", "parquet"),
+        choices=("json", "csv", "parquet", "uff", "netcdf"),
         default="json",
-        help="output format (parquet: units in the column metadata; needs pipeflow[parquet])",
+        help="output format (parquet: units in the column metadata, needs pipeflow[parquet]; "
+        "uff: dataset 58 per FRF curve, 55 per mode shape; netcdf: the xarray layout; both "
+        "need pipeflow[formats])",
     )
     sp.add_argument(
         "--table",

@@ -434,6 +434,18 @@ class _Operations:
         return response.content
 
     @staticmethod
+    def result_file(key: str, fmt: str = "uff") -> Steps[bytes]:
+        """A stored result as a file: ``fmt="uff"`` (universal file: dataset 58 per
+        operating point and position of a frequency response, abscissa in Hz; dataset 55
+        for mode shapes; read with ``pyuff``) or ``"netcdf"`` (netCDF-3, the xarray layout
+        with units; ``xarray.open_dataset(io.BytesIO(b))``)."""
+        if fmt not in ("uff", "netcdf"):
+            raise ValueError(f"fmt must be 'uff' or 'netcdf', got {fmt!r}")
+        response = yield Call("GET", f"/v1/results/{key}", {"format": fmt})
+        assert response is not None
+        return response.content
+
+    @staticmethod
     def plot(key: str, name: str = "tip_displacement", fmt: str = "png") -> Steps[bytes]:
         """PNG or SVG bytes of plot ``name`` of the stored result ``key``."""
         response = yield Call("GET", f"/v1/results/{key}/plots/{name}.{fmt}")
@@ -730,6 +742,7 @@ class _Base:
     result = _operation(_Operations.result)
     result_csv = _operation(_Operations.result_csv)
     result_parquet = _operation(_Operations.result_parquet)
+    result_file = _operation(_Operations.result_file)
     plot = _operation(_Operations.plot)
     compare = _operation(_Operations.compare)
     stability = _operation(_Operations.stability)

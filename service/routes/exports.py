@@ -1,4 +1,4 @@
-"""Stored results as pictures and tables: plots (PNG/SVG), CSV and Parquet.
+"""Stored results as pictures, tables and files: plots (PNG/SVG), CSV, Parquet, UFF, netCDF.
 
 - ``GET /v1/results/{key}/plots/{name}.{fmt}``: a figure of the stored result, drawn by
   :mod:`pipeflow.io.plots` (the names a result supports are listed in its ``plots`` field).
@@ -12,6 +12,9 @@
   the content negotiation and the tables of :mod:`pipeflow.io.export`.  Each table is
   encoded once and kept in the app's :class:`TableCache` (a bounded LRU); ``If-None-Match``
   is answered 304.
+- UFF or netCDF of ``GET /v1/results/{key}`` (``?format=uff|netcdf`` or ``Accept:
+  application/vnd.uff`` / ``application/x-netcdf``): the whole result as one file
+  (:mod:`pipeflow.io.formats`), encoded and cached like a table.
 
 Drawing happens in a thread (not on the event loop) under a lock: matplotlib's figure
 objects are independent, but its rc settings used while saving are process-global.
@@ -37,6 +40,7 @@ from pipeflow.io.export import (
     to_csv,
     to_parquet,
 )
+from pipeflow.io.formats import NETCDF_MEDIA_TYPE, UFF_MEDIA_TYPE, to_netcdf, to_uff
 from service.deps import StoreDep
 from service.http.negotiation import accepts, media_ranges
 from service.http.problems import ProblemError, responses
@@ -66,6 +70,9 @@ TABLE_DESCRIPTION = (
 )
 #: format name -> media type of the tables (JSON is the result document itself)
 TABLE_MEDIA_TYPES = {"csv": CSV_MEDIA_TYPE, "parquet": PARQUET_MEDIA_TYPE}
+#: whole-result files of ``GET /v1/results/{key}?format=``: name -> media type, extension
+FILE_FORMATS = {"uff": (UFF_MEDIA_TYPE, "uff"), "netcdf": (NETCDF_MEDIA_TYPE, "nc")}
+FILE_MEDIA_TYPES = tuple(media for media, _ in FILE_FORMATS.values())
 #: OpenAPI content of a 200 that is a table: bytes (CSV text in UTF-8, binary Parquet)
 TABLE_CONTENT: dict[str, Any] = {media: {"schema": BINARY} for media in TABLE_MEDIA_TYPES.values()}
 
@@ -84,6 +91,7 @@ def wanted_format(fmt: str | None, accept: str | None) -> str:
         return "json"
     ranked = [(q, -i, media) for i, (media, q) in enumerate(media_ranges(accept))]
     by_media = {media: name for name, media in TABLE_MEDIA_TYPES.items()}
+    by_media.update({media: name for name, (media, _) in FILE_FORMATS.items()})
     for _, _, media in sorted(ranked, reverse=True):
         if media in by_media:
             return by_media[media]
@@ -114,8 +122,12 @@ class TableAnswer:
         return {"ETag": self.etag, "Cache-Control": IMMUTABLE, "Vary": "Accept"}
 
     def response(self) -> Response:
-        media = TABLE_MEDIA_TYPES[self.fmt]
-        name = f"{self.key[:12]}-{self.table}.{self.fmt}"
+        if self.fmt in FILE_FORMATS:
+            media, ext = FILE_FORMATS[self.fmt]
+            name = f"{self.key[:12]}.{ext}"
+        else:
+            media = TABLE_MEDIA_TYPES[self.fmt]
+            name = f"{self.key[:12]}-{self.table}.{self.fmt}"
         return Response(
             self.content,
             media_type=f"{media}; charset=utf-8; header=present" if self.fmt == "csv" else media,
@@ -145,6 +157,8 @@ def encode_table(key: str, body: bytes, table: str | None, fmt: str) -> TableAns
     """Table ``table`` (None: the result's first) of the stored result ``body`` (JSON bytes)
     as ``fmt`` (csv, parquet)."""
     result = json.loads(body)
+    if fmt in FILE_FORMATS:
+        return _encode_file(key, result, fmt)
     if table is None:
         table = next(iter(available_tables(result)), "history")
     try:
@@ -166,6 +180,28 @@ def encode_table(key: str, body: bytes, table: str | None, fmt: str) -> TableAns
         ) from None
     data = content.encode() if isinstance(content, str) else content
     return TableAnswer(key, table, fmt, data)
+
+
+def _encode_file(key: str, result: dict[str, Any], fmt: str) -> TableAnswer:
+    """The whole result as a UFF (frequency responses: dataset 58; mode shapes: 55) or
+    netCDF file (:mod:`pipeflow.io.formats`)."""
+    try:
+        content = to_uff(result) if fmt == "uff" else to_netcdf(result)
+    except ImportError as exc:  # pyuff / xarray: the optional 'formats' extra
+        raise ProblemError(
+            406,
+            f"{exc}; ask for JSON or CSV instead",
+            slug="format-unavailable",
+            errors=[{"field": "format", "location": "query", "message": str(exc)}],
+        ) from None
+    except ExportError as exc:
+        raise ProblemError(
+            422,
+            exc.message,
+            slug="format-unavailable",
+            errors=[{"field": "format", "location": "query", "message": exc.message}],
+        ) from None
+    return TableAnswer(key, "result", fmt, content)
 
 
 async def table_response(
