@@ -26,9 +26,11 @@ from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.schema import documents
 from pipeflow.schema.frequency import HAMMER_EXAMPLE, FrequencyResponseSpec
-from pipeflow.schema.registry import COMPUTATIONS
+from pipeflow.schema.registry import COMPUTATIONS, SWEEP_KINDS, computation_for, parse
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
+from pipeflow.schema.study import StudySpec
 from pipeflow.simulation import Simulation, simulate
+from tests.pipeflow.io.test_notebook_kinds import SWEEPS
 
 pyuff = pytest.importorskip("pyuff")
 xr = pytest.importorskip("xarray")
@@ -157,3 +159,27 @@ def test_stability_and_study_netcdf() -> None:
     for name in ref.data_vars:
         np.testing.assert_array_equal(ds[name].values, ref[name].values)
     assert ds.attrs["input.modes"] == 4
+
+
+@pytest.mark.parametrize("kind", [*SWEEPS, "study"])
+def test_every_other_kind_netcdf(kind: str) -> None:
+    """Sweeps, maps, Floquet and a study: every numeric variable of to_xarray read back
+    from netCDF-3 equal (NaN where null), units kept (flags as int8 0/1)."""
+    if kind == "study":
+        base = {"pipe": PAPER_PIPE_JSON, "modes": 3, "time": {"t_end": 0.05, "samples": 11}}
+        body: dict[str, Any] = {
+            "base": {"kind": "simulation", "spec": base},
+            "grid": {"flow.velocity.value": [0.0, 10.0]},
+        }
+        result = COMPUTATIONS["study"].execute(StudySpec.model_validate(body))
+    else:
+        body = SWEEPS[kind]
+        request = parse(SWEEP_KINDS, body)
+        result = computation_for(request).execute(request)
+    ds = _read_netcdf(to_netcdf(result, inputs=body))
+    ref = to_xarray(result, inputs=body)
+    for name, var in ref.data_vars.items():
+        if var.dtype.kind in "fiub":
+            np.testing.assert_array_equal(ds[name].values, var.values.astype(ds[name].dtype))
+            assert ds[name].attrs.get("units") == var.attrs.get("units"), name
+    assert ds.attrs["kind"] == kind
