@@ -271,12 +271,14 @@ def cmd_example(args: argparse.Namespace) -> int:
 
 
 def _write_file_format(args: argparse.Namespace, result: dict[str, Any]) -> bool:
-    """Write ``result`` as UFF or netCDF when ``--format`` asks for it (True if so)."""
-    if args.format not in ("uff", "netcdf"):
-        return False
-    from pipeflow.io.formats import to_netcdf, to_uff
+    """Write ``result`` as UFF, netCDF or MATLAB (a state-space result) when ``--format``
+    asks for it (True if so)."""
+    from pipeflow.io.formats import to_mat, to_netcdf, to_uff
 
-    _write(args.output, to_uff(result) if args.format == "uff" else to_netcdf(result))
+    writers = {"uff": to_uff, "netcdf": to_netcdf, "mat": to_mat}
+    if args.format not in writers:
+        return False
+    _write(args.output, writers[args.format](result))
     return True
 
 
@@ -543,11 +545,11 @@ def build_parser() -> argparse.ArgumentParser:
     kind_flag(sp, "simulation")
     sp.add_argument(
         "--format",
-        choices=("json", "csv", "parquet", "uff", "netcdf"),
+        choices=("json", "csv", "parquet", "uff", "netcdf", "mat"),
         default="json",
         help="output format (parquet: units in the column metadata, needs pipeflow[parquet]; "
         "uff: dataset 58 per FRF curve, 55 per mode shape; netcdf: the xarray layout; both "
-        "need pipeflow[formats])",
+        "need pipeflow[formats]; mat: a state_space result as a MATLAB file)",
     )
     sp.add_argument(
         "--table",

@@ -1,5 +1,5 @@
-"""Universal file (UFF) and netCDF export of a JSON result (issue 32), for modal-test and
-data tools.
+"""Universal file (UFF), netCDF and MATLAB export of a JSON result (issue 32), for
+modal-test, data and control tools (MATLAB: :func:`to_mat`, a state-space result).
 
 UFF (:func:`to_uff`, needs ``pyuff``: ``pip install 'pipeflow[formats]'``), ASCII:
 
@@ -28,6 +28,7 @@ flags int8 (0/1), and ``None`` attributes are left out.
 
 from __future__ import annotations
 
+import io
 import math
 from typing import Any
 
@@ -37,6 +38,7 @@ from pipeflow.io.export import ExportError
 from pipeflow.optional import require
 
 UFF_MEDIA_TYPE = "application/vnd.uff"
+MAT_MEDIA_TYPE = "application/x-matlab-data"
 NETCDF_MEDIA_TYPE = "application/x-netcdf"
 
 #: UFF 58 specific data types of the ordinate (numerator) by quantity (the format's table)
@@ -217,3 +219,27 @@ def to_netcdf(result: Any, inputs: dict[str, Any] | None = None) -> bytes:
     ds = _netcdf3(to_xarray(result, inputs))
     data = ds.to_netcdf(path=None, engine="scipy", format="NETCDF3_64BIT")
     return bytes(data)
+
+
+def to_mat(result: dict[str, Any]) -> bytes:
+    """A state-space result (``kind: state_space``) as a MATLAB 5 file
+    (:func:`scipy.io.savemat`): the matrices ``A``, ``B``, ``C``, ``D`` (double), the
+    cell arrays of names ``states``, ``inputs``, ``outputs``, the operating point
+    ``velocity`` [m/s] and ``omega0`` [rad/s], ``positions`` [m] and a struct ``units``
+    (``sys = ss(A, B, C, D)`` in MATLAB)."""
+    import scipy.io
+
+    if result.get("kind") != "state_space":
+        raise ExportError(
+            "a MATLAB file holds a state-space result (POST /v1/state-space)", "format"
+        )
+    out: dict[str, Any] = {k: np.asarray(result[k], dtype=float) for k in ("A", "B", "C", "D")}
+    for k in ("states", "inputs", "outputs"):
+        out[k] = np.array(result[k], dtype=object)
+    out["velocity"] = float(result["velocity"])
+    out["omega0"] = float(result["omega0"])
+    out["positions"] = np.asarray(result["positions"], dtype=float)
+    out["units"] = dict(result["units"])
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, out, do_compression=True)
+    return buf.getvalue()

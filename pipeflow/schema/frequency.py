@@ -240,6 +240,18 @@ _FROZEN = (
 )
 
 
+def refuse_time_variant(data: Any) -> None:
+    """A time-variant profile of a frozen-point request is refused by name, not as a tag
+    mismatch (the raw body, before validation)."""
+    if isinstance(data, dict):
+        for group, name in (("flow", "velocity"), ("rotation", "omega0")):
+            block = data.get(group)
+            prof = block.get(name) if isinstance(block, dict) else None
+            kind = prof.get("kind") if isinstance(prof, dict) else None
+            if isinstance(kind, str) and kind != "constant":
+                raise InvalidField(_FROZEN.format(kind=kind), f"{group}.{name}")
+
+
 class FrequencyResponseSpec(_Mounted):
     """Frequency response functions of the pipe at one or several frozen operating points."""
 
@@ -281,14 +293,7 @@ class FrequencyResponseSpec(_Mounted):
     @model_validator(mode="before")
     @classmethod
     def _constant_profiles(cls, data: Any) -> Any:
-        """A time-variant profile is refused by name, not as a tag mismatch."""
-        if isinstance(data, dict):
-            for group, name in (("flow", "velocity"), ("rotation", "omega0")):
-                block = data.get(group)
-                prof = block.get(name) if isinstance(block, dict) else None
-                kind = prof.get("kind") if isinstance(prof, dict) else None
-                if isinstance(kind, str) and kind != "constant":
-                    raise InvalidField(_FROZEN.format(kind=kind), f"{group}.{name}")
+        refuse_time_variant(data)
         return data
 
     @model_validator(mode="after")

@@ -37,6 +37,7 @@ from pipeflow.schema import documents
 from pipeflow.schema import frequency as f
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
+from pipeflow.schema import state_space as ssp
 from pipeflow.schema.simulation import (
     MAX_OUTPUT_VALUES,
     PAPER_EXAMPLE,
@@ -404,7 +405,8 @@ COMPARE = register(
 
 
 def run_analysis(
-    spec: s.StabilitySpec | s.SweepModel | f.FrequencyResponseSpec, progress: Progress | None
+    spec: s.StabilitySpec | s.SweepModel | f.FrequencyResponseSpec | ssp.StateSpaceSpec,
+    progress: Progress | None,
 ) -> dict[str, Any]:
     """A stability analysis, sweep or frequency response: its model's ``run`` (the plain
     library call)."""
@@ -638,6 +640,25 @@ FREQUENCY_RESPONSE = register(
             },
         },
         fields=f.FREQUENCY_FIELDS,
+    )
+)
+
+
+STATE_SPACE = register(
+    Computation(
+        name="state_space",
+        request=ssp.StateSpaceSpec,
+        response=ssp.StateSpaceResponse,
+        run=run_analysis,
+        estimate=ssp.StateSpaceSpec.cost,
+        budget="one state matrix of 2 x modes states, C of positions x 2 x modes numbers",
+        examples={
+            "hammer": {
+                "summary": "The hammer test's pipe, load and tip output as a state-space model",
+                "value": ssp.STATE_SPACE_EXAMPLE,
+            }
+        },
+        fields=ssp.STATE_SPACE_FIELDS,
     )
 )
 

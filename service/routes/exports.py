@@ -12,8 +12,9 @@
   the content negotiation and the tables of :mod:`pipeflow.io.export`.  Each table is
   encoded once and kept in the app's :class:`TableCache` (a bounded LRU); ``If-None-Match``
   is answered 304.
-- UFF or netCDF of ``GET /v1/results/{key}`` (``?format=uff|netcdf`` or ``Accept:
-  application/vnd.uff`` / ``application/x-netcdf``): the whole result as one file
+- UFF, netCDF or MATLAB of ``GET /v1/results/{key}`` (``?format=uff|netcdf|mat`` or
+  ``Accept: application/vnd.uff`` / ``application/x-netcdf`` /
+  ``application/x-matlab-data``): the whole result as one file
   (:mod:`pipeflow.io.formats`), encoded and cached like a table.
 
 Drawing happens in a thread (not on the event loop) under a lock: matplotlib's figure
@@ -40,7 +41,14 @@ from pipeflow.io.export import (
     to_csv,
     to_parquet,
 )
-from pipeflow.io.formats import NETCDF_MEDIA_TYPE, UFF_MEDIA_TYPE, to_netcdf, to_uff
+from pipeflow.io.formats import (
+    MAT_MEDIA_TYPE,
+    NETCDF_MEDIA_TYPE,
+    UFF_MEDIA_TYPE,
+    to_mat,
+    to_netcdf,
+    to_uff,
+)
 from service.deps import StoreDep
 from service.http.negotiation import accepts, media_ranges
 from service.http.problems import ProblemError, responses
@@ -71,7 +79,13 @@ TABLE_DESCRIPTION = (
 #: format name -> media type of the tables (JSON is the result document itself)
 TABLE_MEDIA_TYPES = {"csv": CSV_MEDIA_TYPE, "parquet": PARQUET_MEDIA_TYPE}
 #: whole-result files of ``GET /v1/results/{key}?format=``: name -> media type, extension
-FILE_FORMATS = {"uff": (UFF_MEDIA_TYPE, "uff"), "netcdf": (NETCDF_MEDIA_TYPE, "nc")}
+FILE_FORMATS = {
+    "uff": (UFF_MEDIA_TYPE, "uff"),
+    "netcdf": (NETCDF_MEDIA_TYPE, "nc"),
+    "mat": (MAT_MEDIA_TYPE, "mat"),
+}
+#: format name -> writer of the whole result
+FILE_WRITERS = {"uff": to_uff, "netcdf": to_netcdf, "mat": to_mat}
 FILE_MEDIA_TYPES = tuple(media for media, _ in FILE_FORMATS.values())
 #: OpenAPI content of a 200 that is a table: bytes (CSV text in UTF-8, binary Parquet)
 TABLE_CONTENT: dict[str, Any] = {media: {"schema": BINARY} for media in TABLE_MEDIA_TYPES.values()}
@@ -183,10 +197,10 @@ def encode_table(key: str, body: bytes, table: str | None, fmt: str) -> TableAns
 
 
 def _encode_file(key: str, result: dict[str, Any], fmt: str) -> TableAnswer:
-    """The whole result as a UFF (frequency responses: dataset 58; mode shapes: 55) or
-    netCDF file (:mod:`pipeflow.io.formats`)."""
+    """The whole result as a UFF (frequency responses: dataset 58; mode shapes: 55), netCDF
+    or (a state-space result) MATLAB file (:mod:`pipeflow.io.formats`)."""
     try:
-        content = to_uff(result) if fmt == "uff" else to_netcdf(result)
+        content = FILE_WRITERS[fmt](result)
     except ImportError as exc:  # pyuff / xarray: the optional 'formats' extra
         raise ProblemError(
             406,

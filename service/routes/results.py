@@ -61,10 +61,11 @@ async def get_result(
     # CSV and Parquet: getResultTable declares them (kept here for curl and pipeflow_client,
     # out of this JSON operation's schema, whose generated client parses every 200 as JSON)
     format: Annotated[
-        Literal["json", "csv", "parquet", "uff", "netcdf"] | None,
+        Literal["json", "csv", "parquet", "uff", "netcdf", "mat"] | None,
         Query(
             description="json, csv, parquet, uff (frequency responses: dataset 58, mode "
-            "shapes: 55) or netcdf; overrides Accept (for clients that cannot set it).",
+            "shapes: 55), netcdf or mat (a state-space result); overrides Accept (for "
+            "clients that cannot set it).",
             include_in_schema=False,
         ),
     ] = None,
@@ -84,7 +85,8 @@ async def get_result(
     (the operation ``getResultTable``, ``/v1/results/{key}/tables/{table}.{fmt}``, is the
     one that declares those media types).  ``?format=uff``: a universal file (dataset 58
     per operating point and position of a frequency response, abscissa in Hz; dataset 55
-    for mode shapes); ``?format=netcdf``: the result as a netCDF-3 file (xarray layout)."""
+    for mode shapes); ``?format=netcdf``: the result as a netCDF-3 file (xarray layout);
+    ``?format=mat``: a state-space result as a MATLAB file (A, B, C, D, names, units)."""
     fmt = wanted_format(format, accept)
     if fmt != "json":
         return await table_response(key, table, fmt, store, tables, if_none_match)
