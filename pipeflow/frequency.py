@@ -34,6 +34,13 @@ the response is then the motion *relative to the clamp*).  Quantities: ``"displa
 
 Past the critical velocity some Re xi > 0: there is no steady state and H is only a
 formal quantity; the response says so (``stable``, ``warnings``).
+
+Residual flexibility (issue 32): the static response of the modes left out, u_static(x) -
+Phi_out K^-1 f with u_static the static deflection of the continuous pipe
+(:mod:`pipeflow.statics`), is added to H where it is measured better (no flow, no tip
+rotary inertia, a stable point; ``residual``): the bare cantilever's drive-point
+receptance then converges to ~1e-11 at 40 modes instead of like n^-3
+(``docs/frequency-response.md`` has the tables, and why not with flow).
 """
 
 from __future__ import annotations

@@ -40,7 +40,8 @@ from pipeflow.frequency import (
     _generalised_force,
     _operator,
 )
-from pipeflow.model import Coefficients, Pipe
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Coefficients, Pipe, basis_caveats
+from pipeflow.spectra import max_growth_rates
 
 FloatArray = NDArray[np.float64]
 
@@ -75,6 +76,7 @@ class StateSpace:
     natural_frequencies: FloatArray
     quantity: str
     load: Load
+    warnings: tuple[str, ...] = ()
 
 
 def state_space(
@@ -120,6 +122,16 @@ def state_space(
     states += tuple(f"q_{j}" for j in range(1, n + 1))
     name = f"F(x={load.position!r})" if isinstance(load, PointForce) else "clamp_acceleration"
     symbol = {"displacement": "u", "velocity": "du/dt", "acceleration": "d2u/dt2"}[quantity]
+    warnings: list[str] = []
+    growth = float(max_growth_rates(op.xi[None])[0])
+    if growth > 0:
+        warnings.append(
+            f"unstable operating point: A has an eigenvalue with Re = {growth:.4g} 1/s > 0 "
+            f"(v = {v} m/s, w0 = {w0} rad/s); the model grows without bound"
+        )
+    if v < 0:
+        warnings.append(REVERSE_FLOW_CAVEAT)
+    warnings += basis_caveats(pipe)
     for arr in (A, B, C, D, x, w):
         arr.setflags(write=False)
     return StateSpace(
@@ -138,6 +150,7 @@ def state_space(
         natural_frequencies=w,
         quantity=quantity,
         load=load,
+        warnings=tuple(warnings),
     )
 
 

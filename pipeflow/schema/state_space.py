@@ -154,7 +154,7 @@ class StateSpaceSpec(_Mounted):
             "quantity": ss.quantity,
             "positions": ss.positions.tolist(),
             "natural_frequencies": ss.natural_frequencies.tolist(),
-            "warnings": [],
+            "warnings": list(ss.warnings),
         }
 
 

@@ -99,3 +99,14 @@ def test_python_control_frequency_response_and_step() -> None:
         residual=False,
     ).H[0, 0]
     assert abs(y_end - h0.real) <= 1e-6 * static
+
+
+def test_unstable_and_reverse_flow_points_say_so() -> None:
+    """Past the critical velocity (27.69 m/s at w0 = 100 rad/s) A has Re xi > 0: the answer
+    says so; reverse flow carries its caveat (physics notes sec. 4)."""
+    ss = state_space(P, 40.0, 100.0, load=PointForce(L), positions=[L], modes=6)
+    assert np.max(np.linalg.eigvals(ss.A).real) > 0
+    assert any("unstable operating point" in w for w in ss.warnings)
+    back = state_space(P, -1.0, 0.0, load=PointForce(L), positions=[L], modes=6)
+    assert any("reverse" in w.lower() for w in back.warnings)
+    assert not state_space(P, 5.0, 100.0, load=PointForce(L), positions=[L]).warnings
