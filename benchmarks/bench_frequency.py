@@ -5,17 +5,22 @@
 
 The case: the paper's pipe at v = 5 m/s, w0 = 100 rad/s, 20 modes, a unit force at the tip,
 the response at 3 positions (L/3, 2L/3, L) at 2,000 log-spaced frequencies from 10 to
-2e5 rad/s.  Three ways, all in this process, best of ``--repeats``:
+2e5 rad/s, then at every tenth of them (200).  Three ways, all in this process, best of
+``--repeats``:
 
 - ``frequency_response()``: the library call, everything included (the model's matrices,
   the eigen-decomposition, the modal sum, the resonances, the direct-solve check at 5
   frequencies, the peaks);
 - a bare numpy modal sum written here: from M, C, K and the mode shapes at the outputs
   (built once, outside the timing), the first-order matrix, its eigen-decomposition and
-  Phi V diag(1/(iW - xi)) V^-1 b.  Target: the library within 2x of it;
+  Phi V diag(1/(iW - xi)) V^-1 b (the reciprocals in place: ``left @ (1.0 / poles)``, a
+  fresh MB-sized array, made the product 4x slower).  Target (issue 32): the library
+  within 1.5x of it at 2,000 frequencies;
 - direct solves of (K - W^2 M + i W C) q = f at every frequency, batched
   (``np.linalg.solve`` on the stack of 2,000 systems, the fastest numpy has) and one
-  ``np.linalg.solve`` call per frequency.  Target: the library >= 20x faster than direct.
+  ``np.linalg.solve`` call per frequency.  Target (issue 32): the library not slower than
+  the batched solves at 200 frequencies (where the eigen-decomposition's fixed cost
+  weighs most).
 
 The three agree (printed: the largest relative difference of H); the ratios are printed
 from the same run.  Wall time depends on the machine and its load: the load average is
@@ -76,7 +81,9 @@ def bare_modal(M: Any, C: Any, K: Any, out: Any, f: Any, W: Any) -> np.ndarray:
     xi, vec = np.linalg.eig(A)
     b = np.concatenate([Minv @ f, np.zeros(n)])
     left = (out @ vec[n:]) * np.linalg.solve(vec, b)[None, :]
-    return np.asarray(left @ (1.0 / (1j * W[None, :] - xi[:, None])))
+    poles = 1j * W[None, :] - xi[:, None]
+    np.reciprocal(poles, out=poles)  # in place: 4x faster than left @ (1.0 / poles) here
+    return np.asarray(left @ poles)
 
 
 def direct_batched(M: Any, C: Any, K: Any, out: Any, f: Any, W: Any) -> np.ndarray:
@@ -112,18 +119,28 @@ def main(argv: list[str] | None = None) -> int:
     print(f"case: paper pipe, v = {V} m/s, w0 = {W0} rad/s, {MODES} modes, tip force, "
           f"{size}, best of {repeats}")  # fmt: skip
 
-    def library() -> np.ndarray:
-        r = frequency_response(PAPER_PIPE, V, W0, load=PointForce(L), positions=POSITIONS,
-                               frequencies=FREQUENCIES, modes=MODES)  # fmt: skip
-        return np.asarray(r.H)
-
     M, C, K, out, f = matrices()
-    library()  # warm-up: imports, caches of the basis
-    t_lib, H_lib = best(library, repeats)
-    t_bare, H_bare = best(lambda: bare_modal(M, C, K, out, f, FREQUENCIES), repeats)
-    t_batch, H_batch = best(lambda: direct_batched(M, C, K, out, f, FREQUENCIES), repeats)
-    t_loop, H_loop = best(lambda: direct_loop(M, C, K, out, f, FREQUENCIES), max(1, repeats // 5))
+    library(FREQUENCIES)  # warm-up: imports, caches of the basis
+    for W in (FREQUENCIES, FREQUENCIES[::10]):
+        _compare(W, M, C, K, out, f, repeats)
+    return 0
 
+
+def library(W: np.ndarray) -> np.ndarray:
+    r = frequency_response(PAPER_PIPE, V, W0, load=PointForce(L), positions=POSITIONS,
+                           frequencies=W, modes=MODES)  # fmt: skip
+    return np.asarray(r.H)
+
+
+def _compare(W: np.ndarray, M: Any, C: Any, K: Any, out: Any, f: Any, repeats: int) -> None:
+    """One table of the four ways at the frequencies ``W`` and the ratios (same run)."""
+    t_lib, H_lib = best(lambda: library(W), repeats)
+    t_bare, H_bare = best(lambda: bare_modal(M, C, K, out, f, W), repeats)
+    t_batch, H_batch = best(lambda: direct_batched(M, C, K, out, f, W), repeats)
+    t_loop, H_loop = best(lambda: direct_loop(M, C, K, out, f, W), max(1, repeats // 5))
+
+    print()
+    print(f"## {W.size} frequencies")
     print()
     print("| method | time [ms] | relative difference of H from direct (batched) |")
     print("|---|---:|---:|")
@@ -133,19 +150,19 @@ def main(argv: list[str] | None = None) -> int:
         ("direct solves, batched", t_batch, H_batch),
         ("direct solves, one call per frequency", t_loop, H_loop),
     ):
-        print(f"| {name} | {1e3 * t:.2f} | {_rel(H, H_batch):.1e} |")
+        print(f"| {name} | {1e3 * t:.3f} | {_rel(H, H_batch):.1e} |")
     print()
-    print("| ratio (same run) | measured | target | verdict |")
+    print("| ratio (same run) | measured | target (issue 32) | verdict |")
     print("|---|---:|---:|---|")
     rows = (
-        ("frequency_response() / bare modal sum", t_lib / t_bare, "<= 2x", t_lib / t_bare <= 2),
-        ("direct batched / frequency_response()", t_batch / t_lib, ">= 20x", t_batch / t_lib >= 20),
-        ("direct per-frequency / frequency_response()", t_loop / t_lib, ">= 20x",
-         t_loop / t_lib >= 20),
+        ("frequency_response() / bare modal sum", t_lib / t_bare, "<= 1.5x (2,000)",
+         t_lib / t_bare <= 1.5),
+        ("direct batched / frequency_response()", t_batch / t_lib, ">= 1x (200)",
+         t_batch / t_lib >= 1),
+        ("direct per-frequency / frequency_response()", t_loop / t_lib, "-", True),
     )  # fmt: skip
     for name, ratio, target, met in rows:
         print(f"| {name} | {ratio:.2f}x | {target} | {'met' if met else '**missed**'} |")
-    return 0
 
 
 if __name__ == "__main__":

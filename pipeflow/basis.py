@@ -86,16 +86,24 @@ def mode_shapes(n: int, xi: FloatArray, derivative: int = 0) -> FloatArray:
     """
     if not 0 <= derivative <= 4:
         raise ValueError("derivative order must be 0..4")
-    xi = np.asarray(xi, dtype=float)
-    out = np.empty((n, xi.size))
+    xi = np.asarray(xi, dtype=float).reshape(-1)
     k = derivative
-    for j, lam in enumerate(cantilever_roots(n)):
-        a, b, s = _coefficients(lam)
-        z = lam * xi
-        # d^k/dz^k of -cos z + s sin z: rotate the phase by k * pi/2
-        trig = -np.cos(z + k * np.pi / 2) + s * np.sin(z + k * np.pi / 2)
-        out[j] = lam**k * (a * np.exp(z - lam) + (-1) ** k * b * np.exp(-z) + trig)
-    return out
+    lam, a, b, s = _all_coefficients(n)  # every mode at once: (n, 1) columns
+    z = lam * xi[None, :]
+    # d^k/dz^k of -cos z + s sin z: rotate the phase by k * pi/2
+    trig = -np.cos(z + k * np.pi / 2) + s * np.sin(z + k * np.pi / 2)
+    return np.asarray(lam**k * (a * np.exp(z - lam) + (-1) ** k * b * np.exp(-z) + trig))
+
+
+@cache
+def _all_coefficients(n: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The roots and ``(a, b, s)`` of the first ``n`` modes as (n, 1) columns (read-only)."""
+    lam = np.array(cantilever_roots(n))
+    cols = [lam, *np.array([_coefficients(r) for r in lam]).T]
+    out = tuple(np.ascontiguousarray(c, dtype=float).reshape(-1, 1) for c in cols)
+    for c in out:
+        c.setflags(write=False)
+    return out  # type: ignore[return-value]
 
 
 def tip_values(n: int) -> FloatArray:

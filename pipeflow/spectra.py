@@ -256,9 +256,11 @@ def _numbering(w: ComplexArray, damped: bool = False) -> tuple[NDArray[np.intp],
     order = upper[np.lexsort((w.real[upper], np.abs(w.imag[upper])))]
     number = np.zeros(w.size, dtype=np.intp)
     number[order] = np.arange(1, order.size + 1)
-    for i in np.flatnonzero(lower):
-        partner = order[np.argmin(np.abs(w[order] - np.conj(w[i])) * np.abs(w[order] + w[i]))]
-        number[i] = number[partner]
+    low = np.flatnonzero(lower)
+    if low.size:  # each lower eigenvalue's partner among the numbered ones, all at once
+        wo, wl = w[order][None, :], w[low][:, None]
+        partner = order[np.argmin(np.abs(wo - np.conj(wl)) * np.abs(wo + wl), axis=1)]
+        number[low] = number[partner]
     return number, order
 
 

@@ -270,9 +270,23 @@ def cmd_example(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_file_format(args: argparse.Namespace, result: dict[str, Any]) -> bool:
+    """Write ``result`` as UFF, netCDF or MATLAB (a state-space result) when ``--format``
+    asks for it (True if so)."""
+    from pipeflow.io.formats import to_mat, to_netcdf, to_uff
+
+    writers = {"uff": to_uff, "netcdf": to_netcdf, "mat": to_mat}
+    if args.format not in writers:
+        return False
+    _write(args.output, writers[args.format](result))
+    return True
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     result = _result_for(args, _read_json(args.spec))
-    if args.format in ("csv", "parquet"):
+    if _write_file_format(args, result):
+        pass
+    elif args.format in ("csv", "parquet"):
         from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
@@ -386,7 +400,9 @@ def study_report(result: dict[str, Any]) -> list[str]:
 def cmd_study(args: argparse.Namespace) -> int:
     data = _unwrap(_read_json(args.spec))
     result = _result_for(args, data, "study", ("study",))
-    if args.format in ("csv", "parquet"):
+    if _write_file_format(args, result):
+        pass
+    elif args.format in ("csv", "parquet"):
         from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
@@ -402,7 +418,9 @@ def cmd_study(args: argparse.Namespace) -> int:
 def cmd_frequency_response(args: argparse.Namespace) -> int:
     data = _unwrap(_read_json(args.spec))
     result = _result_for(args, data, "frequency_response", ("frequency_response",))
-    if args.format in ("csv", "parquet"):
+    if _write_file_format(args, result):
+        pass
+    elif args.format in ("csv", "parquet"):
         from pipeflow.io.export import to_csv, to_parquet
 
         export = to_csv if args.format == "csv" else to_parquet
@@ -527,9 +545,11 @@ def build_parser() -> argparse.ArgumentParser:
     kind_flag(sp, "simulation")
     sp.add_argument(
         "--format",
-        choices=("json", "csv", "parquet"),
+        choices=("json", "csv", "parquet", "uff", "netcdf", "mat"),
         default="json",
-        help="output format (parquet: units in the column metadata; needs pipeflow[parquet])",
+        help="output format (parquet: units in the column metadata, needs pipeflow[parquet]; "
+        "uff: dataset 58 per FRF curve, 55 per mode shape; netcdf: the xarray layout; both "
+        "need pipeflow[formats]; mat: a state_space result as a MATLAB file)",
     )
     sp.add_argument(
         "--table",
@@ -615,9 +635,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("spec", help="study spec JSON file ('-': stdin)")
     sp.add_argument(
         "--format",
-        choices=("json", "csv", "parquet"),
+        choices=("json", "csv", "parquet", "netcdf"),
         default="json",
-        help="output format: the result JSON, or the study table (one row per case)",
+        help="output format: the result JSON, the study table (one row per case), or netCDF",
     )
     json_output_flags(sp)
     sp.set_defaults(func=cmd_study)
@@ -639,9 +659,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("spec", help="frequency-response spec JSON file ('-': stdin)")
     sp.add_argument(
         "--format",
-        choices=("json", "csv", "parquet"),
+        choices=("json", "csv", "parquet", "uff", "netcdf"),
         default="json",
-        help="output format (parquet: units in the column metadata; needs pipeflow[parquet])",
+        help="output format (parquet: units in the column metadata, needs pipeflow[parquet]; "
+        "uff: dataset 58 per FRF curve, 55 per mode shape; netcdf: the xarray layout; both "
+        "need pipeflow[formats])",
     )
     sp.add_argument(
         "--table",

@@ -229,6 +229,7 @@ PATHS: dict[str, tuple[str, bool]] = {
     **{kind: ("/v1/sweeps", False) for kind in SWEEP_KINDS},
     "study": ("/v1/studies", False),
     "frequency_response": ("/v1/frequency-responses", True),
+    "state_space": ("/v1/state-space", True),
 }
 
 
@@ -436,6 +437,19 @@ class _Operations:
         return response.content
 
     @staticmethod
+    def result_file(key: str, fmt: str = "uff") -> Steps[bytes]:
+        """A stored result as a file: ``fmt="uff"`` (universal file: dataset 58 per
+        operating point and position of a frequency response, abscissa in Hz; dataset 55
+        for mode shapes; read with ``pyuff``) or ``"netcdf"`` (netCDF-3, the xarray layout
+        with units; ``xarray.open_dataset(io.BytesIO(b))``) or ``"mat"`` (a state-space
+        result as a MATLAB file; ``scipy.io.loadmat(io.BytesIO(b))``)."""
+        if fmt not in ("uff", "netcdf", "mat"):
+            raise ValueError(f"fmt must be 'uff', 'netcdf' or 'mat', got {fmt!r}")
+        response = yield Call("GET", f"/v1/results/{key}", {"format": fmt})
+        assert response is not None
+        return response.content
+
+    @staticmethod
     def plot(key: str, name: str = "tip_displacement", fmt: str = "png") -> Steps[bytes]:
         """PNG or SVG bytes of plot ``name`` of the stored result ``key``."""
         response = yield Call("GET", f"/v1/results/{key}/plots/{name}.{fmt}")
@@ -488,6 +502,16 @@ class _Operations:
                 "frequency_response", spec, refresh=refresh, progress=progress
             )
         )
+
+    @staticmethod
+    def state_space(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
+        """A state-space model at a frozen operating point (spec: the body of a frequency
+        response without ``frequencies``, dict or
+        :class:`~pipeflow.schema.state_space.StateSpaceSpec`): ``A``, ``B``, ``C``, ``D``
+        (nested lists), ``states``, ``inputs``, ``outputs`` and ``units``.  One
+        ``POST /v1/state-space``; :meth:`result_file` with ``fmt="mat"`` saves it as a
+        MATLAB file."""
+        return (yield from _Operations.compute("state_space", spec, refresh=refresh))
 
     @staticmethod
     def submit_frequency_response(spec: Any, *, refresh: bool = False) -> Steps[dict[str, Any]]:
@@ -732,12 +756,14 @@ class _Base:
     result = _operation(_Operations.result)
     result_csv = _operation(_Operations.result_csv)
     result_parquet = _operation(_Operations.result_parquet)
+    result_file = _operation(_Operations.result_file)
     plot = _operation(_Operations.plot)
     compare = _operation(_Operations.compare)
     stability = _operation(_Operations.stability)
     submit_stability = _operation(_Operations.submit_stability)
     frequency_response = _operation(_Operations.frequency_response)
     submit_frequency_response = _operation(_Operations.submit_frequency_response)
+    state_space = _operation(_Operations.state_space)
     submit_sweep = _operation(_Operations.submit_sweep)
     sweep = _operation(_Operations.sweep)
     submit_study = _operation(_Operations.submit_study)

@@ -49,6 +49,7 @@ from pipeflow.io.plots import available_plots
 from pipeflow.schema import frequency as f
 from pipeflow.schema import results as r
 from pipeflow.schema import stability as s
+from pipeflow.schema import state_space as ssp
 from pipeflow.schema.simulation import (
     MAX_OUTPUT_VALUES,
     PAPER_EXAMPLE,
@@ -298,6 +299,11 @@ def run_frequency_response(
     return spec.run(progress)
 
 
+def run_state_space(spec: ssp.StateSpaceSpec, progress: Progress | None) -> dict[str, Any]:
+    """A state-space model: its model's ``run`` (the plain library call)."""
+    return spec.run(progress)
+
+
 #: the paper's pipe (beta = 0.467) at w0 = 100 rad/s: flutter of mode 3 at v = 27.69 m/s
 PAPER_STABILITY: dict[str, Any] = {
     "pipe": s.PAPER_PIPE_JSON,
@@ -484,6 +490,25 @@ FREQUENCY_RESPONSE = register(
             },
         },
         fields=f.FREQUENCY_FIELDS,
+    )
+)
+
+
+STATE_SPACE = register(
+    Computation(
+        name="state_space",
+        request=ssp.StateSpaceSpec,
+        response=ssp.StateSpaceResponse,
+        run=run_state_space,
+        estimate=ssp.StateSpaceSpec.cost,
+        budget="one state matrix of 2 x modes states, C of positions x 2 x modes numbers",
+        examples={
+            "hammer": {
+                "summary": "The hammer test's pipe, load and tip output as a state-space model",
+                "value": ssp.STATE_SPACE_EXAMPLE,
+            }
+        },
+        fields=ssp.STATE_SPACE_FIELDS,
     )
 )
 

@@ -368,6 +368,26 @@ def _study_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
     return xr.Dataset(data)
 
 
+def _state_space_xarray(xr: Any, var: Any, result: dict[str, Any]) -> Any:
+    """A state-space result: A (state, state_in), B (state, input), C (output, state_in),
+    D (output, input), the names as coordinates."""
+    u = result["units"]
+    coords = {
+        "state": var(("state",), result["states"], u["states"], "state (row)"),
+        "state_in": var(("state_in",), result["states"], u["states"], "state (column)"),
+        "input": var(("input",), result["inputs"], u["inputs"], "input"),
+        "output": var(("output",), result["outputs"], u["outputs"], "output"),
+        "position": var(("output",), result["positions"], "m", "output position"),
+    }
+    data = {
+        "A": var(("state", "state_in"), result["A"], u["A"], "state matrix"),
+        "B": var(("state", "input"), result["B"], u["B"], "input matrix"),
+        "C": var(("output", "state_in"), result["C"], u["C"], "output matrix"),
+        "D": var(("output", "input"), result["D"], u["D"], "feed-through"),
+    }
+    return xr.Dataset(data, coords=coords)
+
+
 #: result kind -> its Dataset (simulations: :func:`to_xarray` itself)
 _VIEWS: dict[str, Any] = {
     "frequency_response": _frf_xarray,
@@ -379,6 +399,7 @@ _VIEWS: dict[str, Any] = {
     "resonance_chart": _resonance_xarray,
     "floquet": _floquet_xarray,
     "study": _study_xarray,
+    "state_space": _state_space_xarray,
 }
 
 

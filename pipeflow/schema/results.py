@@ -485,6 +485,11 @@ class FrfDiagnostics(BaseModel):
         description="modal: the modal sum; direct: it disagreed by more than 1e-6, so every "
         "frequency was solved directly."
     )
+    residual_flexibility: bool = Field(
+        False,
+        description="True when the static response of the truncated modes (residual "
+        "flexibility, m/N or s^2 per unit load) is included in H.",
+    )
 
 
 class FrfOperatingPoint(BaseModel):

@@ -158,6 +158,26 @@ FREQUENCY_RESPONSES = Endpoint(
 )
 
 
+STATE_SPACE = Endpoint(
+    path="state-space",
+    tag="frequency-responses",
+    summary="A state-space model (A, B, C, D) at a frozen operating point",
+    description="The modal model of the pipe at constant flow velocity v [m/s] and spin w0 "
+    "[rad/s] as z' = A z + B w, y = C z + D w (real matrices as nested lists): the same body "
+    "as a frequency response without ``frequencies`` (pipe, flow, rotation, plane, modes, "
+    "load, response).  States: q'_j / w_j and q_j [m] (Galerkin coordinates); input: the "
+    "load (a point force [N] or the clamp's acceleration [m/s^2]); outputs: the response "
+    "quantity at each position (m, m/s or m/s^2); names and ``units`` in the answer.  "
+    "C (i W I - A)^-1 B + D equals the frequency response with ``residual_flexibility: "
+    "false``; the eigenvalues of A are the frozen spectrum.  ``GET /v1/results/{key}"
+    "?format=mat`` gives it as a MATLAB file (A, B, C, D, states, inputs, outputs).  "
+    "Cached like simulations.",
+    run_operation="runStateSpace",
+    job_operation="submitStateSpaceJob",
+    job_summary="Submit a state-space realisation as a job",
+)
+
+
 #: computation name -> its endpoint (every served computation, and only those)
 ENDPOINTS: dict[str, Endpoint] = {
     "simulation": SIMULATIONS,
@@ -166,6 +186,7 @@ ENDPOINTS: dict[str, Endpoint] = {
     **{name: SWEEPS for name in SWEEP_KINDS},
     "study": STUDIES,
     "frequency_response": FREQUENCY_RESPONSES,
+    "state_space": STATE_SPACE,
 }
 
 

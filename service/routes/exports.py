@@ -1,4 +1,4 @@
-"""Stored results as pictures and tables: plots (PNG/SVG), CSV and Parquet.
+"""Stored results as pictures, tables and files: plots (PNG/SVG), CSV, Parquet, UFF, netCDF.
 
 - ``GET /v1/results/{key}/plots/{name}.{fmt}``: a figure of the stored result, drawn by
   :mod:`pipeflow.io.plots` (the names a result supports are listed in its ``plots`` field).
@@ -12,6 +12,10 @@
   the content negotiation and the tables of :mod:`pipeflow.io.export`.  Each table is
   encoded once and kept in the app's :class:`TableCache` (a bounded LRU); ``If-None-Match``
   is answered 304.
+- UFF, netCDF or MATLAB of ``GET /v1/results/{key}`` (``?format=uff|netcdf|mat`` or
+  ``Accept: application/vnd.uff`` / ``application/x-netcdf`` /
+  ``application/x-matlab-data``): the whole result as one file
+  (:mod:`pipeflow.io.formats`), encoded and cached like a table.
 
 Drawing happens in a thread (not on the event loop) under a lock: matplotlib's figure
 objects are independent, but its rc settings used while saving are process-global.
@@ -36,6 +40,14 @@ from pipeflow.io.export import (
     available_tables,
     to_csv,
     to_parquet,
+)
+from pipeflow.io.formats import (
+    MAT_MEDIA_TYPE,
+    NETCDF_MEDIA_TYPE,
+    UFF_MEDIA_TYPE,
+    to_mat,
+    to_netcdf,
+    to_uff,
 )
 from service.deps import StoreDep
 from service.http.negotiation import accepts, media_ranges
@@ -66,6 +78,15 @@ TABLE_DESCRIPTION = (
 )
 #: format name -> media type of the tables (JSON is the result document itself)
 TABLE_MEDIA_TYPES = {"csv": CSV_MEDIA_TYPE, "parquet": PARQUET_MEDIA_TYPE}
+#: whole-result files of ``GET /v1/results/{key}?format=``: name -> media type, extension
+FILE_FORMATS = {
+    "uff": (UFF_MEDIA_TYPE, "uff"),
+    "netcdf": (NETCDF_MEDIA_TYPE, "nc"),
+    "mat": (MAT_MEDIA_TYPE, "mat"),
+}
+#: format name -> writer of the whole result
+FILE_WRITERS = {"uff": to_uff, "netcdf": to_netcdf, "mat": to_mat}
+FILE_MEDIA_TYPES = tuple(media for media, _ in FILE_FORMATS.values())
 #: OpenAPI content of a 200 that is a table: bytes (CSV text in UTF-8, binary Parquet)
 TABLE_CONTENT: dict[str, Any] = {media: {"schema": BINARY} for media in TABLE_MEDIA_TYPES.values()}
 
@@ -84,6 +105,7 @@ def wanted_format(fmt: str | None, accept: str | None) -> str:
         return "json"
     ranked = [(q, -i, media) for i, (media, q) in enumerate(media_ranges(accept))]
     by_media = {media: name for name, media in TABLE_MEDIA_TYPES.items()}
+    by_media.update({media: name for name, (media, _) in FILE_FORMATS.items()})
     for _, _, media in sorted(ranked, reverse=True):
         if media in by_media:
             return by_media[media]
@@ -114,8 +136,12 @@ class TableAnswer:
         return {"ETag": self.etag, "Cache-Control": IMMUTABLE, "Vary": "Accept"}
 
     def response(self) -> Response:
-        media = TABLE_MEDIA_TYPES[self.fmt]
-        name = f"{self.key[:12]}-{self.table}.{self.fmt}"
+        if self.fmt in FILE_FORMATS:
+            media, ext = FILE_FORMATS[self.fmt]
+            name = f"{self.key[:12]}.{ext}"
+        else:
+            media = TABLE_MEDIA_TYPES[self.fmt]
+            name = f"{self.key[:12]}-{self.table}.{self.fmt}"
         return Response(
             self.content,
             media_type=f"{media}; charset=utf-8; header=present" if self.fmt == "csv" else media,
@@ -145,6 +171,8 @@ def encode_table(key: str, body: bytes, table: str | None, fmt: str) -> TableAns
     """Table ``table`` (None: the result's first) of the stored result ``body`` (JSON bytes)
     as ``fmt`` (csv, parquet)."""
     result = json.loads(body)
+    if fmt in FILE_FORMATS:
+        return _encode_file(key, result, fmt)
     if table is None:
         table = next(iter(available_tables(result)), "history")
     try:
@@ -166,6 +194,28 @@ def encode_table(key: str, body: bytes, table: str | None, fmt: str) -> TableAns
         ) from None
     data = content.encode() if isinstance(content, str) else content
     return TableAnswer(key, table, fmt, data)
+
+
+def _encode_file(key: str, result: dict[str, Any], fmt: str) -> TableAnswer:
+    """The whole result as a UFF (frequency responses: dataset 58; mode shapes: 55), netCDF
+    or (a state-space result) MATLAB file (:mod:`pipeflow.io.formats`)."""
+    try:
+        content = FILE_WRITERS[fmt](result)
+    except ImportError as exc:  # pyuff / xarray: the optional 'formats' extra
+        raise ProblemError(
+            406,
+            f"{exc}; ask for JSON or CSV instead",
+            slug="format-unavailable",
+            errors=[{"field": "format", "location": "query", "message": str(exc)}],
+        ) from None
+    except ExportError as exc:
+        raise ProblemError(
+            422,
+            exc.message,
+            slug="format-unavailable",
+            errors=[{"field": "format", "location": "query", "message": exc.message}],
+        ) from None
+    return TableAnswer(key, "result", fmt, content)
 
 
 async def table_response(

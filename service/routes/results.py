@@ -20,6 +20,7 @@ from service.http.responses import (
 )
 from service.routes.endpoints import served
 from service.routes.exports import (
+    FILE_MEDIA_TYPES,
     TABLE_DESCRIPTION,
     TABLE_MEDIA_TYPES,
     Table,
@@ -32,7 +33,7 @@ from service.schemas import KEY_PATTERN
 router = APIRouter(
     prefix="/v1/results",
     tags=["results"],
-    dependencies=[Depends(accepts(JSON, *TABLE_MEDIA_TYPES.values()))],
+    dependencies=[Depends(accepts(JSON, *TABLE_MEDIA_TYPES.values(), *FILE_MEDIA_TYPES))],
 )
 
 #: what a stored result can be: one model per result shape of the registry
@@ -60,9 +61,11 @@ async def get_result(
     # CSV and Parquet: getResultTable declares them (kept here for curl and pipeflow_client,
     # out of this JSON operation's schema, whose generated client parses every 200 as JSON)
     format: Annotated[
-        Literal["json", "csv", "parquet"] | None,
+        Literal["json", "csv", "parquet", "uff", "netcdf", "mat"] | None,
         Query(
-            description="json, csv or parquet; overrides Accept (for clients that cannot set it).",
+            description="json, csv, parquet, uff (frequency responses: dataset 58, mode "
+            "shapes: 55), netcdf or mat (a state-space result); overrides Accept (for "
+            "clients that cannot set it).",
             include_in_schema=False,
         ),
     ] = None,
@@ -80,7 +83,10 @@ async def get_result(
     ``Accept: application/vnd.apache.parquet`` or ``?format=parquet``: the same table as
     Parquet, float64 columns named without units and each unit in the field metadata
     (the operation ``getResultTable``, ``/v1/results/{key}/tables/{table}.{fmt}``, is the
-    one that declares those media types)."""
+    one that declares those media types).  ``?format=uff``: a universal file (dataset 58
+    per operating point and position of a frequency response, abscissa in Hz; dataset 55
+    for mode shapes); ``?format=netcdf``: the result as a netCDF-3 file (xarray layout);
+    ``?format=mat``: a state-space result as a MATLAB file (A, B, C, D, names, units)."""
     fmt = wanted_format(format, accept)
     if fmt != "json":
         return await table_response(key, table, fmt, store, tables, if_none_match)

@@ -134,7 +134,7 @@ def test_console_script_help_shows_the_papers_example() -> None:
         pytest.fail("the pipeflow console script is not installed (pip install -e .)")
     out = subprocess.run([exe, "run", "--help"], capture_output=True, text=True, check=True)
     assert "v = 0.4 t m/s, w0 = 100 rad/s" in out.stdout
-    assert "--format {json,csv,parquet}" in out.stdout
+    assert "--format {json,csv,parquet,uff,netcdf,mat}" in out.stdout
 
 
 PIPE = PAPER_EXAMPLE["pipe"]

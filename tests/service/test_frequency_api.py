@@ -26,6 +26,7 @@ from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.frequency import PointForce, frequency_grid, frequency_response, resonances
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.schema.frequency import HAMMER_EXAMPLE, FrequencyResponseSpec
+from pipeflow.statics import static_deflection
 from pipeflow_cli.cli import main as cli_main
 from pipeflow_client import AsyncClient, Client, ServiceError
 from service.keys import keyed
@@ -135,6 +136,39 @@ def test_answer_equals_the_library_call_then_a_cache_hit(api: TestClient) -> Non
     # a different number that matters is a different key
     other = api.post("/v1/frequency-responses", json=_body(modes=5))
     assert other.headers["x-cache"] == "MISS" and other.json()["key"] != key
+
+
+def test_residual_flexibility_switch(api: TestClient) -> None:
+    """No flow: the default adds the truncated modes' static response (the library's
+    ``residual=None``); ``residual_flexibility: false`` is the plain modal sum, another key."""
+    values = [0.0, 100.0, 900.0]
+    base = _body(flow={"velocity": {"kind": "constant", "value": 0.0}})
+    base["frequencies"] = {"values": values}
+    docs = {}
+    for flag in (None, False):
+        body = base if flag is None else {**base, "residual_flexibility": flag}
+        r = api.post("/v1/frequency-responses", json=body)
+        assert r.status_code == 200, r.text
+        docs[flag] = r.json()
+    for flag, applied in ((None, True), (False, False)):
+        (point,) = docs[flag]["operating_points"]
+        assert point["diagnostics"]["residual_flexibility"] is applied
+        ref = frequency_response(
+            PAPER_PIPE,
+            0.0,
+            100.0,
+            load=PointForce(L),
+            positions=[L],
+            frequencies=values,
+            modes=6,
+            residual=flag,
+        )
+        _same(point["responses"][0]["real"], ref.H[0].real)
+    assert docs[None]["key"] != docs[False]["key"]
+    # W = 0: exactly the static solution of the continuous pipe (tests/pipeflow/test_statics)
+    exact = static_deflection(PAPER_PIPE, 0.0, 100.0, [L], force_at=L)[0]
+    tip0 = docs[None]["operating_points"][0]["responses"][0]["real"][0]
+    assert tip0 == pytest.approx(exact, rel=1e-12)
 
 
 def test_explicit_values_are_answered_at_exactly_those_frequencies(api: TestClient) -> None:
@@ -302,6 +336,61 @@ def test_client_round_trip_sync_and_async(api: TestClient) -> None:
     adoc = asyncio.run(scenario())
     assert adoc["key"] == doc["key"] and adoc["cached"] is True
     assert adoc["operating_points"] == doc["operating_points"]
+
+
+def _uff_curves(data: bytes, tmp_path: Path) -> list[np.ndarray]:
+    pyuff = pytest.importorskip("pyuff")
+    path = tmp_path / "frf.uff"
+    path.write_bytes(data)
+    sets = pyuff.UFF(str(path)).read_sets()
+    return [s["data"] for s in (sets if isinstance(sets, list) else [sets])]
+
+
+def test_uff_and_netcdf_by_query_by_clients_and_cli(api: TestClient, tmp_path: Path) -> None:
+    """?format=uff: dataset 58 per operating point x position, the JSON's H to the
+    format's 12 significant digits (tolerance 1e-11 of the curve's max); ?format=netcdf:
+    the exact floats; the sync and async clients' result_file and the CLI's --format save
+    the same bytes; a result without curves or shapes is a 422 naming format."""
+    xr = pytest.importorskip("xarray")
+    doc = api.post("/v1/frequency-responses", json=HAMMER).json()
+    key = doc["key"]
+    r = api.get(f"/v1/results/{key}", params={"format": "uff"})
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"].startswith("application/vnd.uff")
+    assert r.headers["content-disposition"].endswith('.uff"')
+    (curve,) = doc["operating_points"][0]["responses"]
+    h = np.asarray(curve["real"]) + 1j * np.asarray(curve["imag"])
+    (got,) = _uff_curves(r.content, tmp_path)
+    assert np.max(np.abs(got - h)) <= 1e-11 * np.max(np.abs(h))
+    nc = api.get(f"/v1/results/{key}", headers={"Accept": "application/x-netcdf"})
+    assert nc.status_code == 200 and nc.headers["content-type"] == "application/x-netcdf"
+    ds = xr.open_dataset(io.BytesIO(nc.content), engine="scipy").load()
+    np.testing.assert_array_equal(ds["H_real"].values[0, 0], h.real)
+    assert ds["H_imag"].attrs["units"] == "m/N"
+    with Client(str(api.base_url), http=api) as client:
+        assert client.result_file(key, "uff") == r.content
+        assert client.result_file(key, "netcdf") == nc.content
+
+    async def scenario() -> bytes:
+        transport = httpx.ASGITransport(app=api.app)  # type: ignore[arg-type]
+        async with httpx.AsyncClient(transport=transport, base_url="http://test") as http:
+            async with AsyncClient("http://test", http=http) as client:
+                out: bytes = await client.result_file(key, "uff")
+                return out
+
+    assert asyncio.run(scenario()) == r.content
+    spec = tmp_path / "frf.json"
+    spec.write_text(json.dumps(HAMMER))
+    out = tmp_path / "frf.uff"
+    assert (
+        cli_main(["frequency-response", str(spec), "--format", "uff", "-o", str(out), "--quiet"])
+        == 0
+    )
+    (cli_curve,) = _uff_curves(out.read_bytes(), tmp_path)
+    assert np.max(np.abs(cli_curve - h)) <= 1e-11 * np.max(np.abs(h))
+    stab = api.post("/v1/stability", json={"pipe": HAMMER["pipe"], "velocity_range": [0, 40]})
+    bad = api.get(f"/v1/results/{stab.json()['key']}", params={"format": "uff"})
+    assert _problem_fields(bad) == ["format"]
 
 
 def test_cli_local_run_and_plot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

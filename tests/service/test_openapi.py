@@ -36,6 +36,8 @@ def test_operations_errors_and_example() -> None:
         "submitStudyJob",
         "runFrequencyResponse",
         "submitFrequencyResponseJob",
+        "runStateSpace",
+        "submitStateSpaceJob",
         "getJob",
         "cancelJob",
         "getResult",
@@ -89,5 +91,5 @@ def test_the_client_paths_are_the_services_endpoint_table() -> None:
     for name, (path, sync) in PATHS.items():
         assert path == f"/v1/{ENDPOINTS[name].path}", name
         assert sync == (ENDPOINTS[name].run_operation is not None), name
-    # simulations, compare, stability, sweeps, studies, frequency responses
-    assert len(endpoints()) == 6
+    # simulations, compare, stability, sweeps, studies, frequency responses, state space
+    assert len(endpoints()) == 7

@@ -1,0 +1,200 @@
+"""Request and response models of a state-space realisation (``POST /v1/state-space``,
+issue 32): the body of a frequency response without its frequencies (one operating
+point), answered with the real matrices A, B, C, D of :func:`pipeflow.state_space.state_space`,
+the names of the states, input and outputs, and their units.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from pipeflow._types import Progress
+from pipeflow.errors import InvalidField
+from pipeflow.schema.frequency import (
+    HAMMER_EXAMPLE,
+    HarmonicPointForce,
+    LoadSpec,
+    ResponseSpec,
+    refuse_time_variant,
+)
+from pipeflow.schema.result_base import Result
+from pipeflow.schema.simulation import Cost, PipeSpec
+from pipeflow.schema.stability import (
+    MAX_SPEED,
+    MAX_SPIN,
+    ConstantFlow,
+    ConstantRotation,
+    Modes,
+    _Mounted,
+)
+from pipeflow.state_space import state_space
+
+#: library parameter -> request field
+STATE_SPACE_FIELDS: dict[str, str] = {
+    "pipe": "pipe",
+    "E": "pipe.E",
+    "I": "pipe.I",
+    "tip_mass": "pipe.tip_mass",
+    "tip_inertia": "pipe.tip_inertia",
+    "velocity": "flow.velocity.value",
+    "omega0": "rotation.omega0.value",
+    "modes": "modes",
+    "load": "load.position",
+    "positions": "response.positions",
+    "quantity": "response.quantity",
+}
+
+#: the hammer example's body without its frequencies
+STATE_SPACE_EXAMPLE: dict[str, Any] = {
+    k: v for k, v in HAMMER_EXAMPLE.items() if k not in ("frequencies", "operating_points")
+}
+
+
+class StateSpaceSpec(_Mounted):
+    """A state-space realisation z' = A z + B w, y = C z + D w at one frozen operating point."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [STATE_SPACE_EXAMPLE]})
+
+    pipe: PipeSpec
+    flow: ConstantFlow = Field(
+        default_factory=ConstantFlow, description="Constant flow velocity v [m/s]."
+    )
+    rotation: ConstantRotation = Field(
+        default_factory=ConstantRotation,
+        description="Constant spin w0 [rad/s] and the hub radius [m].",
+    )
+    modes: Modes = 10
+    load: LoadSpec
+    response: ResponseSpec
+
+    @model_validator(mode="before")
+    @classmethod
+    def _constant_profiles(cls, data: Any) -> Any:
+        refuse_time_variant(data)
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self) -> StateSpaceSpec:
+        if abs(self.flow.velocity.value) > MAX_SPEED:
+            raise InvalidField(
+                f"flow.velocity must lie within +-{MAX_SPEED:g} m/s", "flow.velocity.value"
+            )
+        if abs(self.rotation.omega0.value) > MAX_SPIN:
+            raise InvalidField(
+                f"rotation.omega0 must lie within +-{MAX_SPIN:g} rad/s", "rotation.omega0.value"
+            )
+        L = self.pipe.L
+        for i, x in enumerate(self.response.positions):
+            if x > L:
+                raise InvalidField(
+                    f"response.positions[{i}] = {x} m is outside (0, L = {L} m]",
+                    "response.positions",
+                )
+        if isinstance(self.load, HarmonicPointForce) and self.load.position > L:
+            raise InvalidField(
+                f"load.position = {self.load.position} m is outside (0, L = {L} m]",
+                "load.position",
+            )
+        return self.within_budget()
+
+    def cost(self) -> Cost | None:
+        """None: bounded by its fields (A is at most 80 x 80, C 64 x 80)."""
+        return None
+
+    def canonical(self) -> dict[str, Any]:
+        """One shape for the cache key (defaults filled in)."""
+        return {
+            "pipe": self.pipe.model_dump(mode="json"),
+            "rotation": {
+                "omega0": self.rotation.omega0.value,
+                "hub_radius": self.rotation.hub_radius,
+            },
+            "flow": {"velocity": self.flow.velocity.value},
+            "plane": self.plane,
+            "modes": self.modes,
+            "load": self.load.model_dump(mode="json"),
+            "response": self.response.model_dump(mode="json"),
+        }
+
+    def run(self, progress: Progress | None = None) -> dict[str, Any]:
+        """The realisation as JSON (:class:`StateSpaceResponse`)."""
+        ss = state_space(
+            self.mounted_pipe(),
+            self.flow.velocity.value,
+            self.rotation.omega0.value,
+            load=self.load.to_load(),
+            positions=self.response.positions,
+            quantity=self.response.quantity,
+            modes=self.modes,
+        )
+        if progress is not None:
+            progress(1.0)
+        return {
+            "A": ss.A.tolist(),
+            "B": ss.B.tolist(),
+            "C": ss.C.tolist(),
+            "D": ss.D.tolist(),
+            "states": list(ss.states),
+            "inputs": list(ss.inputs),
+            "outputs": list(ss.outputs),
+            "units": {
+                "time": "s",
+                "states": "m",
+                "inputs": ss.input_unit,
+                "outputs": ss.output_unit,
+                "A": "1/s",
+                "B": f"m/({ss.input_unit} s)",
+                "C": f"{ss.output_unit}/m",
+                "D": f"{ss.output_unit}/{ss.input_unit}",
+            },
+            "velocity": ss.velocity,
+            "omega0": ss.omega0,
+            "quantity": ss.quantity,
+            "positions": ss.positions.tolist(),
+            "natural_frequencies": ss.natural_frequencies.tolist(),
+            "warnings": list(ss.warnings),
+        }
+
+
+class StateSpaceUnits(BaseModel):
+    time: str = Field(description="Time unit: s.")
+    states: str = Field(description="Unit of every state: m (q'_j / w_j and q_j).")
+    inputs: str = Field(description="Unit of the input: N (point force) or m/s^2 (clamp).")
+    outputs: str = Field(description="Unit of the outputs: m, m/s or m/s^2.")
+    A: str = Field(description="Unit of A: 1/s.")
+    B: str = Field(description="Unit of B.")
+    C: str = Field(description="Unit of C.")
+    D: str = Field(description="Unit of D.")
+
+
+class StateSpaceResponse(Result):
+    """z' = A z + B w, y = C z + D w: the modal model at a frozen operating point.  The
+    transfer function C (i W I - A)^-1 B + D is the frequency response with
+    ``residual_flexibility: false``; the eigenvalues of A [1/s] are the frozen spectrum."""
+
+    kind: Literal["state_space"] = Field(description="Result kind.")
+    A: list[list[float]] = Field(description="State matrix (2n x 2n) [1/s].")
+    B: list[list[float]] = Field(description="Input matrix (2n x 1) [m/(input unit s)].")
+    C: list[list[float]] = Field(description="Output matrix (positions x 2n) [output unit/m].")
+    D: list[list[float]] = Field(
+        description="Feed-through (positions x 1) [output unit/input unit]; non-zero only for "
+        "acceleration outputs."
+    )
+    states: list[str] = Field(
+        description="State names: qdot_j/w_j (modal velocity over the j-th natural frequency "
+        "without flow or spin) then q_j (Galerkin coordinate), all [m]."
+    )
+    inputs: list[str] = Field(description="Input name: F(x=a) [N] or clamp_acceleration.")
+    outputs: list[str] = Field(description="Output names: u(x=...) and its time derivatives.")
+    units: StateSpaceUnits = Field(description="Units of the signals and matrices (SI).")
+    velocity: float = Field(description="Flow velocity v of the operating point [m/s].")
+    omega0: float = Field(description="Spin w0 of the operating point [rad/s].")
+    quantity: Literal["displacement", "velocity", "acceleration"] = Field(
+        description="What the outputs are."
+    )
+    positions: list[float] = Field(description="Output positions x [m].")
+    natural_frequencies: list[float] = Field(
+        description="w_j [rad/s]: the balancing scales of the velocity states."
+    )

@@ -1,0 +1,151 @@
+"""Static deflection of the continuous pipe at a frozen operating point (issue 32).
+
+The static (W = 0) form of the pipe's equation (``docs/model.md``; physics notes sec. 1, 5)
+at constant flow v [m/s] and spin w0 [rad/s]::
+
+    EI u'''' + (M2 v^2 - T) u'' - T' u' - s m w0^2 u = q(x) + F delta(x - a),
+    T(x) = M1 w0^2 [R (L - x) + (L^2 - x^2)/2] + m_t w0^2 (R + L),
+    x = 0: u = u' = 0;   x = L: EI u'' = 0,  EI u''' - T(L) u' + s m_t w0^2 u = -F_L,
+
+(m = M1 + M2; s = 1 in-plane, 0 out-of-plane; damping, the Coriolis term and the tip's
+rotary inertia have no static part).  A point force at 0 < a < L is a jump of the shear
+force, EI [u''']_a = F, with u, u', u'' continuous; at a = L it is F_L.  A clamp
+acceleration A is the inertial load q = -m A and F_L = -m_t A.
+
+Solved by Chebyshev collocation on the two subdomains [0, a] and [a, L] (Trefethen,
+*Spectral Methods in MATLAB*, SIAM 2000) in the integral form (Greengard, SIAM J. Numer.
+Anal. 28, 1991): the unknowns are u'''' at the points and u, u', u'', u''' at the left end
+of each subdomain; the lower derivatives follow by Chebyshev cumulative integration, the
+field equation holds at every point and the 8 end and interface conditions fix the 8
+constants.  Powers of the differentiation matrix would lose ~N^8 eps (5.7e-7 at N = 32);
+integration loses next to nothing.  The solution is smooth on each subdomain, so the
+collocation converges spectrally: with :data:`COLLOCATION_POINTS` per subdomain it is exact
+to rounding for the bare cantilever (a cubic) and converged with flow and spin.
+
+:func:`pipeflow.frequency.frequency_response` uses it for the residual flexibility (the
+static correction of the modes the Galerkin sum leaves out).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.polynomial import chebyshev as C
+from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import BarycentricInterpolator
+
+from pipeflow.model import Pipe
+
+FloatArray = NDArray[np.float64]
+
+#: Chebyshev points per subdomain, minus one (the polynomial degree)
+COLLOCATION_POINTS = 24
+
+
+def _integration(N: int) -> tuple[FloatArray, FloatArray]:
+    """Chebyshev points t_j = -cos(pi j / N) on [-1, 1] (from -1 to 1) and the matrix Q
+    with (Q g)_j = integral from -1 to t_j of the interpolant of g at the points (through
+    the Chebyshev coefficients; cumulative integration is well conditioned, unlike powers
+    of the differentiation matrix)."""
+    t = -np.cos(np.pi * np.arange(N + 1) / N)
+    coef = np.linalg.solve(C.chebvander(t, N), np.eye(N + 1))  # values -> coefficients
+    Q = C.chebval(t, C.chebint(coef, lbnd=-1.0)).T
+    return t, np.asarray(Q)
+
+
+def static_deflection(
+    pipe: Pipe,
+    velocity: float,
+    omega0: float,
+    positions: ArrayLike,
+    *,
+    force_at: float | None,
+    N: int = COLLOCATION_POINTS,
+) -> FloatArray:
+    """Static deflection u(x) [m per unit load] at ``positions`` x [m] in [0, L].
+
+    ``force_at`` a [m] in (0, L]: a unit transverse force [N] there (u in m/N);
+    ``None``: a unit clamp acceleration [m/s^2] (u relative to the clamp, in s^2).
+    ``velocity`` v [m/s] and ``omega0`` w0 [rad/s] set the frozen operating point.
+    Non-finite values where the static problem is singular (divergence).
+    """
+    L, m, M1, M2, EI = pipe.L, pipe.mass, pipe.M1, pipe.M2, pipe.EI
+    R, mt = pipe.hub_radius, pipe.tip_mass
+    s = 1.0 if pipe.in_plane else 0.0
+    w2 = float(omega0) ** 2
+    v2 = float(velocity) ** 2
+    at_tip = force_at is not None and force_at >= L
+    split = 0.5 if (force_at is None or at_tip) else float(force_at) / L
+    t, Q0 = _integration(N)
+    n = N + 1
+    # In xi = x / L with u = (L^3 / EI) w, the field equation times L^4 / EI over L^3 / EI:
+    #   w4 + (M2 v^2 - T) L^2 / EI w2 - T' L^3 / EI w1 - s m w0^2 L^4 / EI w = q L
+    # (wr the r-th derivative, T' = dT/dx); the tip shear
+    #   w3 - T(L) L^2 / EI w1 + s m_t w0^2 L^3 / EI w = -F_L.
+    # On each subdomain [x0, x1] the unknowns are g = w4 at its points and c_r = wr(x0),
+    # r = 0..3: wr = sum_k c_k d^(k-r) / (k-r)! + Q^(4-r) g, d = xi - x0.  The field
+    # equation holds at every point; the 8 end and interface conditions fix the constants.
+
+    def domain(x0: float, x1: float) -> tuple[FloatArray, list[FloatArray]]:
+        """xi, and per derivative r = 0..4 the map from (g, c_0..c_3) to wr at xi."""
+        h = 0.5 * (x1 - x0)
+        xi = x0 + h * (t + 1.0)
+        Q = h * Q0
+        d = xi - x0
+        maps = []
+        for r in range(5):
+            Mr = np.zeros((n, n + 4))
+            Mr[:, :n] = np.linalg.matrix_power(Q, 4 - r)
+            for k in range(r, 4):
+                Mr[:, n + k] = d ** (k - r) / math.factorial(k - r)
+            maps.append(Mr)
+        return xi, maps
+
+    x1, m1 = domain(0.0, split)
+    x2, m2 = domain(split, 1.0)
+    size = n + 4
+    A = np.zeros((2 * size, 2 * size))
+    rhs = np.zeros(2 * size)
+    for k, (xi, maps) in enumerate(((x1, m1), (x2, m2))):
+        x = xi * L
+        T = M1 * w2 * (R * (L - x) + 0.5 * (L * L - x * x)) + mt * w2 * (R + L)
+        dT = -M1 * w2 * (R + x)
+        rows = slice(k * n, (k + 1) * n)
+        cols = slice(k * size, (k + 1) * size)
+        A[rows, cols] = (
+            maps[4]
+            + ((M2 * v2 - T) * L * L / EI)[:, None] * maps[2]
+            - (dT * L**3 / EI)[:, None] * maps[1]
+            - s * m * w2 * L**4 / EI * maps[0]
+        )
+        if force_at is None:
+            rhs[rows] = -m * L
+    first, last = slice(0, size), slice(size, 2 * size)
+    row = 2 * n
+    A[row, first] = m1[0][0]  # w(0) = 0
+    A[row + 1, first] = m1[1][0]  # w'(0) = 0
+    for r in range(3):  # w, w', w'' continuous at the split
+        A[row + 2 + r, first], A[row + 2 + r, last] = m1[r][N], -m2[r][0]
+    A[row + 5, first], A[row + 5, last] = -m1[3][N], m2[3][0]  # shear jump [w''']
+    if force_at is not None and not at_tip:
+        rhs[row + 5] = 1.0
+    TL = mt * w2 * (R + L)
+    A[row + 6, last] = m2[2][N]  # moment-free tip
+    A[row + 7, last] = m2[3][N] - TL * L * L / EI * m2[1][N] + s * mt * w2 * L**3 / EI * m2[0][N]
+    if at_tip:
+        rhs[row + 7] = -1.0
+    elif force_at is None:
+        rhs[row + 7] = mt  # F_L = -m_t A, A = 1
+    with np.errstate(all="ignore"):
+        try:
+            z = np.linalg.solve(A, rhs)
+        except np.linalg.LinAlgError:
+            z = np.full(2 * size, np.nan)
+    xo = np.atleast_1d(np.asarray(positions, dtype=float)) / L
+    out = np.empty(xo.size)
+    left = xo <= split
+    for sel, xi, part in ((left, x1, m1[0] @ z[first]), (~left, x2, m2[0] @ z[last])):
+        if np.any(sel):
+            out[sel] = BarycentricInterpolator(xi, part)(xo[sel])
+    return np.asarray(out * L**3 / EI)
