@@ -9,7 +9,7 @@ ENV PIP_DISABLE_PIP_VERSION_CHECK=1 \
     PIP_NO_CACHE_DIR=1
 RUN python -m venv /opt/venv
 WORKDIR /src
-# dependencies (with the parquet extra) in their own layer, pinned by constraints.txt (from
+# dependencies (with the parquet and formats extras: UFF and netCDF exports) in their own layer, pinned by constraints.txt (from
 # pyproject.toml by the command in its header): a source change does not reinstall them;
 # psycopg-binary carries its own libpq (this slim image has none)
 COPY constraints.txt ./

@@ -2,7 +2,7 @@
 
 ``constraints-dev.txt`` pins every package the README's commands install (the ``dev`` extra,
 which holds every other extra); ``constraints.txt`` pins the Docker image's (``service``,
-``parquet``, ``client``).  ``bash .ci/lock`` writes both with pip-compile.  These tests check
+``parquet``, ``client``, ``formats``).  ``bash .ci/lock`` writes both with pip-compile.  These tests check
 that every requirement of every extra is pinned, at a version its specifier admits (a new
 dependency without a lock entry fails here), and that the image pins the same versions as
 the README; completeness of the transitive set is checked by ``pip check`` after the
@@ -25,7 +25,7 @@ PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
 #: the lock of each set of extras: the README's (every extra) and the image's
 LOCKS = {
     "constraints-dev.txt": tuple(PROJECT["optional-dependencies"]),
-    "constraints.txt": ("service", "parquet", "client"),
+    "constraints.txt": ("service", "parquet", "client", "formats"),
 }
 
 
