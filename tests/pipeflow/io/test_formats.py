@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipeflow.computations import documents
 from pipeflow.computations.registry import COMPUTATIONS, SWEEP_KINDS, computation_for, parse
 from pipeflow.io.export import ExportError
 from pipeflow.io.formats import to_netcdf, to_uff, uff_available
 from pipeflow.io.notebook import to_xarray
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
-from pipeflow.schema import documents
 from pipeflow.schema.frequency import HAMMER_EXAMPLE, FrequencyResponseSpec
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
 from pipeflow.schema.study import StudySpec
