@@ -200,13 +200,44 @@ class ExternalForcing:
         return max((profile_rate(p) for p in self.profiles), default=0.0)
 
     def knots(self, t_end: float) -> FloatArray:
-        """Break points of the table profiles inside (0, t_end) [s]: each piece between
-        them is a polynomial (the profiles are smooth between)."""
-        pts = [np.asarray(p.times, dtype=float) for p in self.profiles if isinstance(p, Table)]
+        """Break points of the profiles inside (0, t_end) [s] (table knots, the ends of a
+        pulse): the profiles are smooth between them."""
+        pts = [np.asarray(p.breaks(), dtype=float) for p in self.profiles]
         if not pts:
             return np.zeros(0)
         k = np.unique(np.concatenate(pts))
         return k[(k > 0.0) & (k < t_end)]
+
+    @property
+    def closed_form(self) -> tuple[bool, ...]:
+        """Per load: its profile is a sum of exponential-polynomial pieces (its response
+        has a closed form, :func:`pipeflow.solvers.convolution.exact_particular`)."""
+        return tuple(p.terms() is not None for p in self.profiles)
+
+    @property
+    def impulsive(self) -> bool:
+        """True when a load is a Dirac impulse (it acts as a jump of the state)."""
+        return any(p.impulsive for p in self.profiles)
+
+    def subset(self, which: ArrayLike) -> ExternalForcing | None:
+        """The loads selected by the boolean mask ``which`` (None when none is)."""
+        mask = np.asarray(which, dtype=bool)
+        if not mask.any():
+            return None
+        idx = np.flatnonzero(mask)
+        columns = self.columns[idx]
+        return ExternalForcing(
+            tuple(self.loads[i] for i in idx), columns, tuple(self.profiles[i] for i in idx)
+        )
+
+    def impulses(self) -> list[tuple[float, FloatArray]]:
+        """The impulses as ``(time [s], state jump [m of balanced state])``, in time order."""
+        out = []
+        for column, profile in zip(self.columns, self.profiles, strict=True):
+            for term in profile.terms() or ():
+                if term.power < 0:
+                    out.append((term.start, np.asarray(column * term.coef.real)))
+        return sorted(out, key=lambda item: item[0])
 
     def values(self, t: ArrayLike) -> FloatArray:
         """p_k(t), shape ``(len(t), K)``."""

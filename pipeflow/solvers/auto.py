@@ -39,6 +39,9 @@ class Auto(Solver):
             f"meets the tolerance {problem.options.tolerance:g}"
         )
 
+    def applies_impulses(self, problem: Problem) -> bool:
+        return self.choose(problem)[0].applies_impulses(problem)
+
     def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
         solver, _ = self.choose(problem)
         out = solver._solve_impl(problem, stats)

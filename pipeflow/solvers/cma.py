@@ -43,7 +43,12 @@ from pipeflow.solvers.base import (
     SolverStats,
     spectral_radius,
 )
-from pipeflow.solvers.convolution import QUADRATURE_ERROR, dense_particular, modal_particular
+from pipeflow.solvers.convolution import (
+    QUADRATURE_ERROR,
+    dense_particular,
+    exact_particular,
+    modal_particular,
+)
 
 #: at most this many exp(-P) evaluations for the Duhamel integral
 MAX_DUHAMEL_NODES = 400_000
@@ -116,13 +121,17 @@ class CMA(Solver):
             )
         return SolverOutput(z=z, diagnostics=diagnostics, warnings=warnings)
 
+    def applies_impulses(self, problem: Problem) -> bool:
+        return problem.loading.is_time_invariant  # as jumps of the modal coordinates
+
     def exact_error(self, problem: Problem, out: SolverOutput) -> tuple[float, str] | None:
         """Constant coefficients: exact up to rounding, amplified by the eigenvector
-        condition number."""
+        condition number (and the quadrature of tabulated loads)."""
         if not problem.loading.is_time_invariant:
             return None
         cond = float(out.diagnostics.get("eigenvector_condition_max", 1.0))
-        if problem.loads is not None:
+        how = str(out.diagnostics.get("load_convolution", ""))
+        if problem.loads is not None and "quadrature" in how:
             return (
                 max(float(np.finfo(float).eps * max(cond, 1.0)), QUADRATURE_ERROR),
                 "exact for constant coefficients up to the load convolution's quadrature "
@@ -170,21 +179,41 @@ class CMA(Solver):
         fell_back: bool,
     ) -> FloatArray:
         """The loads' particular integral at constant coefficients (eq. 17's convolution,
-        :mod:`pipeflow.solvers.convolution`): in the eigenbasis of S, or with matrix
-        exponentials where the homogeneous solution fell back to them."""
-        assert problem.loads is not None
+        :mod:`pipeflow.solvers.convolution`): in the eigenbasis of S, in closed form for
+        analytic profiles and by quadrature for tables; or with matrix exponentials where
+        the homogeneous solution fell back to them.  Impulses are jumps of the state."""
+        loads, t = problem.loads, problem.t
+        assert loads is not None
         S = problem.model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
         if fell_back:
-            Zp, exps = dense_particular(problem.t, problem.loads, S)
+            Zp, exps = dense_particular(t, loads, S)  # an impulse samples to zero here
+            for when, jump in loads.impulses():
+                k = int(np.searchsorted(t, when, side="left"))
+                if k < t.size:
+                    sub_t = np.concatenate([[0.0], t[k:] - when])
+                    Zp[k:] += _expm_marching(S, sub_t, jump)[1:]
+                    exps += 1
             stats.matrix_exponentials += exps
-            how = "matrix exponentials at the quadrature nodes' offsets (ill-conditioned S)"
-        else:
-            w, V = np.linalg.eig(S)
-            stats.eigendecompositions += 1
-            Zp, nodes = modal_particular(problem.t, problem.loads, w, V)
+            diagnostics["load_convolution"] = (
+                "quadrature with matrix exponentials at the nodes' offsets (ill-conditioned S)"
+            )
+            return Zp
+        w, V = np.linalg.eig(S)
+        stats.eigendecompositions += 1
+        closed = np.array(loads.closed_form)
+        Zp = np.zeros((t.size, problem.model.size))
+        how = []
+        exact = loads.subset(closed)
+        if exact is not None:
+            Zp += exact_particular(t, exact, w, V)
+            how.append("closed form in the eigenbasis (analytic profiles)")
+        tabulated = loads.subset(~closed)
+        if tabulated is not None:
+            Zq, nodes = modal_particular(t, tabulated, w, V)
+            Zp += Zq
             diagnostics["load_quadrature_nodes"] = nodes
-            how = "modal convolution, 16-point Gauss-Legendre on pieces of <= 20 rad"
-        diagnostics["load_convolution"] = how
+            how.append("modal quadrature of the tables (16-point Gauss-Legendre, pieces <= 20 rad)")
+        diagnostics["load_convolution"] = "; ".join(how)
         return Zp
 
     def _time_variant(

@@ -1,5 +1,22 @@
 """The particular integral of the paper's eq. (17) for external loads at constant coefficients.
 
+Analytic profiles (constant, polynomial, harmonic, half-sine pulse, impulse, and sums of
+them over the loads) have it in closed form (:func:`exact_particular`): each profile is a
+sum of pieces c (t - t_a)^k e^{s (t - t_a)} on [t_a, t_b]
+(:meth:`pipeflow.profiles.Profile.terms`), and the response of a modal coordinate
+a' = xi a + q(t), a(0) = 0, to one of them is, for t_a <= t <= t_b and tau = t - t_a,
+
+    a(t) = c k! tau^{k+1} e^{s tau} phi_{k+1}((xi - s) tau),
+    phi_m(z) = sum_j z^j / (j + m)!        (phi_1(z) = (e^z - 1) / z, ...),
+
+(for k = 0 and s = i W: (e^{xi tau} - e^{i W tau}) / (xi - i W), the familiar
+F e^{i W t} / (i W - xi) plus its transient); an impulse (k = -1) gives c e^{xi tau}; past
+t_b the coordinate decays freely, a(t_b) e^{xi (t - t_b)}.  phi_m is evaluated by its
+Taylor series where |z| < 2 and by phi_{m+1} = (phi_m - 1/m!) / z from e^z elsewhere, so
+resonance (xi = s: the limit c tau^{k+1} e^{s tau} / (k + 1)) needs no special case and
+there is no quadrature: exact to rounding, O(1) per sample and mode.  The quadrature
+below serves tables only.
+
 With S constant, the response to the loads f(t) = sum_k g_k p_k(t) (:mod:`pipeflow.loads`) is
 the convolution of the fundamental solution with the load (physics notes, section 5)::
 
@@ -29,6 +46,9 @@ eigenvector condition number), for every profile kind.
 
 from __future__ import annotations
 
+import math
+from collections import defaultdict
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import expm
@@ -36,6 +56,7 @@ from scipy.linalg import expm
 from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded
 from pipeflow.loads import ExternalForcing
+from pipeflow.profiles import Term
 
 #: Gauss-Legendre nodes per piece, and the largest phase (|xi| + w_load) h of a piece [rad]
 PIECE_NODES = 16
@@ -186,3 +207,89 @@ def dense_particular(
         z = E[which[k]] @ z + inc[k]
         Z[k + 1] = z
     return Z, int(keys.size + lengths.size)
+
+
+#: |z| below which phi_m(z) is summed as its Taylor series (30 terms: remainder < 1e-23)
+_SERIES_RADIUS = 2.0
+_SERIES_TERMS = 30
+_EXACT_BLOCK = 16_384  # output times per block of the closed-form particular integral
+
+
+def phi(m: int, z: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """phi_m(z) = sum_{j >= 0} z^j / (j + m)! elementwise (phi_0 = e^z), m >= 0: the
+    functions of exponential integrators, without cancellation near z = 0."""
+    z = np.asarray(z, dtype=complex)
+    out = np.empty_like(z)
+    small = np.abs(z) < _SERIES_RADIUS
+    zs = z[small]
+    acc = np.full_like(zs, 1.0 / math.factorial(_SERIES_TERMS + m))
+    for j in range(_SERIES_TERMS - 1, -1, -1):
+        acc = acc * zs + 1.0 / math.factorial(j + m)
+    out[small] = acc
+    zl = z[~small]
+    with np.errstate(over="ignore", invalid="ignore"):
+        p = np.exp(zl)
+        for i in range(m):
+            p = (p - 1.0 / math.factorial(i)) / zl
+    out[~small] = p
+    return out
+
+
+def term_response(term: Term, lam: NDArray[np.complex128], t: FloatArray) -> NDArray[np.complex128]:
+    """a(t) of a' = lam a + q(t), a(0) = 0, for q the unit piece ``term`` (its ``coef``
+    taken as 1), shape ``(len(t), len(lam))`` (module docstring)."""
+    tau = np.asarray(t, dtype=float) - term.start
+    width = term.end - term.start
+    out = np.zeros((tau.size, lam.size), dtype=complex)
+    within = (tau >= 0.0) & (tau <= width)
+    with np.errstate(over="ignore", invalid="ignore"):
+
+        def inside(x: FloatArray) -> NDArray[np.complex128]:
+            if term.power < 0:
+                return np.asarray(np.exp(np.outer(x, lam)))
+            k = term.power
+            z = np.outer(x, lam - term.rate)
+            scale = math.factorial(k) * x ** (k + 1) * np.exp(term.rate * x)
+            return np.asarray(scale[:, None] * phi(k + 1, z))
+
+        if np.any(within):
+            out[within] = inside(tau[within])
+        past = tau > width
+        if np.any(past):
+            at_end = inside(np.array([width]))
+            out[past] = at_end * np.exp(np.outer(tau[past] - width, lam))
+    return out
+
+
+def exact_particular(
+    t: FloatArray,
+    loads: ExternalForcing,
+    w: NDArray[np.complex128],
+    V: NDArray[np.complex128],
+) -> FloatArray:
+    """z_p at the output times ``t`` [s] for S = V diag(w) V^-1 and loads whose profiles
+    all have :meth:`~pipeflow.profiles.Profile.terms`: in closed form (module docstring).
+    Pieces equal across loads are evaluated once, with their modal loads summed."""
+    keep = w.imag >= 0
+    weight = np.where(w.imag[keep] > 0, 2.0, 1.0)
+    lam = w[keep]
+    coef = np.linalg.solve(V, loads.columns.T.astype(complex))[keep]  # (modes, K)
+    grouped: dict[tuple[int, complex, float, float], NDArray[np.complex128]] = defaultdict(
+        lambda: np.zeros(lam.size, dtype=complex)
+    )
+    for k, profile in enumerate(loads.profiles):
+        for term in profile.terms() or ():
+            if term.coef != 0:
+                key = (term.power, complex(term.rate), term.start, term.end)
+                grouped[key] = grouped[key] + term.coef * coef[:, k]
+    Z = np.zeros((t.size, V.shape[0]))
+    Vt = V[:, keep].T * weight[:, None]
+    for s0 in range(0, t.size, _EXACT_BLOCK):
+        sl = slice(s0, min(s0 + _EXACT_BLOCK, t.size))
+        a = np.zeros((sl.stop - sl.start, lam.size), dtype=complex)
+        for (power, rate, start, end), c in grouped.items():
+            with np.errstate(over="ignore", invalid="ignore"):
+                a += term_response(Term(1.0, power, rate, start, end), lam, t[sl]) * c
+        with np.errstate(over="ignore", invalid="ignore"):
+            Z[sl] = (a @ Vt).real
+    return Z
