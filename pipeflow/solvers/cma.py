@@ -27,10 +27,9 @@ first-Magnus-term error (physics notes, section 2), which the error estimate mea
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.linalg import expm
 
 from pipeflow._types import FloatArray
@@ -47,7 +46,9 @@ from pipeflow.solvers.convolution import (
     QUADRATURE_ERROR,
     dense_particular,
     exact_particular,
+    modal_exponentials,
     modal_particular,
+    uniform_step,
 )
 
 #: at most this many exp(-P) evaluations for the Duhamel integral
@@ -167,7 +168,7 @@ class CMA(Solver):
         with np.errstate(over="ignore", invalid="ignore"):
             for s0 in range(0, t.size, block):
                 sl = slice(s0, min(s0 + block, t.size))
-                E = modal_exponentials(t[sl], w[keep], start=s0, dt=_uniform_step(t))
+                E = modal_exponentials(t[sl], w[keep], start=s0, dt=uniform_step(t))
                 Z[sl] = ((E * coef) @ Vt).real
         return Z, np.array([cond]), 0
 
@@ -271,34 +272,6 @@ class CMA(Solver):
         out = np.zeros((t.size, model.size))
         out[1:] = np.cumsum(per_interval, axis=0)
         return out
-
-
-def _uniform_step(t: FloatArray) -> float | None:
-    """The step of a uniform grid t_k = k dt (t[0] = 0), or None [s]."""
-    n = t.size
-    if n < 3 or t[0] != 0.0:
-        return None
-    dt = float(t[1] - t[0])
-    ok = np.allclose(t, dt * np.arange(n), rtol=0, atol=1e-14 * abs(float(t[-1])))
-    return dt if ok else None
-
-
-def modal_exponentials(
-    t: FloatArray,
-    w: NDArray[np.complex128],
-    block: int = 64,
-    start: int = 0,
-    dt: float | None = None,
-) -> Any:
-    """exp(outer(t, w)): on a uniform grid t_k = (start + k) dt (``dt`` given) as products
-    exp(w t_b) exp(w j dt) of two small tables (block starts t_b, offsets j dt), one complex
-    multiply per entry instead of one complex exponential; otherwise exp directly."""
-    n = t.size
-    if dt is None or n <= 2 * block:
-        return np.exp(np.outer(t, w))
-    starts = np.exp(np.outer(dt * (start + np.arange(0, n, block)), w))
-    offsets = np.exp(np.outer(dt * np.arange(block), w))
-    return (starts[:, None, :] * offsets[None, :, :]).reshape(-1, w.size)[:n]
 
 
 def _expm_marching(S: FloatArray, t: FloatArray, z0: FloatArray) -> FloatArray:

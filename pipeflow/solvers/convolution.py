@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -215,9 +216,12 @@ _SERIES_TERMS = 30
 _EXACT_BLOCK = 16_384  # output times per block of the closed-form particular integral
 
 
-def phi(m: int, z: NDArray[np.complex128]) -> NDArray[np.complex128]:
+def phi(
+    m: int, z: NDArray[np.complex128], ez: NDArray[np.complex128] | None = None
+) -> NDArray[np.complex128]:
     """phi_m(z) = sum_{j >= 0} z^j / (j + m)! elementwise (phi_0 = e^z), m >= 0: the
-    functions of exponential integrators, without cancellation near z = 0."""
+    functions of exponential integrators, without cancellation near z = 0 (``ez``: e^z
+    when the caller has it)."""
     z = np.asarray(z, dtype=complex)
     out = np.empty_like(z)
     small = np.abs(z) < _SERIES_RADIUS
@@ -228,31 +232,52 @@ def phi(m: int, z: NDArray[np.complex128]) -> NDArray[np.complex128]:
     out[small] = acc
     zl = z[~small]
     with np.errstate(over="ignore", invalid="ignore"):
-        p = np.exp(zl)
+        p = _exp(zl) if ez is None else ez[~small]
         for i in range(m):
             p = (p - 1.0 / math.factorial(i)) / zl
     out[~small] = p
     return out
 
 
-def term_response(term: Term, lam: NDArray[np.complex128], t: FloatArray) -> NDArray[np.complex128]:
+def _exp(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """e^z with real parts below -700 raised to -700 (e^-700 ~ 1e-304: zero for every
+    purpose here, and it keeps numpy's slow underflow path out of the strongly damped
+    modes' entries)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.asarray(np.exp(np.maximum(z.real, -700.0) + 1j * z.imag))
+
+
+def term_response(
+    term: Term,
+    lam: NDArray[np.complex128],
+    t: FloatArray,
+    grid: tuple[int, float] | None = None,
+) -> NDArray[np.complex128]:
     """a(t) of a' = lam a + q(t), a(0) = 0, for q the unit piece ``term`` (its ``coef``
-    taken as 1), shape ``(len(t), len(lam))`` (module docstring)."""
+    taken as 1), shape ``(len(t), len(lam))`` (module docstring).  ``grid`` = (k0, dt):
+    the times are (k0 + k) dt, and the exponentials are formed by
+    :func:`modal_exponentials`'s products of two small tables."""
     tau = np.asarray(t, dtype=float) - term.start
     width = term.end - term.start
     out = np.zeros((tau.size, lam.size), dtype=complex)
     within = (tau >= 0.0) & (tau <= width)
     with np.errstate(over="ignore", invalid="ignore"):
 
-        def inside(x: FloatArray) -> NDArray[np.complex128]:
+        def inside(x: FloatArray, tabled: bool = False) -> NDArray[np.complex128]:
+            rate = lam if term.power < 0 else lam - term.rate
+            if tabled and grid is not None:
+                ez = np.asarray(modal_exponentials(x, rate, start=grid[0], dt=grid[1]))
+            else:
+                ez = _exp(np.outer(x, rate))
             if term.power < 0:
-                return np.asarray(np.exp(np.outer(x, lam)))
+                return ez
             k = term.power
-            z = np.outer(x, lam - term.rate)
             scale = math.factorial(k) * x ** (k + 1) * np.exp(term.rate * x)
-            return np.asarray(scale[:, None] * phi(k + 1, z))
+            return np.asarray(scale[:, None] * phi(k + 1, np.outer(x, rate), ez))
 
-        if np.any(within):
+        if np.all(within) and term.start == 0.0:
+            out[:] = inside(tau, tabled=True)
+        elif np.any(within):
             out[within] = inside(tau[within])
         past = tau > width
         if np.any(past):
@@ -284,12 +309,43 @@ def exact_particular(
                 grouped[key] = grouped[key] + term.coef * coef[:, k]
     Z = np.zeros((t.size, V.shape[0]))
     Vt = V[:, keep].T * weight[:, None]
+    dt = uniform_step(t)
     for s0 in range(0, t.size, _EXACT_BLOCK):
         sl = slice(s0, min(s0 + _EXACT_BLOCK, t.size))
+        grid = None if dt is None else (s0, dt)
         a = np.zeros((sl.stop - sl.start, lam.size), dtype=complex)
         for (power, rate, start, end), c in grouped.items():
+            piece = Term(1.0, power, rate, start, end)
             with np.errstate(over="ignore", invalid="ignore"):
-                a += term_response(Term(1.0, power, rate, start, end), lam, t[sl]) * c
+                a += term_response(piece, lam, t[sl], grid) * c
         with np.errstate(over="ignore", invalid="ignore"):
             Z[sl] = (a @ Vt).real
     return Z
+
+
+def uniform_step(t: FloatArray) -> float | None:
+    """The step of a uniform grid t_k = k dt (t[0] = 0), or None [s]."""
+    n = t.size
+    if n < 3 or t[0] != 0.0:
+        return None
+    dt = float(t[1] - t[0])
+    ok = np.allclose(t, dt * np.arange(n), rtol=0, atol=1e-14 * abs(float(t[-1])))
+    return dt if ok else None
+
+
+def modal_exponentials(
+    t: FloatArray,
+    w: NDArray[np.complex128],
+    block: int = 64,
+    start: int = 0,
+    dt: float | None = None,
+) -> Any:
+    """exp(outer(t, w)): on a uniform grid t_k = (start + k) dt (``dt`` given) as products
+    exp(w t_b) exp(w j dt) of two small tables (block starts t_b, offsets j dt), one complex
+    multiply per entry instead of one complex exponential; otherwise exp directly."""
+    n = t.size
+    if dt is None or n <= 2 * block:
+        return np.exp(np.outer(t, w))
+    starts = np.exp(np.outer(dt * (start + np.arange(0, n, block)), w))
+    offsets = np.exp(np.outer(dt * np.arange(block), w))
+    return (starts[:, None, :] * offsets[None, :, :]).reshape(-1, w.size)[:n]
