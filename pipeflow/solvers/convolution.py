@@ -71,6 +71,13 @@ MAX_DENSE_OFFSETS = 100_000
 _CHUNK_ENTRIES = 1_000_000  # node x mode entries formed at once
 
 
+def quadrature_nodes(t: FloatArray, rate: float) -> float:
+    """Gauss nodes the table quadrature needs on the output times ``t`` [s] for a fastest
+    phase rate ``rate`` [rad/s] (before the split at knots), as a float (may be inf)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(np.sum(np.maximum(1.0, np.ceil(rate * np.diff(t) / PIECE_RADIANS))))
+
+
 def load_pieces(
     t: FloatArray, rate: float, knots: FloatArray
 ) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
@@ -82,11 +89,14 @@ def load_pieces(
         m = np.maximum(1.0, np.ceil(rate * dt / PIECE_RADIANS))
     total = float(np.sum(m)) * PIECE_NODES
     if not total <= MAX_CONVOLUTION_NODES:
+        t_end = float(t[-1])
+        fits = t_end * MAX_CONVOLUTION_NODES / total if np.isfinite(total) else 0.0
         raise BudgetExceeded(
-            f"the load convolution of this run needs {total:.3g} quadrature nodes (limit "
-            f"{MAX_CONVOLUTION_NODES}); use fewer modes, fewer samples of a shorter run, a "
-            "slower load or the 'magnus' method",
-            parameter="modes",
+            f"the quadrature of the tabulated loads of this run needs {total:.3g} nodes "
+            f"(limit {MAX_CONVOLUTION_NODES}): use time.t_end <= {fits:.3g} s, fewer modes, "
+            "an analytic profile (constant, polynomial, harmonic, half_sine: exact, no "
+            "quadrature) or the 'magnus' method",
+            parameter="time.t_end",
         )
     counts = m.astype(np.int64)
     owner = np.repeat(np.arange(dt.size), counts)
