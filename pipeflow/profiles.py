@@ -23,7 +23,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.polynomial import Polynomial as _Poly
@@ -96,6 +96,16 @@ class Profile(ABC):
         return ()
 
     @property
+    def rate(self) -> float:
+        """A rate [rad/s] at which the profile oscillates (the quadrature of a table load
+        resolves it): a harmonic's frequency, 0 for the others."""
+        return 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """The request JSON of the profile (the schema's ``kind`` forms)."""
+        raise TypeError(f"no JSON form for {self!r}")
+
+    @property
     def impulsive(self) -> bool:
         """True when the profile holds a Dirac impulse (it cannot be sampled)."""
         return any(term.power < 0 for term in self.terms() or ())
@@ -125,6 +135,9 @@ class Constant(Profile):
 
     def terms(self) -> tuple[Term, ...]:
         return (Term(self.val),)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "constant", "value": self.val}
 
 
 @dataclass(frozen=True)
@@ -160,6 +173,9 @@ class Polynomial(Profile):
 
     def terms(self) -> tuple[Term, ...]:
         return tuple(Term(c, k) for k, c in enumerate(self.coefficients) if c != 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "polynomial", "coefficients": list(self.coefficients)}
 
 
 @dataclass(frozen=True)
@@ -208,6 +224,19 @@ class Harmonic(Profile):
         mean = (Term(self.mean),) if self.mean else ()
         return mean + _sine_terms(self.amplitude, self.frequency, self.phase, 0.0, math.inf)
 
+    @property
+    def rate(self) -> float:
+        return 0.0 if self.is_constant else abs(float(self.frequency))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "harmonic",
+            "mean": self.mean,
+            "amplitude": self.amplitude,
+            "frequency": self.frequency,
+            "phase": self.phase,
+        }
+
 
 @dataclass(frozen=True)
 class HalfSine(Profile):
@@ -255,6 +284,18 @@ class HalfSine(Profile):
     def terms(self) -> tuple[Term, ...]:
         end = self.start + self.duration
         return _sine_terms(self.amplitude, self._w, 0.0, self.start, end)
+
+    @property
+    def rate(self) -> float:
+        return self._w
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "half_sine",
+            "amplitude": self.amplitude,
+            "start": self.start,
+            "duration": self.duration,
+        }
 
     def breaks(self) -> tuple[float, ...]:
         return (self.start, self.start + self.duration)
@@ -398,6 +439,17 @@ class Table(Profile):
 
     def breaks(self) -> tuple[float, ...]:
         return tuple(self.times)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "kind": "table",
+            "t": list(self.times),
+            "values": list(self.values),
+            "interpolation": self.interpolation,
+        }
+        if self.after is not None:
+            out["after"] = self.after
+        return out
 
 
 @dataclass(frozen=True)

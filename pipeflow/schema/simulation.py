@@ -28,8 +28,15 @@ from pipeflow import paper, profiles
 from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
-from pipeflow.errors import InvalidField, PipeflowError
-from pipeflow.loads import MAX_LOADS, BaseAcceleration, DistributedForce, Load, PointForce
+from pipeflow.errors import InvalidField, InvalidInput, PipeflowError
+from pipeflow.loads import (
+    MAX_LOADS,
+    BaseAcceleration,
+    DistributedForce,
+    Load,
+    PointForce,
+    PointImpulse,
+)
 from pipeflow.model import Pipe, check_stiffness
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -311,6 +318,11 @@ class TableProfile(StrictModel):
     interpolation: Literal["linear", "cubic", "pchip"] = Field(
         "linear", description="linear, cubic (not-a-knot spline) or pchip (monotone)."
     )
+    after: Literal["hold", "zero"] | None = Field(
+        None,
+        description="What the profile does past its last time: 'hold' (keeps the last "
+        "value), 'zero'; null (default): the table must cover the run (t_end).",
+    )
 
     @model_validator(mode="after")
     def _check(self) -> TableProfile:
@@ -323,11 +335,28 @@ class TableProfile(StrictModel):
         return self
 
     def to_profile(self) -> profiles.Profile:
-        return profiles.table(self.t, self.values, self.interpolation)
+        return profiles.table(self.t, self.values, self.interpolation, self.after)
+
+
+class HalfSineProfile(StrictModel):
+    """A half-sine pulse: p(t) = amplitude sin(pi (t - start) / duration) on
+    [start, start + duration], zero elsewhere (a hammer blow of finite duration)."""
+
+    kind: Literal["half_sine"] = "half_sine"
+    amplitude: float = Field(
+        ge=-MAX_PROFILE_VALUE,
+        le=MAX_PROFILE_VALUE,
+        description="Peak value, in the unit of the quantity (N for a force).",
+    )
+    start: float = Field(0.0, ge=0, le=1e6, description="Start of the pulse [s].")
+    duration: float = Field(gt=0, le=1e6, description="Duration of the pulse [s].")
+
+    def to_profile(self) -> profiles.Profile:
+        return profiles.HalfSine(self.amplitude, self.start, self.duration)
 
 
 ProfileSpec = Annotated[
-    ConstantProfile | PolynomialProfile | HarmonicProfile | TableProfile,
+    ConstantProfile | PolynomialProfile | HarmonicProfile | TableProfile | HalfSineProfile,
     Field(discriminator="kind"),
 ]
 
@@ -431,8 +460,34 @@ class BaseAccelerationLoad(StrictModel):
         return BaseAcceleration(self.acceleration.to_profile())
 
 
+class PointImpulseLoad(StrictModel):
+    """A transverse impulse (hammer blow) J at x = position at time t0."""
+
+    kind: Literal["impulse"]
+    position: float = Field(
+        gt=0,
+        le=1e4,
+        description="Station x of the blow [m], 0 < x <= pipe.L (x = L: at the tip).",
+    )
+    impulse: float = Field(
+        ge=-MAX_PROFILE_VALUE,
+        le=MAX_PROFILE_VALUE,
+        description="Impulse J [N s] (the time integral of the force), transverse, in the "
+        "plane of motion: a jump of the modal velocities at t0.",
+    )
+    time: float = Field(
+        0.0,
+        ge=0,
+        le=1e6,
+        description="Time t0 of the blow [s]; samples at t >= t0 include it.",
+    )
+
+    def to_load(self) -> Load:
+        return PointImpulse(self.position, self.impulse, self.time)
+
+
 LoadSpec = Annotated[
-    PointForceLoad | DistributedForceLoad | BaseAccelerationLoad,
+    PointForceLoad | DistributedForceLoad | BaseAccelerationLoad | PointImpulseLoad,
     Field(discriminator="kind"),
 ]
 
@@ -574,8 +629,9 @@ class SimulationSpec(StrictModel):
         max_length=MAX_LOADS,
         description="External loads, each with its time history (any profile kind): "
         "'point_force' (N at position x [m]), 'distributed_force' (N/m on [start, end] [m]) "
-        "and 'base_acceleration' (m/s^2 of the clamp; displacements then stay relative to "
-        f"the clamp). At most {MAX_LOADS}; empty (default): free vibration.",
+        "'base_acceleration' (m/s^2 of the clamp; displacements then stay relative to "
+        "the clamp) and 'impulse' (a blow of J [N s] at position x [m] and time t0 [s]). "
+        f"At most {MAX_LOADS}; empty (default): free vibration.",
     )
 
     @field_validator("method")
@@ -619,43 +675,28 @@ class SimulationSpec(StrictModel):
             ("flow.velocity", self.flow.velocity),
             ("rotation.omega0", self.rotation.omega0),
         ):
-            if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
+            if (
+                isinstance(prof, TableProfile)
+                and prof.after is None
+                and prof.t[-1] < self.time.t_end
+            ):
                 raise InvalidField(
-                    f"{name}: the table ends at {prof.t[-1]} s, before time.t_end", name
+                    f"{name}: the table ends at {prof.t[-1]} s, before time.t_end (or say "
+                    "what it does after its last time: after = 'hold' or 'zero')",
+                    name,
                 )
         self._check_loads()
         return self.within_budget()
 
     def _check_loads(self) -> None:
-        """Stations against the pipe's length, spans ordered, tables covering t_end; the
-        error names the field (``loads.0.position``)."""
-        L = self.pipe.L
-        for i, load in enumerate(self.loads):
-            if isinstance(load, PointForceLoad):
-                if load.position > L:
-                    where = f"loads.{i}.position"
-                    raise InvalidField(
-                        f"{where}: {load.position} m is beyond the tip, L = {L} m", where
-                    )
-                name, prof = "force", load.force
-            elif isinstance(load, DistributedForceLoad):
-                end = L if load.end is None else load.end
-                if end > L:
-                    where = f"loads.{i}.end"
-                    raise InvalidField(f"{where}: {end} m is beyond the tip, L = {L} m", where)
-                if load.start >= end:
-                    where = f"loads.{i}.start"
-                    raise InvalidField(
-                        f"{where}: {load.start} m must be below the end, {end} m", where
-                    )
-                name, prof = "intensity", load.intensity
-            else:
-                name, prof = "acceleration", load.acceleration
-            if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
-                where = f"loads.{i}.{name}"
-                raise InvalidField(
-                    f"{where}: the table ends at {prof.t[-1]} s, before time.t_end", where
-                )
+        """The library's rules of each load (:meth:`pipeflow.loads.PointForce.check`...:
+        stations on the pipe, spans ordered, tables covering t_end); the error names the
+        field (``loads.0.position``)."""
+        for i, spec in enumerate(self.loads):
+            try:
+                spec.to_load().check(i, self.pipe.L, self.time.t_end)
+            except InvalidInput as exc:
+                raise InvalidField(exc.message, exc.parameter or f"loads.{i}") from None
 
     def output_values(self) -> tuple[int, int, int, str]:
         """The numbers of the answer (:func:`pipeflow.schema.documents.simulation`), an upper
