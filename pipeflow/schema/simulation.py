@@ -24,18 +24,13 @@ from pydantic import (
 from pydantic.json_schema import JsonSchemaValue
 from pydantic_core import CoreSchema
 
-from pipeflow import paper, profiles
+from pipeflow import paper
 from pipeflow._types import Progress
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
 from pipeflow.errors import InvalidField, InvalidInput, PipeflowError
 from pipeflow.loads import (
     MAX_LOADS,
-    BaseAcceleration,
-    DistributedForce,
-    Load,
-    PointForce,
-    PointImpulse,
 )
 from pipeflow.model import Pipe, check_stiffness
 from pipeflow.modeshapes import (
@@ -61,26 +56,37 @@ from pipeflow.schema.drawing import (
     drawing_field,
     from_drawing,
 )
+from pipeflow.schema.loads import MAX_COEFFICIENT as MAX_COEFFICIENT
+from pipeflow.schema.loads import MAX_POLY_DEGREE as MAX_POLY_DEGREE
+from pipeflow.schema.loads import MAX_PROFILE_VALUE as MAX_PROFILE_VALUE
+from pipeflow.schema.loads import MAX_TABLE_POINTS as MAX_TABLE_POINTS
+from pipeflow.schema.loads import BaseAccelerationLoad as BaseAccelerationLoad
+from pipeflow.schema.loads import BoundedValue as BoundedValue
+from pipeflow.schema.loads import ConstantProfile as ConstantProfile
+from pipeflow.schema.loads import DistributedForceLoad as DistributedForceLoad
+from pipeflow.schema.loads import HalfSineProfile as HalfSineProfile
+from pipeflow.schema.loads import HarmonicProfile as HarmonicProfile
+from pipeflow.schema.loads import LoadSpec as LoadSpec
+from pipeflow.schema.loads import PointForceLoad as PointForceLoad
+from pipeflow.schema.loads import PointImpulseLoad as PointImpulseLoad
+from pipeflow.schema.loads import PolynomialProfile as PolynomialProfile
+from pipeflow.schema.loads import ProfileSpec as ProfileSpec
+from pipeflow.schema.loads import TableProfile as TableProfile
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
 
 MAX_SAMPLES = 200_001
-MAX_TABLE_POINTS = 10_000
 MAX_POSITIONS = 64
 MAX_EIGEN_SAMPLES = 2001
-MAX_POLY_DEGREE = 8
 #: the most numbers one simulation's answer may hold (output times x series, eigenvalue
 #: traces, mode shapes: :meth:`SimulationSpec.cost`): about 45 MB of JSON (measured: 1.8
 #: million numbers, 200,001 samples x 7 positions, were 41 MB, 13 s and a 274 MB peak of
 #: the process; 200,001 samples x 145 series, 29 million numbers, had taken 2.7 GB and
 #: stored a 299 MB row); a comparison holds one run per method, so its methods share it
 MAX_OUTPUT_VALUES = 2_000_000
-#: bounds on profile values (m/s for v, rad/s for w0) and on total mass per length [kg/m]
-MAX_PROFILE_VALUE = 1e7
-MAX_COEFFICIENT = 1e9
+#: the least total mass per length [kg/m]
 MIN_MASS = 1e-15
-BoundedValue = Annotated[float, Field(ge=-MAX_PROFILE_VALUE, le=MAX_PROFILE_VALUE)]
 #: the mounting of the pipe beyond the paper's model (issue 14; docs/model.md): one
 #: definition each, used by every simulation and stability request
 HubRadius = Annotated[
@@ -253,114 +259,6 @@ class PipeSpec(StrictModel):
         )
 
 
-class ConstantProfile(StrictModel):
-    """p(t) = value."""
-
-    kind: Literal["constant"] = "constant"
-    value: float = Field(
-        0.0,
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Value, in the unit of the quantity (m/s or rad/s).",
-    )
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.Constant(self.value)
-
-
-class PolynomialProfile(StrictModel):
-    """p(t) = sum_k coefficients[k] t^k with t in seconds (the paper's a, a t, a t^2)."""
-
-    kind: Literal["polynomial"] = "polynomial"
-    coefficients: list[Annotated[float, Field(ge=-MAX_COEFFICIENT, le=MAX_COEFFICIENT)]] = Field(
-        min_length=1,
-        max_length=MAX_POLY_DEGREE + 1,
-        description="c_0, c_1, ...: c_k in (unit of the quantity)/s^k, e.g. m/s^(k+1) for v.",
-    )
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.Polynomial(tuple(self.coefficients))
-
-
-class HarmonicProfile(StrictModel):
-    """p(t) = mean + amplitude sin(frequency t + phase): pulsating flow, oscillating spin."""
-
-    kind: Literal["harmonic"] = "harmonic"
-    mean: float = Field(
-        0.0,
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Mean value (m/s for v, rad/s for w0).",
-    )
-    amplitude: float = Field(
-        0.0,
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Amplitude (m/s for v, rad/s for w0).",
-    )
-    frequency: float = Field(0.0, ge=0, le=1e7, description="Angular frequency [rad/s].")
-    phase: float = Field(0.0, ge=-1e3, le=1e3, description="Phase at t = 0 [rad].")
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.Harmonic(self.mean, self.amplitude, self.frequency, self.phase)
-
-
-class TableProfile(StrictModel):
-    """Tabulated values interpolated in time; must start at t <= 0 and cover t_end."""
-
-    kind: Literal["table"] = "table"
-    t: list[float] = Field(
-        min_length=2, max_length=MAX_TABLE_POINTS, description="Strictly increasing times [s]."
-    )
-    values: list[BoundedValue] = Field(
-        min_length=2, max_length=MAX_TABLE_POINTS, description="Values at those times."
-    )
-    interpolation: Literal["linear", "cubic", "pchip"] = Field(
-        "linear", description="linear, cubic (not-a-knot spline) or pchip (monotone)."
-    )
-    after: Literal["hold", "zero"] | None = Field(
-        None,
-        description="What the profile does past its last time: 'hold' (keeps the last "
-        "value), 'zero'; null (default): the table must cover the run (t_end).",
-    )
-
-    @model_validator(mode="after")
-    def _check(self) -> TableProfile:
-        if len(self.t) != len(self.values):
-            raise InvalidField("t and values must have the same length", "t")
-        if any(b <= a for a, b in zip(self.t, self.t[1:], strict=False)):
-            raise InvalidField("t must be strictly increasing", "t")
-        if self.t[0] > 0:
-            raise InvalidField("the table must start at or before t = 0 s")
-        return self
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.table(self.t, self.values, self.interpolation, self.after)
-
-
-class HalfSineProfile(StrictModel):
-    """A half-sine pulse: p(t) = amplitude sin(pi (t - start) / duration) on
-    [start, start + duration], zero elsewhere (a hammer blow of finite duration)."""
-
-    kind: Literal["half_sine"] = "half_sine"
-    amplitude: float = Field(
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Peak value, in the unit of the quantity (N for a force).",
-    )
-    start: float = Field(0.0, ge=0, le=1e6, description="Start of the pulse [s].")
-    duration: float = Field(gt=0, le=1e6, description="Duration of the pulse [s].")
-
-    def to_profile(self) -> profiles.Profile:
-        return profiles.HalfSine(self.amplitude, self.start, self.duration)
-
-
-ProfileSpec = Annotated[
-    ConstantProfile | PolynomialProfile | HarmonicProfile | TableProfile | HalfSineProfile,
-    Field(discriminator="kind"),
-]
-
-
 class RotationSpec(StrictModel):
     omega0: ProfileSpec = Field(
         default_factory=ConstantProfile, description="Spin w0(t) of the hub [rad/s]."
@@ -404,92 +302,6 @@ class TimeSpec(StrictModel):
 
 #: the library's option defaults (one definition: :class:`pipeflow.solvers.Options`)
 _OPTIONS = Options()
-
-
-class PointForceLoad(StrictModel):
-    """A transverse point force F(t) at x = position, in the plane of motion."""
-
-    kind: Literal["point_force"]
-    position: float = Field(
-        gt=0,
-        le=1e4,
-        description="Station x of the force [m], 0 < x <= pipe.L (x = L: at the tip).",
-    )
-    force: ProfileSpec = Field(
-        description="Force F(t) [N] (profile values in N, polynomial coefficients in "
-        "N/s^k), transverse, in the plane of motion."
-    )
-
-    def to_load(self) -> Load:
-        return PointForce(self.position, self.force.to_profile())
-
-
-class DistributedForceLoad(StrictModel):
-    """A uniform transverse load q(t) per unit length on [start, end]."""
-
-    kind: Literal["distributed_force"]
-    intensity: ProfileSpec = Field(
-        description="Load per unit length q(t) [N/m] (profile values in N/m), transverse, "
-        "in the plane of motion, uniform on [start, end]."
-    )
-    start: float = Field(0.0, ge=0, le=1e4, description="Start x0 of the loaded span [m].")
-    end: float | None = Field(
-        None,
-        gt=0,
-        le=1e4,
-        description="End x1 of the loaded span [m], start < x1 <= pipe.L; null (default): "
-        "the tip, x1 = L.",
-    )
-
-    def to_load(self) -> Load:
-        return DistributedForce(self.intensity.to_profile(), self.start, self.end)
-
-
-class BaseAccelerationLoad(StrictModel):
-    """The transverse acceleration of the clamp; displacements are relative to it."""
-
-    kind: Literal["base_acceleration"]
-    acceleration: ProfileSpec = Field(
-        description="Transverse acceleration a(t) of the clamp [m/s^2] (profile values in "
-        "m/s^2), in the plane of motion. Acts as the inertial load -(M1 + M2) a(t) per unit "
-        "length plus -m_t a(t) on the tip mass; the returned displacements are relative to "
-        "the clamp."
-    )
-
-    def to_load(self) -> Load:
-        return BaseAcceleration(self.acceleration.to_profile())
-
-
-class PointImpulseLoad(StrictModel):
-    """A transverse impulse (hammer blow) J at x = position at time t0."""
-
-    kind: Literal["impulse"]
-    position: float = Field(
-        gt=0,
-        le=1e4,
-        description="Station x of the blow [m], 0 < x <= pipe.L (x = L: at the tip).",
-    )
-    impulse: float = Field(
-        ge=-MAX_PROFILE_VALUE,
-        le=MAX_PROFILE_VALUE,
-        description="Impulse J [N s] (the time integral of the force), transverse, in the "
-        "plane of motion: a jump of the modal velocities at t0.",
-    )
-    time: float = Field(
-        0.0,
-        ge=0,
-        le=1e6,
-        description="Time t0 of the blow [s]; samples at t >= t0 include it.",
-    )
-
-    def to_load(self) -> Load:
-        return PointImpulse(self.position, self.impulse, self.time)
-
-
-LoadSpec = Annotated[
-    PointForceLoad | DistributedForceLoad | BaseAccelerationLoad | PointImpulseLoad,
-    Field(discriminator="kind"),
-]
 
 
 class MethodOptions(StrictModel):
