@@ -237,7 +237,7 @@ def validate_loads(loads: tuple[Load, ...], L: float, t_end: float) -> None:
     if len(loads) > MAX_LOADS:
         raise InvalidInput(f"at most {MAX_LOADS} loads, got {len(loads)}", parameter="loads")
     for i, load in enumerate(loads):
-        if not isinstance(load, _LoadRules):
+        if not callable(getattr(load, "check", None)):
             raise InvalidInput(f"loads.{i}: unknown load {load!r}", parameter=f"loads.{i}")
         load.check(i, L, t_end)
 
