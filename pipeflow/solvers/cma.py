@@ -44,8 +44,8 @@ from pipeflow.solvers.base import (
 )
 from pipeflow.solvers.convolution import (
     QUADRATURE_ERROR,
+    ClosedForm,
     dense_particular,
-    exact_particular,
     modal_exponentials,
     modal_particular,
     uniform_step,
@@ -100,8 +100,9 @@ class CMA(Solver):
         limit = problem.options.condition_limit
         diagnostics: dict[str, object] = {"time_invariant": loading.is_time_invariant}
         warnings: list[str] = []
+        eig: tuple[np.ndarray, np.ndarray] | None = None
         if loading.is_time_invariant:
-            z, cond, fallbacks = self._time_invariant(problem)
+            z, cond, fallbacks, eig = self._time_invariant(problem, diagnostics)
             stats.eigendecompositions = 1
             diagnostics["eigenvector_condition_max"] = float(np.max(cond))
         else:
@@ -110,8 +111,10 @@ class CMA(Solver):
             z, cond, fallbacks = self._time_variant(problem, warnings)
             stats.eigendecompositions = 0
             stats.matrix_exponentials = int(t.size)
-        if problem.loads is not None and loading.is_time_invariant:
-            z = z + self._particular(problem, stats, diagnostics, bool(fallbacks))
+        loads = problem.loads
+        if loads is not None and loading.is_time_invariant:
+            if fallbacks or not all(loads.closed_form):  # else in the homogeneous sum
+                z += self._particular(problem, stats, diagnostics, eig if not fallbacks else None)
         stats.matrix_exponentials += int(fallbacks)
         diagnostics["expm_fallbacks"] = int(fallbacks)
         if fallbacks:
@@ -143,7 +146,11 @@ class CMA(Solver):
             "exact for constant coefficients: rounding only (eps x eigenvector condition)",
         )
 
-    def _time_invariant(self, problem: Problem) -> tuple[FloatArray, FloatArray, int]:
+    def _time_invariant(
+        self, problem: Problem, diagnostics: dict[str, object]
+    ) -> tuple[FloatArray, FloatArray, int, tuple[np.ndarray, np.ndarray] | None]:
+        """exp(S t) z0 plus the closed-form particular integral of the analytic loads (in
+        the same modal sum); the tables' and impulses' parts are :meth:`_particular`'s."""
         # P(t) = t S: one eigen-decomposition serves every output time (eq. 25-26)
         model, t, z0 = problem.model, problem.t, problem.z0
         S = model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
@@ -154,13 +161,22 @@ class CMA(Solver):
             cond = float("inf")
         if not np.isfinite(cond) or cond > problem.options.condition_limit:
             Z = _expm_marching(S, t, z0)
-            return Z, np.array([cond]), 1
+            return Z, np.array([cond]), 1, None
         c = np.linalg.solve(V, z0.astype(complex))
         # S is real, so LAPACK returns exact conjugate pairs: keep one of each pair and
         # double its real part (half the exponentials and the product), real ones once
         keep = w.imag >= 0
         weight = np.where(w.imag[keep] > 0, 2.0, 1.0)
         coef, Vt = weight * c[keep], V[:, keep].T
+        closed = None
+        if problem.loads is not None:
+            analytic = problem.loads.subset(problem.loads.closed_form)
+            if analytic is not None:
+                closed = ClosedForm(analytic, w, V)
+                diagnostics["load_convolution"] = (
+                    "closed form in the eigenbasis (analytic profiles)"
+                )
+        dt = uniform_step(t)
         # in blocks of output times written into the result: the complex temporaries stay
         # a block's size instead of 4x the output (1e6 samples: 640 MB -> the output's 160)
         Z = np.empty((t.size, model.size))
@@ -168,25 +184,29 @@ class CMA(Solver):
         with np.errstate(over="ignore", invalid="ignore"):
             for s0 in range(0, t.size, block):
                 sl = slice(s0, min(s0 + block, t.size))
-                E = modal_exponentials(t[sl], w[keep], start=s0, dt=uniform_step(t))
-                Z[sl] = ((E * coef) @ Vt).real
-        return Z, np.array([cond]), 0
+                E = modal_exponentials(t[sl], w[keep], start=s0, dt=dt)
+                A = E * coef
+                if closed is not None:
+                    A += closed.amplitudes(t[sl], None if dt is None else (s0, dt), E)
+                Z[sl] = (A @ Vt).real
+        return Z, np.array([cond]), 0, (w, V)
 
     def _particular(
         self,
         problem: Problem,
         stats: SolverStats,
         diagnostics: dict[str, object],
-        fell_back: bool,
+        eig: tuple[np.ndarray, np.ndarray] | None,
     ) -> FloatArray:
         """The loads' particular integral at constant coefficients (eq. 17's convolution,
         :mod:`pipeflow.solvers.convolution`): in the eigenbasis of S, in closed form for
         analytic profiles and by quadrature for tables; or with matrix exponentials where
-        the homogeneous solution fell back to them.  Impulses are jumps of the state."""
+        the homogeneous solution fell back to them (``eig`` None; else the eigenvalues and
+        eigenvectors of S it used).  Impulses are jumps of the state."""
         loads, t = problem.loads, problem.t
         assert loads is not None
-        S = problem.model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
-        if fell_back:
+        if eig is None:
+            S = problem.model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
             Zp, exps = dense_particular(t, loads, S)  # an impulse samples to zero here
             for when, jump in loads.impulses():
                 k = int(np.searchsorted(t, when, side="left"))
@@ -199,16 +219,11 @@ class CMA(Solver):
                 "quadrature with matrix exponentials at the nodes' offsets (ill-conditioned S)"
             )
             return Zp
-        w, V = np.linalg.eig(S)
-        stats.eigendecompositions += 1
-        closed = np.array(loads.closed_form)
+        w, V = eig  # the homogeneous solution's decomposition
+        closed = loads.closed_form
         Zp = np.zeros((t.size, problem.model.size))
-        how = []
-        exact = loads.subset(closed)
-        if exact is not None:
-            Zp += exact_particular(t, exact, w, V)
-            how.append("closed form in the eigenbasis (analytic profiles)")
-        tabulated = loads.subset(~closed)
+        how = [str(diagnostics["load_convolution"])] if "load_convolution" in diagnostics else []
+        tabulated = loads.subset([not f for f in closed])
         if tabulated is not None:
             Zq, nodes = modal_particular(t, tabulated, w, V)
             Zp += Zq

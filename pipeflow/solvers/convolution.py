@@ -47,7 +47,6 @@ eigenvector condition number), for every profile kind.
 from __future__ import annotations
 
 import math
-from collections import defaultdict
 from typing import Any
 
 import numpy as np
@@ -231,22 +230,23 @@ def phi(
 ) -> NDArray[np.complex128]:
     """phi_m(z) = sum_{j >= 0} z^j / (j + m)! elementwise (phi_0 = e^z), m >= 0: the
     functions of exponential integrators, without cancellation near z = 0 (``ez``: e^z
-    when the caller has it)."""
+    when the caller has it; it is overwritten)."""
     z = np.asarray(z, dtype=complex)
-    out = np.empty_like(z)
-    small = np.abs(z) < _SERIES_RADIUS
-    zs = z[small]
-    acc = np.full_like(zs, 1.0 / math.factorial(_SERIES_TERMS + m))
-    for j in range(_SERIES_TERMS - 1, -1, -1):
-        acc = acc * zs + 1.0 / math.factorial(j + m)
-    out[small] = acc
-    zl = z[~small]
-    with np.errstate(over="ignore", invalid="ignore"):
-        p = _exp(zl) if ez is None else ez[~small]
-        for i in range(m):
-            p = (p - 1.0 / math.factorial(i)) / zl
-    out[~small] = p
-    return out
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        p = _exp(z) if ez is None else ez
+        for i in range(m):  # the recurrence on the whole array, in place
+            p -= 1.0 / math.factorial(i)
+            p /= z
+    if m == 0:
+        return p
+    small = np.flatnonzero((z.real * z.real + z.imag * z.imag).ravel() < _SERIES_RADIUS**2)
+    if small.size:  # the few entries near 0 (early times, resonance): the series
+        zs = z.ravel()[small]
+        acc = np.full_like(zs, 1.0 / math.factorial(_SERIES_TERMS + m))
+        for j in range(_SERIES_TERMS - 1, -1, -1):
+            acc = acc * zs + 1.0 / math.factorial(j + m)
+        p.ravel()[small] = acc
+    return p
 
 
 def _exp(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
@@ -269,7 +269,6 @@ def term_response(
     :func:`modal_exponentials`'s products of two small tables."""
     tau = np.asarray(t, dtype=float) - term.start
     width = term.end - term.start
-    out = np.zeros((tau.size, lam.size), dtype=complex)
     within = (tau >= 0.0) & (tau <= width)
     with np.errstate(over="ignore", invalid="ignore"):
 
@@ -283,17 +282,68 @@ def term_response(
                 return ez
             k = term.power
             scale = math.factorial(k) * x ** (k + 1) * np.exp(term.rate * x)
-            return np.asarray(scale[:, None] * phi(k + 1, np.outer(x, rate), ez))
+            p = phi(k + 1, np.outer(x, rate), ez)
+            p *= scale[:, None]
+            return p
 
         if np.all(within) and term.start == 0.0:
-            out[:] = inside(tau, tabled=True)
-        elif np.any(within):
+            return inside(tau, tabled=True)
+        out = np.zeros((tau.size, lam.size), dtype=complex)
+        if np.any(within):
             out[within] = inside(tau[within])
         past = tau > width
         if np.any(past):
             at_end = inside(np.array([width]))
             out[past] = at_end * np.exp(np.outer(tau[past] - width, lam))
     return out
+
+
+class ClosedForm:
+    """The particular integral of analytic loads in the modal coordinates of
+    S = V diag(w) V^-1, block of output times by block (module docstring).  S real: one
+    eigenvalue of each conjugate pair is kept (``keep``) and its weight (2 for a pair, 1
+    for a real one) is folded into the amplitudes, as the homogeneous CMA solution does,
+    so that z_p = Re(amplitudes @ V[:, keep].T).  Pieces equal across loads are evaluated
+    once, with their modal loads summed."""
+
+    def __init__(
+        self, loads: ExternalForcing, w: NDArray[np.complex128], V: NDArray[np.complex128]
+    ) -> None:
+        self.keep = w.imag >= 0
+        weight = np.where(w.imag[self.keep] > 0, 2.0, 1.0)
+        self.lam = w[self.keep]
+        coef = np.linalg.solve(V, loads.columns.T.astype(complex))[self.keep]  # (modes, K)
+        coef *= weight[:, None]
+        grouped: dict[Term, NDArray[np.complex128]] = {}
+        for k, profile in enumerate(loads.profiles):
+            for term in profile.terms() or ():
+                if term.coef != 0:
+                    unit = Term(1.0, term.power, complex(term.rate), term.start, term.end)
+                    before = grouped.get(unit, np.zeros(self.lam.size, dtype=complex))
+                    grouped[unit] = np.asarray(before + term.coef * coef[:, k], dtype=complex)
+        self.pieces = grouped
+
+    def amplitudes(
+        self,
+        t: FloatArray,
+        grid: tuple[int, float] | None = None,
+        E: NDArray[np.complex128] | None = None,
+    ) -> NDArray[np.complex128]:
+        """The modal amplitudes (weights folded in) at the times ``t`` [s], shape
+        ``(len(t), kept modes)``; ``grid`` as :func:`term_response`; ``E``: e^{lam t} at
+        these times when the caller has it (a step's response reuses it)."""
+        a = np.zeros((t.size, self.lam.size), dtype=complex)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for piece, c in self.pieces.items():
+                if E is not None and piece.power == 0 and piece.rate == 0 and piece.start == 0:
+                    # a constant from t = 0: (e^{lam t} - 1) / lam, from the caller's E
+                    r = phi(1, np.outer(t, self.lam), np.array(E, dtype=complex))
+                    r *= t[:, None]
+                else:
+                    r = term_response(piece, self.lam, t, grid)
+                r *= c
+                a += r
+        return a
 
 
 def exact_particular(
@@ -303,31 +353,14 @@ def exact_particular(
     V: NDArray[np.complex128],
 ) -> FloatArray:
     """z_p at the output times ``t`` [s] for S = V diag(w) V^-1 and loads whose profiles
-    all have :meth:`~pipeflow.profiles.Profile.terms`: in closed form (module docstring).
-    Pieces equal across loads are evaluated once, with their modal loads summed."""
-    keep = w.imag >= 0
-    weight = np.where(w.imag[keep] > 0, 2.0, 1.0)
-    lam = w[keep]
-    coef = np.linalg.solve(V, loads.columns.T.astype(complex))[keep]  # (modes, K)
-    grouped: dict[tuple[int, complex, float, float], NDArray[np.complex128]] = defaultdict(
-        lambda: np.zeros(lam.size, dtype=complex)
-    )
-    for k, profile in enumerate(loads.profiles):
-        for term in profile.terms() or ():
-            if term.coef != 0:
-                key = (term.power, complex(term.rate), term.start, term.end)
-                grouped[key] = grouped[key] + term.coef * coef[:, k]
+    all have :meth:`~pipeflow.profiles.Profile.terms`: in closed form (:class:`ClosedForm`)."""
+    form = ClosedForm(loads, w, V)
     Z = np.zeros((t.size, V.shape[0]))
-    Vt = V[:, keep].T * weight[:, None]
+    Vt = V[:, form.keep].T
     dt = uniform_step(t)
     for s0 in range(0, t.size, _EXACT_BLOCK):
         sl = slice(s0, min(s0 + _EXACT_BLOCK, t.size))
-        grid = None if dt is None else (s0, dt)
-        a = np.zeros((sl.stop - sl.start, lam.size), dtype=complex)
-        for (power, rate, start, end), c in grouped.items():
-            piece = Term(1.0, power, rate, start, end)
-            with np.errstate(over="ignore", invalid="ignore"):
-                a += term_response(piece, lam, t[sl], grid) * c
+        a = form.amplitudes(t[sl], None if dt is None else (s0, dt))
         with np.errstate(over="ignore", invalid="ignore"):
             Z[sl] = (a @ Vt).real
     return Z
