@@ -9,12 +9,16 @@ Three kinds, each with a time history given by any :class:`~pipeflow.profiles.Pr
 - :class:`BaseAcceleration`: the clamp's transverse acceleration a(t) [m/s^2].  In the
   frame of the clamp it is the inertial load -(M1 + M2) a(t) per unit length plus
   -m_t a(t) on the tip body (a rigid translation: the tip's rotary inertia does not see
-  it); displacements then stay **relative to the clamp**.
+  it); displacements then stay **relative to the clamp**;
+
+and :class:`PointImpulse`, a blow J [N s] at x = ``position`` at t0 = ``time`` [s]: the
+profile J delta(t - t0) of a point force, a jump of the modal velocities at t0 (solvers
+apply it as a jump of the state, :attr:`ExternalForcing.impulsive`).
 
 Projection (physics notes, section 5): the generalised force of mode j is
 f_j(t) = sum over loads of b_j p(t), with
 
-    b_j = phi_j(x)                                   point force at x,
+    b_j = phi_j(x)                                   point force or impulse at x,
     b_j = integral_{x0}^{x1} phi_j dx                distributed load on [x0, x1],
     b_j = -(M1+M2) integral_0^L phi_j dx - m_t phi_j(L)   base acceleration,
 

@@ -15,11 +15,13 @@ with Gauss-Legendre quadrature fine enough for the fastest retained mode.
 
 External loads (:mod:`pipeflow.loads`) enter through the particular integral of eq. (17),
 the convolution of the fundamental solution with the load.  Constant coefficients:
-:mod:`pipeflow.solvers.convolution` evaluates it in the eigenbasis of S, interval by
-output interval, exact up to a 16-point Gauss-Legendre rule on pieces of at most 20 rad
-(phase of the fastest mode plus the load frequency) split at table knots: a relative
-quadrature error below ~1e-12 (:data:`pipeflow.solvers.convolution.QUADRATURE_ERROR`), for
-every profile kind.  Time-variant coefficients: the loads join the Duhamel term above,
+:mod:`pipeflow.solvers.convolution` evaluates it in the eigenbasis of S: in closed form for
+analytic profiles (constant, polynomial, harmonic, half-sine, impulse: exact to rounding,
+in the same modal sum as the homogeneous solution), and for tables interval by output
+interval, exact up to a 16-point Gauss-Legendre rule on pieces of at most 20 rad (phase of
+the fastest mode plus the load frequency) split at table knots: a relative quadrature
+error below ~1e-12 (:data:`pipeflow.solvers.convolution.QUADRATURE_ERROR`).
+Time-variant coefficients: the loads join the Duhamel term above,
 exp(P(t)) integral_0^t exp(-P(tau)) f(tau) dtau, with the same quadrature (pieces of at
 most 20 rad of the spectral radius plus the load frequency); the result carries CMA's
 first-Magnus-term error (physics notes, section 2), which the error estimate measures.
