@@ -17,7 +17,7 @@ error estimate included):
   and with a harmonic force 1e-6 sin(300 t) N at the tip.  Target: each within 2x of the
   unforced run.  Before issue 32 the forced ones were refused (3.54e8 quadrature nodes).
 
-Times are the best of ``--repeats``; the machine's load average is printed (shared
+Times are the best of ``--repeats`` rounds, the runs of a group interleaved in each; the machine's load average is printed (shared
 cores make single times noisy; the ratios are taken within one run).
 """
 
@@ -84,21 +84,29 @@ def cases(smoke: bool) -> dict[str, list[tuple[str, Simulation]]]:
     }
 
 
-def best(sim: Simulation, repeats: int) -> tuple[float, Any]:
-    t_best, out = math.inf, None
+def interleaved(runs: list[tuple[str, Simulation]], repeats: int) -> list[tuple[float, Any]]:
+    """Best wall time [s] of each run over ``repeats`` rounds, the runs interleaved within
+    a round (a change of the machine's load hits every run alike), and its last result
+    (or the error that refused it)."""
+    best = [math.inf] * len(runs)
+    outs: list[Any] = [None] * len(runs)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        try:
-            out = simulate(sim)
-        except PipeflowError as exc:
-            return math.nan, exc
-        t_best = min(t_best, time.perf_counter() - t0)
-    return t_best, out
+        for i, (_, sim) in enumerate(runs):
+            if isinstance(outs[i], PipeflowError):
+                continue
+            t0 = time.perf_counter()
+            try:
+                outs[i] = simulate(sim)
+            except PipeflowError as exc:
+                outs[i], best[i] = exc, math.nan
+                continue
+            best[i] = min(best[i], time.perf_counter() - t0)
+    return list(zip(best, outs, strict=True))
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--repeats", type=int, default=9)
     parser.add_argument("--smoke", action="store_true", help="tiny sizes, one repeat")
     args = parser.parse_args(argv)
     repeats = 1 if args.smoke else args.repeats
@@ -108,8 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         print("| run | method | estimate | simulate [ms] | / unforced |")
         print("|---|---|---:|---:|---:|")
         peer = math.nan
-        for name, sim in runs:
-            seconds, out = best(sim, repeats)
+        for (name, _), (seconds, out) in zip(runs, interleaved(runs, repeats), strict=True):
             if isinstance(out, PipeflowError):
                 print(f"| {name} | refused: {out.message[:70]} | | | |")
                 continue

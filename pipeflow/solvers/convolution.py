@@ -333,17 +333,38 @@ class ClosedForm:
         ``(len(t), kept modes)``; ``grid`` as :func:`term_response`; ``E``: e^{lam t} at
         these times when the caller has it (a step's response reuses it)."""
         a = np.zeros((t.size, self.lam.size), dtype=complex)
-        with np.errstate(over="ignore", invalid="ignore"):
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             for piece, c in self.pieces.items():
-                if E is not None and piece.power == 0 and piece.rate == 0 and piece.start == 0:
-                    # a constant from t = 0: (e^{lam t} - 1) / lam, from the caller's E
-                    r = phi(1, np.outer(t, self.lam), np.array(E, dtype=complex))
-                    r *= t[:, None]
-                else:
-                    r = term_response(piece, self.lam, t, grid)
+                if (
+                    E is not None
+                    and piece.power == 0
+                    and piece.start == 0
+                    and piece.end == math.inf
+                ):
+                    a += self._from_e(piece.rate, c, t, E)
+                    continue
+                r = term_response(piece, self.lam, t, grid)
                 r *= c
                 a += r
         return a
+
+    def _from_e(
+        self, s: complex, c: NDArray[np.complex128], t: FloatArray, E: NDArray[np.complex128]
+    ) -> NDArray[np.complex128]:
+        """c e^{s t} from t = 0: c (e^{lam t} - e^{s t}) / (lam - s), from the caller's
+        E = e^{lam t} (one subtraction and one product per entry); where |lam - s| t < 2
+        (near resonance, early times) the series of phi_1 instead."""
+        d = self.lam - s
+        es = np.exp(s * t)
+        r = E - es[:, None]
+        r *= c / d
+        with np.errstate(divide="ignore"):
+            reach = np.where(d != 0, _SERIES_RADIUS / np.abs(d), np.inf)  # [s]
+        for j in np.flatnonzero(reach > t[0]):
+            rows = t < reach[j]
+            tj = t[rows]
+            r[rows, j] = c[j] * tj * es[rows] * phi(1, d[j] * tj)
+        return r
 
 
 def exact_particular(

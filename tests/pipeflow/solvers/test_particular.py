@@ -306,3 +306,22 @@ def test_auto_runs_magnus_where_the_table_quadrature_is_too_long() -> None:
     )
     solver, reason = SOLVERS["auto"].choose(problem)
     assert solver.name == "magnus" and "quadrature" in reason
+
+
+def test_the_shortcut_through_the_homogeneous_exponentials_is_the_closed_form() -> None:
+    """cma's fast path for pieces from t = 0 (c (e^{lam t} - e^{s t}) / (lam - s) from the
+    homogeneous e^{lam t}, the series near resonance) against the general evaluation,
+    at exact resonance, near it and off it: 1e-12 relative (rounding of a few operations;
+    the subtraction is only used where |lam - s| t >= 2)."""
+    from pipeflow.loads import ExternalForcing
+    from pipeflow.solvers.convolution import ClosedForm
+
+    lam = np.array([-0.3 + 5j, 5j, 1e-9 + 5j, -2.0 + 0.5j, -80.0 + 0j, 0.0 + 0j])
+    V = np.eye(lam.size, dtype=complex)
+    loads = ExternalForcing((), np.ones((1, lam.size)), (Harmonic(0.7, 2.0, 5.0, 0.3),))
+    form = ClosedForm(loads, lam, V)
+    t = np.linspace(0.0, 30.0, 3001)
+    E = np.exp(np.outer(t, form.lam))
+    fast, general = form.amplitudes(t, None, E), form.amplitudes(t)
+    scale = np.max(np.abs(general), axis=0)
+    assert np.all(np.max(np.abs(fast - general), axis=0) <= 1e-12 * scale)
