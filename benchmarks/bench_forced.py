@@ -17,8 +17,9 @@ error estimate included):
   and with a harmonic force 1e-6 sin(300 t) N at the tip.  Target: each within 2x of the
   unforced run.  Before issue 32 the forced ones were refused (3.54e8 quadrature nodes).
 
-Times are the best of ``--repeats`` rounds, the runs of a group interleaved in each; the machine's load average is printed (shared
-cores make single times noisy; the ratios are taken within one run).
+Times are the best of ``--repeats`` rounds, the runs of a group interleaved in each; the
+machine's load average is printed (shared cores make single times noisy; the ratios are
+taken within one run).
 """
 
 from __future__ import annotations
