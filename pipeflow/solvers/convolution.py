@@ -360,10 +360,14 @@ class ClosedForm:
         r *= c / d
         with np.errstate(divide="ignore"):
             reach = np.where(d != 0, _SERIES_RADIUS / np.abs(d), np.inf)  # [s]
-        for j in np.flatnonzero(reach > t[0]):
-            rows = t < reach[j]
-            tj = t[rows]
-            r[rows, j] = c[j] * tj * es[rows] * phi(1, d[j] * tj)
+        # t is increasing: the rows of column j below its reach are the first counts[j]
+        counts = np.searchsorted(t, reach, side="left")
+        if counts.any():
+            cols = np.repeat(np.arange(d.size), counts)
+            first = np.repeat(np.cumsum(counts) - counts, counts)
+            rows = np.arange(cols.size) - first
+            tr = t[rows]
+            r[rows, cols] = c[cols] * tr * es[rows] * phi(1, d[cols] * tr)
         return r
 
 
