@@ -240,11 +240,11 @@ class Harmonic(Profile):
 
 @dataclass(frozen=True)
 class HalfSine(Profile):
-    """A half-sine pulse: p(t) = amplitude sin(pi (t - start) / duration) for
+    """A half-sine pulse: p(t) = peak sin(pi (t - start) / duration) for
     start <= t <= start + duration [s], zero elsewhere (a hammer blow of finite duration;
-    its time integral is 2 amplitude duration / pi)."""
+    its time integral is 2 peak duration / pi)."""
 
-    amplitude: float
+    peak: float
     start: float
     duration: float
 
@@ -266,24 +266,24 @@ class HalfSine(Profile):
         return (t >= self.start) & (t <= self.start + self.duration)
 
     def value(self, t: ArrayLike) -> FloatArray:
-        return np.where(self._inside(t), self.amplitude * np.sin(self._w * self._tau(t)), 0.0)
+        return np.where(self._inside(t), self.peak * np.sin(self._w * self._tau(t)), 0.0)
 
     def derivative(self, t: ArrayLike) -> FloatArray:
-        d = self.amplitude * self._w * np.cos(self._w * self._tau(t))
+        d = self.peak * self._w * np.cos(self._w * self._tau(t))
         return np.where(self._inside(t), d, 0.0)
 
     def integral(self, t: ArrayLike) -> FloatArray:
-        return np.asarray(self.amplitude / self._w * (1.0 - np.cos(self._w * self._tau(t))))
+        return np.asarray(self.peak / self._w * (1.0 - np.cos(self._w * self._tau(t))))
 
     def integral_square(self, t: ArrayLike) -> FloatArray:
         tau = self._tau(t)
         return np.asarray(
-            self.amplitude**2 * (0.5 * tau - np.sin(2.0 * self._w * tau) / (4.0 * self._w))
+            self.peak**2 * (0.5 * tau - np.sin(2.0 * self._w * tau) / (4.0 * self._w))
         )
 
     def terms(self) -> tuple[Term, ...]:
         end = self.start + self.duration
-        return _sine_terms(self.amplitude, self._w, 0.0, self.start, end)
+        return _sine_terms(self.peak, self._w, 0.0, self.start, end)
 
     @property
     def rate(self) -> float:
@@ -292,7 +292,7 @@ class HalfSine(Profile):
     def to_dict(self) -> dict[str, Any]:
         return {
             "kind": "half_sine",
-            "amplitude": self.amplitude,
+            "peak": self.peak,
             "start": self.start,
             "duration": self.duration,
         }

@@ -109,11 +109,11 @@ class TableProfile(StrictModel):
 
 
 class HalfSineProfile(StrictModel):
-    """A half-sine pulse: p(t) = amplitude sin(pi (t - start) / duration) on
+    """A half-sine pulse: p(t) = peak sin(pi (t - start) / duration) on
     [start, start + duration], zero elsewhere (a hammer blow of finite duration)."""
 
     kind: Literal["half_sine"] = "half_sine"
-    amplitude: float = Field(
+    peak: float = Field(
         ge=-MAX_PROFILE_VALUE,
         le=MAX_PROFILE_VALUE,
         description="Peak value, in the unit of the quantity (N for a force).",
@@ -122,7 +122,7 @@ class HalfSineProfile(StrictModel):
     duration: float = Field(gt=0, le=1e6, description="Duration of the pulse [s].")
 
     def to_profile(self) -> profiles.Profile:
-        return profiles.HalfSine(self.amplitude, self.start, self.duration)
+        return profiles.HalfSine(self.peak, self.start, self.duration)
 
 
 ProfileSpec = Annotated[

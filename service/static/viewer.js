@@ -185,7 +185,7 @@
         + " s (" + p.interpolation + (p.after ? ", then " + (p.after === "hold" ? "held" : "zero") : "") + ")";
     }
     if (p.kind === "half_sine") {
-      return "half-sine pulse of " + S(p.amplitude) + u + " from t = " + S(p.start) + " s for " + S(p.duration) + " s";
+      return "half-sine pulse of " + S(p.peak) + u + " from t = " + S(p.start) + " s for " + S(p.duration) + " s";
     }
     return JSON.stringify(p);
   }

@@ -396,7 +396,7 @@ SHORT_TABLE = {"kind": "table", "t": [0, 0.01], "values": [0, 1]}
             {
                 "kind": "point_force",
                 "position": L,
-                "force": {"kind": "half_sine", "amplitude": 1.0, "duration": 0.0},
+                "force": {"kind": "half_sine", "peak": 1.0, "duration": 0.0},
             },
             "duration",
         ),

@@ -342,7 +342,7 @@ def test_run_a_hammer_blow_and_a_half_sine_pulse(tmp_path: Path) -> None:
         {
             "kind": "point_force",
             "position": 0.02,
-            "force": {"kind": "half_sine", "amplitude": 1e-7, "start": 0.01, "duration": 1e-3},
+            "force": {"kind": "half_sine", "peak": 1e-7, "start": 0.01, "duration": 1e-3},
         },
         {
             "kind": "point_force",

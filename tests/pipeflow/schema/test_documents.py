@@ -76,7 +76,7 @@ REQUESTS: list[tuple[str, dict[str, Any]]] = [
                     "position": 0.015,
                     "force": {
                         "kind": "half_sine",
-                        "amplitude": 1e-6,
+                        "peak": 1e-6,
                         "start": 0.001,
                         "duration": 0.0005,
                     },
