@@ -262,10 +262,11 @@ class CMA(Solver):
         q = 16
         total = int(pieces.sum()) * q
         if total > MAX_DUHAMEL_NODES:
+            fits = float(t[-1]) * MAX_DUHAMEL_NODES / total
             raise BudgetExceeded(
                 f"the Duhamel integral of this forced run needs {total} matrix "
-                f"exponentials (limit {MAX_DUHAMEL_NODES}); use fewer modes or the "
-                "'magnus' method",
+                f"exponentials (limit {MAX_DUHAMEL_NODES}); use time.t_end <= {fits:.3g} s, "
+                "fewer modes or the 'magnus' method (what 'auto' runs here)",
                 parameter="modes",
             )
         x, wq = np.polynomial.legendre.leggauss(q)

@@ -325,3 +325,22 @@ def test_the_shortcut_through_the_homogeneous_exponentials_is_the_closed_form() 
     fast, general = form.amplitudes(t, None, E), form.amplitudes(t)
     scale = np.max(np.abs(general), axis=0)
     assert np.all(np.max(np.abs(fast - general), axis=0) <= 1e-12 * scale)
+
+
+def test_cma_duhamel_refusal_names_a_run_length_that_fits() -> None:
+    """cma asked by name on a long time-variant forced run: refused before any work,
+    naming the t_end that fits (auto would run magnus)."""
+    sim = Simulation(
+        pipe=PAPER_PIPE,
+        flow=polynomial(0.0, 0.4),
+        spin=Constant(100.0),
+        u0=0.0,
+        modes=20,
+        t_end=10.0,
+        samples=101,
+        method="cma",
+        loads=(PointForce(L, Constant(FORCE)),),
+    )
+    with pytest.raises(BudgetExceeded) as info:
+        simulate(sim)
+    assert "time.t_end <= " in info.value.message and "magnus" in info.value.message
