@@ -239,11 +239,14 @@ def phi(
             p /= z
     if m == 0:
         return p
-    small = np.flatnonzero((z.real * z.real + z.imag * z.imag).ravel() < _SERIES_RADIUS**2)
+    # the recurrence loses a factor (i + 1) / |z| per step where |z| < i + 1: the series
+    # below radius 1 + m (its terms then fall at least like |z|^j / j!)
+    radius, terms = _SERIES_RADIUS + (m - 1), _SERIES_TERMS + 2 * m
+    small = np.flatnonzero((z.real * z.real + z.imag * z.imag).ravel() < radius**2)
     if small.size:  # the few entries near 0 (early times, resonance): the series
         zs = z.ravel()[small]
-        acc = np.full_like(zs, 1.0 / math.factorial(_SERIES_TERMS + m))
-        for j in range(_SERIES_TERMS - 1, -1, -1):
+        acc = np.full_like(zs, 1.0 / math.factorial(terms + m))
+        for j in range(terms - 1, -1, -1):
             acc = acc * zs + 1.0 / math.factorial(j + m)
         p.ravel()[small] = acc
     return p
