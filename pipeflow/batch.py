@@ -49,7 +49,7 @@ from pipeflow.divergence import default_bound
 from pipeflow.model import Loading, PipeModel, build_model
 from pipeflow.simulation import Simulation, SimulationStatus, trace_times, validate
 from pipeflow.solvers import Problem, SolverOutput
-from pipeflow.solvers.cma import _uniform_step
+from pipeflow.solvers.convolution import uniform_step as _uniform_step
 from pipeflow.solvers.magnus.stack import MAX_RUNS, solve_many
 from pipeflow.spectra import MARGINAL_RTOL, assign, decompose, max_growth_rates, order_lowest
 

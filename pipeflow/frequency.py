@@ -48,10 +48,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any, ClassVar, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from pipeflow import loads
 from pipeflow.basis import MAX_MODES, mode_shapes
 from pipeflow.errors import InvalidInput
 from pipeflow.model import (
@@ -61,8 +63,8 @@ from pipeflow.model import (
     PipeModel,
     basis_caveats,
     build_model,
-    mode_integrals,
 )
+from pipeflow.profiles import Constant
 from pipeflow.spectra import max_growth_rates, mode_numbers, rounding_level
 from pipeflow.statics import static_deflection
 
@@ -95,10 +97,31 @@ FALLBACK_RTOL = 1e-6
 class PointForce:
     """A transverse harmonic point force F e^(i W t) at ``position`` a [m], 0 < a <= L.
 
-    H is per unit force [N]; at a = L the force acts on the tip body, if any.
+    H is per unit force [N]; at a = L the force acts on the tip body, if any.  Like the
+    time-domain loads (:mod:`pipeflow.loads`, whose generalised force it uses), it carries
+    its own behaviour: ``stations`` (where it acts [m]), ``unit_index`` (the column of
+    :data:`UNITS`: per N), ``checked``, ``generalized_force``, ``to_dict``.
     """
 
     position: float
+    kind: ClassVar[str] = "point_force"
+    unit_index: ClassVar[int] = 0
+
+    @property
+    def stations(self) -> list[float]:
+        return [self.position]
+
+    def checked(self, pipe: Pipe) -> PointForce:
+        a = float(self.position)
+        if not (math.isfinite(a) and 0.0 < a <= pipe.L * (1 + 1e-12)):
+            raise InvalidInput(f"load.position = {a} m is outside (0, L = {pipe.L} m]", "load")
+        return PointForce(min(a, pipe.L))
+
+    def generalized_force(self, model: PipeModel) -> FloatArray:
+        return loads.PointForce(self.position, Constant(1.0)).generalized_force(model)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "position": self.position}
 
 
 @dataclass(frozen=True)
@@ -109,6 +132,22 @@ class BaseAcceleration:
     acceleration is 1 + H for ``quantity="acceleration"``).  In the Galerkin equations it is
     the inertial load -(M1+M2) A per unit length and -m_t A on the tip mass.
     """
+
+    kind: ClassVar[str] = "base_acceleration"
+    unit_index: ClassVar[int] = 1  # per m/s^2
+
+    @property
+    def stations(self) -> list[float]:
+        return []
+
+    def checked(self, pipe: Pipe) -> BaseAcceleration:
+        return self
+
+    def generalized_force(self, model: PipeModel) -> FloatArray:
+        return loads.BaseAcceleration(Constant(1.0)).generalized_force(model)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind}
 
 
 Load = PointForce | BaseAcceleration
@@ -264,14 +303,10 @@ def _check_positions(pipe: Pipe, positions: ArrayLike, name: str = "positions") 
 
 
 def _check_load(pipe: Pipe, load: object) -> Load:
-    if isinstance(load, BaseAcceleration):
-        return load
-    if isinstance(load, PointForce):
-        a = float(load.position)
-        if not (math.isfinite(a) and 0.0 < a <= pipe.L * (1 + 1e-12)):
-            raise InvalidInput(f"load.position = {a} m is outside (0, L = {pipe.L} m]", "load")
-        return PointForce(min(a, pipe.L))
-    raise InvalidInput("load must be a PointForce or a BaseAcceleration", "load")
+    checked = getattr(load, "checked", None)
+    if checked is None:
+        raise InvalidInput("load must be a PointForce or a BaseAcceleration", "load")
+    return cast(Load, checked(pipe))
 
 
 def _check_frequencies(frequencies: ArrayLike) -> FloatArray:
@@ -326,15 +361,7 @@ def _operator(pipe: Pipe, v: float, w0: float, modes: int) -> _Operator:
 def _generalised_force(model: PipeModel, load: Load, shape: FloatArray | None = None) -> FloatArray:
     """f_j per unit load: [N/N] for a point force, [kg] per unit base acceleration.
     ``shape``: phi_j(a) when already evaluated."""
-    pipe, n = model.pipe, model.n
-    if isinstance(load, PointForce):
-        if shape is not None:
-            return shape
-        return mode_shapes(n, np.array([load.position / pipe.L]))[:, 0]
-    f = -pipe.mass * pipe.L * mode_integrals(n, model.quadrature_order).f
-    if pipe.tip_mass:
-        f = f - pipe.tip_mass * model.tip
-    return np.asarray(f)
+    return shape if shape is not None else load.generalized_force(model)
 
 
 def _quantity_factor(quantity: str, W: FloatArray) -> ComplexArray:
@@ -519,7 +546,7 @@ def frequency_response(
 
     op = _operator(pipe, v, w0, n)
     model = op.model
-    a: list[float] = [load.position] if isinstance(load, PointForce) else []
+    a = load.stations
     shapes = mode_shapes(n, np.concatenate([x, a]) / pipe.L)  # (n, p [+ 1])
     out = shapes[:, : x.size].T  # (p, n)
     f = _generalised_force(model, load, shapes[:, -1] if a else None)
@@ -597,7 +624,7 @@ def frequency_response(
             mag, k = tuple(float(m) for m in hp[:, k]), k + 1
         peaks.append(Peak(r.frequency, r.natural_frequency, r.damping_ratio, r.mode, mag))
 
-    unit = UNITS[quantity][0 if isinstance(load, PointForce) else 1]
+    unit = UNITS[quantity][load.unit_index]
     for arr in (W, x, H, op.xi):
         arr.setflags(write=False)
     return FrequencyResponse(

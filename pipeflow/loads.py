@@ -9,12 +9,16 @@ Three kinds, each with a time history given by any :class:`~pipeflow.profiles.Pr
 - :class:`BaseAcceleration`: the clamp's transverse acceleration a(t) [m/s^2].  In the
   frame of the clamp it is the inertial load -(M1 + M2) a(t) per unit length plus
   -m_t a(t) on the tip body (a rigid translation: the tip's rotary inertia does not see
-  it); displacements then stay **relative to the clamp**.
+  it); displacements then stay **relative to the clamp**;
+
+and :class:`PointImpulse`, a blow J [N s] at x = ``position`` at t0 = ``time`` [s]: the
+profile J delta(t - t0) of a point force, a jump of the modal velocities at t0 (solvers
+apply it as a jump of the state, :attr:`ExternalForcing.impulsive`).
 
 Projection (physics notes, section 5): the generalised force of mode j is
 f_j(t) = sum over loads of b_j p(t), with
 
-    b_j = phi_j(x)                                   point force at x,
+    b_j = phi_j(x)                                   point force or impulse at x,
     b_j = integral_{x0}^{x1} phi_j dx                distributed load on [x0, x1],
     b_j = -(M1+M2) integral_0^L phi_j dx - m_t phi_j(L)   base acceleration,
 
@@ -35,7 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -44,7 +48,7 @@ from pipeflow._types import FloatArray
 from pipeflow.basis import gauss_legendre_unit, mode_shapes
 from pipeflow.errors import InvalidInput
 from pipeflow.model import PipeModel, mode_integrals
-from pipeflow.profiles import Constant, Harmonic, Polynomial, Profile, Table
+from pipeflow.profiles import Impulse, Profile
 
 #: at most this many loads per simulation
 MAX_LOADS = 16
@@ -56,21 +60,125 @@ BASE_ACCELERATION_NOTE = (
 )
 
 
+def _out_of_span(i: int, name: str, message: str) -> InvalidInput:
+    return InvalidInput(f"loads.{i}.{name}: {message}", parameter=f"loads.{i}.{name}")
+
+
+def _point_shapes(position: float, model: PipeModel) -> FloatArray:
+    return np.asarray(mode_shapes(model.n, np.array([position / model.pipe.L]))[:, 0])
+
+
+class _LoadRules:
+    """What every load does itself (issue 33: no ``isinstance`` chains elsewhere): its
+    generalised force, its checks (one set of rules, used by the library and the schema),
+    its JSON form, and what a result should say about it.
+
+    ``profile_field``: the name of the field holding the time history; ``note``: a line a
+    result with this load carries (None: nothing to say)."""
+
+    profile_field: ClassVar[str]
+    note: ClassVar[str | None] = None
+    kind: str
+
+    @property
+    def profile(self) -> Profile:
+        return cast(Profile, getattr(self, self.profile_field))
+
+    def generalized_force(self, model: PipeModel) -> FloatArray:
+        """b_j: the generalised force of each mode per unit of the profile, shape (n,)."""
+        raise NotImplementedError
+
+    def check_span(self, i: int, L: float) -> None:
+        """Raise :class:`InvalidInput` naming ``loads.<i>.<field>`` when the load does not
+        fit on a pipe of length ``L`` [m]."""
+
+    def check(self, i: int, L: float, t_end: float) -> None:
+        """The load's rules on a run of ``t_end`` [s] on a pipe of length ``L`` [m]."""
+        self.check_span(i, L)
+        end = self.profile.domain_end()
+        if end < t_end:
+            raise _out_of_span(
+                i,
+                self.profile_field,
+                f"the table ends at {end} s, before t_end = {t_end} s (or say what it does "
+                "after its last time: after = 'hold' or 'zero')",
+            )
+
+    def fields(self, L: float) -> dict[str, Any]:
+        """The load's own fields in its request JSON (besides kind and the profile)."""
+        return {}
+
+    def to_dict(self, L: float) -> dict[str, Any]:
+        """The request JSON of the load (its echo in a result)."""
+        return {"kind": self.kind, **self.fields(L), self.profile_field: self.profile.to_dict()}
+
+
+def _check_station(i: int, x: float, L: float) -> None:
+    if math.isfinite(x) and x > L:
+        raise _out_of_span(i, "position", f"{x} m is beyond the tip, L = {L} m")
+    if not (math.isfinite(x) and 0.0 < x <= L):
+        raise _out_of_span(i, "position", f"{x} m is outside (0, L], L = {L} m")
+
+
 @dataclass(frozen=True)
-class PointForce:
+class PointForce(_LoadRules):
     """Transverse force ``force`` F(t) [N] at x = ``position`` [m] (0 < x <= L)."""
 
     position: float
     force: Profile
     kind: Literal["point_force"] = "point_force"
+    profile_field: ClassVar[str] = "force"
 
-    @property
-    def profile(self) -> Profile:
-        return self.force
+    def generalized_force(self, model: PipeModel) -> FloatArray:
+        return _point_shapes(self.position, model)  # [-]
+
+    def check_span(self, i: int, L: float) -> None:
+        _check_station(i, self.position, L)
+
+    def fields(self, L: float) -> dict[str, Any]:
+        return {"position": self.position}
 
 
 @dataclass(frozen=True)
-class DistributedForce:
+class PointImpulse(_LoadRules):
+    """A transverse impulse ``impulse`` J [N s] at x = ``position`` [m] (0 < x <= L) at
+    ``time`` t0 [s] >= 0 (a hammer blow): a jump of the modal velocities at t0, the
+    response right-continuous (the sample at t0 is after the blow)."""
+
+    position: float
+    impulse: float
+    time: float
+    kind: Literal["impulse"] = "impulse"
+    profile_field: ClassVar[str] = "impulse"
+
+    @property
+    def profile(self) -> Profile:
+        return Impulse(self.impulse, self.time)
+
+    def generalized_force(self, model: PipeModel) -> FloatArray:
+        return _point_shapes(self.position, model)  # [-]
+
+    def check_span(self, i: int, L: float) -> None:
+        _check_station(i, self.position, L)
+        if not math.isfinite(self.impulse):
+            raise _out_of_span(i, "impulse", f"{self.impulse} N s is not finite")
+
+    def check(self, i: int, L: float, t_end: float) -> None:
+        self.check_span(i, L)
+        if not (math.isfinite(self.time) and self.time >= 0.0):
+            raise _out_of_span(i, "time", f"{self.time} s must be >= 0")
+
+    def to_dict(self, L: float) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "position": self.position,
+            "impulse": self.impulse,
+            "time": self.time,
+        }
+
+
+@dataclass(frozen=True)
+class DistributedForce(_LoadRules):
     """Uniform transverse load ``intensity`` q(t) [N/m] on [``start``, ``end``] [m]
     (``end`` None: the tip, x = L)."""
 
@@ -78,25 +186,54 @@ class DistributedForce:
     start: float = 0.0
     end: float | None = None
     kind: Literal["distributed_force"] = "distributed_force"
+    profile_field: ClassVar[str] = "intensity"
 
-    @property
-    def profile(self) -> Profile:
-        return self.intensity
+    def generalized_force(self, model: PipeModel) -> FloatArray:
+        L = model.pipe.L
+        end = L if self.end is None else self.end
+        g = mode_integrals(model.n, model.quadrature_order)
+        if self.start == 0.0 and end == L:
+            return np.asarray(L * g.f)  # [m]
+        # the model's rule mapped onto [x0, x1]: integrand smooth, exact to rounding
+        xi, w = gauss_legendre_unit(g.quadrature_order)
+        a, b = self.start / L, end / L
+        shapes = mode_shapes(model.n, a + (b - a) * xi)
+        return np.asarray(L * (b - a) * (shapes @ w))
+
+    def check_span(self, i: int, L: float) -> None:
+        end = L if self.end is None else self.end
+        if not (math.isfinite(self.start) and 0.0 <= self.start < L):
+            raise _out_of_span(i, "start", f"{self.start} m is outside [0, L), L = {L} m")
+        if math.isfinite(end) and end > L:
+            raise _out_of_span(i, "end", f"{end} m is beyond the tip, L = {L} m")
+        if not (math.isfinite(end) and end > 0.0):
+            raise _out_of_span(i, "end", f"{end} m must be in (start, L], L = {L} m")
+        if self.start >= end:
+            raise _out_of_span(i, "start", f"{self.start} m must be below the end, {end} m")
+
+    def fields(self, L: float) -> dict[str, Any]:
+        return {"start": self.start, "end": L if self.end is None else self.end}
 
 
 @dataclass(frozen=True)
-class BaseAcceleration:
+class BaseAcceleration(_LoadRules):
     """Transverse acceleration a(t) [m/s^2] of the clamp; displacements are relative to it."""
 
     acceleration: Profile
     kind: Literal["base_acceleration"] = "base_acceleration"
+    profile_field: ClassVar[str] = "acceleration"
+    note: ClassVar[str | None] = BASE_ACCELERATION_NOTE
 
-    @property
-    def profile(self) -> Profile:
-        return self.acceleration
+    def generalized_force(self, model: PipeModel) -> FloatArray:
+        pipe = model.pipe
+        g = mode_integrals(model.n, model.quadrature_order)
+        out = -pipe.mass * pipe.L * g.f  # [kg]
+        if pipe.tip_mass:
+            out = out - pipe.tip_mass * g.tip
+        return np.asarray(out)
 
 
-Load = PointForce | DistributedForce | BaseAcceleration
+Load = PointForce | PointImpulse | DistributedForce | BaseAcceleration
 
 
 def validate_loads(loads: tuple[Load, ...], L: float, t_end: float) -> None:
@@ -104,72 +241,28 @@ def validate_loads(loads: tuple[Load, ...], L: float, t_end: float) -> None:
     if len(loads) > MAX_LOADS:
         raise InvalidInput(f"at most {MAX_LOADS} loads, got {len(loads)}", parameter="loads")
     for i, load in enumerate(loads):
-        if isinstance(load, PointForce):
-            x = load.position
-            if not (math.isfinite(x) and 0.0 < x <= L):
-                raise InvalidInput(
-                    f"loads.{i}.position: {x} m is outside (0, L], L = {L} m",
-                    parameter=f"loads.{i}.position",
-                )
-            name = "force"
-        elif isinstance(load, DistributedForce):
-            end = L if load.end is None else load.end
-            if not (math.isfinite(load.start) and 0.0 <= load.start < L):
-                raise InvalidInput(
-                    f"loads.{i}.start: {load.start} m is outside [0, L), L = {L} m",
-                    parameter=f"loads.{i}.start",
-                )
-            if not (math.isfinite(end) and load.start < end <= L):
-                raise InvalidInput(
-                    f"loads.{i}.end: {end} m must be in (start, L], start = {load.start} m, "
-                    f"L = {L} m",
-                    parameter=f"loads.{i}.end",
-                )
-            name = "intensity"
-        elif isinstance(load, BaseAcceleration):
-            name = "acceleration"
-        else:
+        if not callable(getattr(load, "check", None)):
             raise InvalidInput(f"loads.{i}: unknown load {load!r}", parameter=f"loads.{i}")
-        if load.profile.domain_end() < t_end:
-            raise InvalidInput(
-                f"loads.{i}.{name}: the table ends at {load.profile.domain_end()} s, before "
-                f"t_end = {t_end} s",
-                parameter=f"loads.{i}.{name}",
-            )
+        load.check(i, L, t_end)
 
 
 def generalized_force(load: Load, model: PipeModel) -> FloatArray:
     """b_j of ``load``: the generalised force of each mode per unit of its profile, shape
-    ``(n,)`` ([-] for a point force, [m] for a distributed one, [kg] for an acceleration)."""
-    pipe, n = model.pipe, model.n
-    L = pipe.L
-    if isinstance(load, PointForce):
-        return np.asarray(mode_shapes(n, np.array([load.position / L]))[:, 0])
-    g = mode_integrals(n, model.quadrature_order)
-    if isinstance(load, DistributedForce):
-        end = L if load.end is None else load.end
-        if load.start == 0.0 and end == L:
-            return np.asarray(L * g.f)
-        # the model's rule mapped onto [x0, x1]: integrand smooth, exact to rounding
-        xi, w = gauss_legendre_unit(g.quadrature_order)
-        a, b = load.start / L, end / L
-        shapes = mode_shapes(n, a + (b - a) * xi)
-        return np.asarray(L * (b - a) * (shapes @ w))
-    if isinstance(load, BaseAcceleration):
-        out = -pipe.mass * L * g.f
-        if pipe.tip_mass:
-            out = out - pipe.tip_mass * g.tip
-        return np.asarray(out)
-    raise TypeError(f"unknown load {load!r}")
+    ``(n,)`` ([-] for a point force or impulse, [m] for a distributed one, [kg] for an
+    acceleration)."""
+    return load.generalized_force(model)
+
+
+def load_notes(loads: tuple[Load, ...]) -> list[str]:
+    """What a result with these loads must say about them (each note once)."""
+    return list(dict.fromkeys(load.note for load in loads if load.note))
 
 
 def profile_rate(profile: Profile) -> float:
     """A rate [rad/s] at which ``profile`` varies, for quadrature step sizes: the frequency
     of a harmonic, 0 for constants, polynomials and tables (piecewise polynomials: their
     knots are breakpoints, :meth:`ExternalForcing.knots`)."""
-    if isinstance(profile, Harmonic) and not profile.is_constant:
-        return abs(float(profile.frequency))
-    return 0.0
+    return profile.rate
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,13 +293,44 @@ class ExternalForcing:
         return max((profile_rate(p) for p in self.profiles), default=0.0)
 
     def knots(self, t_end: float) -> FloatArray:
-        """Break points of the table profiles inside (0, t_end) [s]: each piece between
-        them is a polynomial (the profiles are smooth between)."""
-        pts = [np.asarray(p.times, dtype=float) for p in self.profiles if isinstance(p, Table)]
+        """Break points of the profiles inside (0, t_end) [s] (table knots, the ends of a
+        pulse): the profiles are smooth between them."""
+        pts = [np.asarray(p.breaks(), dtype=float) for p in self.profiles]
         if not pts:
             return np.zeros(0)
         k = np.unique(np.concatenate(pts))
         return k[(k > 0.0) & (k < t_end)]
+
+    @property
+    def closed_form(self) -> tuple[bool, ...]:
+        """Per load: its profile is a sum of exponential-polynomial pieces (its response
+        has a closed form, :func:`pipeflow.solvers.convolution.exact_particular`)."""
+        return tuple(p.terms() is not None for p in self.profiles)
+
+    @property
+    def impulsive(self) -> bool:
+        """True when a load is a Dirac impulse (it acts as a jump of the state)."""
+        return any(p.impulsive for p in self.profiles)
+
+    def subset(self, which: ArrayLike) -> ExternalForcing | None:
+        """The loads selected by the boolean mask ``which`` (None when none is)."""
+        mask = np.asarray(which, dtype=bool)
+        if not mask.any():
+            return None
+        idx = np.flatnonzero(mask)
+        columns = self.columns[idx]
+        return ExternalForcing(
+            tuple(self.loads[i] for i in idx), columns, tuple(self.profiles[i] for i in idx)
+        )
+
+    def impulses(self) -> list[tuple[float, FloatArray]]:
+        """The impulses as ``(time [s], state jump [m of balanced state])``, in time order."""
+        out = []
+        for column, profile in zip(self.columns, self.profiles, strict=True):
+            for term in profile.terms() or ():
+                if term.power < 0:
+                    out.append((term.start, np.asarray(column * term.coef.real)))
+        return sorted(out, key=lambda item: item[0])
 
     def values(self, t: ArrayLike) -> FloatArray:
         """p_k(t), shape ``(len(t), K)``."""
@@ -236,37 +360,9 @@ def project_loads(model: PipeModel, loads: tuple[Load, ...]) -> ExternalForcing 
 
 def profile_to_dict(profile: Profile) -> dict[str, Any]:
     """The request JSON of a profile (the schema's ``kind`` forms)."""
-    if isinstance(profile, Constant):
-        return {"kind": "constant", "value": profile.val}
-    if isinstance(profile, Polynomial):
-        return {"kind": "polynomial", "coefficients": list(profile.coefficients)}
-    if isinstance(profile, Harmonic):
-        return {
-            "kind": "harmonic",
-            "mean": profile.mean,
-            "amplitude": profile.amplitude,
-            "frequency": profile.frequency,
-            "phase": profile.phase,
-        }
-    if isinstance(profile, Table):
-        return {
-            "kind": "table",
-            "t": list(profile.times),
-            "values": list(profile.values),
-            "interpolation": profile.interpolation,
-        }
-    raise TypeError(f"no JSON form for {profile!r}")
+    return profile.to_dict()
 
 
 def load_to_dict(load: Load, L: float) -> dict[str, Any]:
     """The request JSON of a load (its echo in a result)."""
-    if isinstance(load, PointForce):
-        return {"kind": load.kind, "position": load.position, "force": profile_to_dict(load.force)}
-    if isinstance(load, DistributedForce):
-        return {
-            "kind": load.kind,
-            "intensity": profile_to_dict(load.intensity),
-            "start": load.start,
-            "end": L if load.end is None else load.end,
-        }
-    return {"kind": load.kind, "acceleration": profile_to_dict(load.acceleration)}
+    return load.to_dict(L)

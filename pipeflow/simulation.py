@@ -24,13 +24,7 @@ from pipeflow.diagnostics import add_error_estimate
 from pipeflow.divergence import default_bound, divergence
 from pipeflow.divergence import message as divergence_message
 from pipeflow.errors import InvalidInput
-from pipeflow.loads import (
-    BASE_ACCELERATION_NOTE,
-    BaseAcceleration,
-    Load,
-    project_loads,
-    validate_loads,
-)
+from pipeflow.loads import Load, load_notes, project_loads, validate_loads
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -314,8 +308,7 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     if np.any(sim.flow.value(eigen_t) < 0):
         warnings.append(REVERSE_FLOW_CAVEAT)
     warnings.extend(basis_caveats(sim.pipe))
-    if any(isinstance(load, BaseAcceleration) for load in sim.loads):
-        warnings.append(BASE_ACCELERATION_NOTE)
+    warnings.extend(load_notes(tuple(sim.loads)))
     diagnostics = {"method": sim.method, "method_used": solver.name, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,

@@ -154,6 +154,18 @@ def test_frequency_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-d
         assert line.rstrip().endswith(("met |", "**missed** |")), line
 
 
+def test_forced_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-def]
+    """benchmarks/bench_forced.py --smoke (about a second): every forced run is answered
+    (none refused) by the method auto picks, each with its ratio to the unforced peer."""
+    assert _script("bench_forced").main(["--smoke"]) == 0
+    text = capsys.readouterr().out
+    assert "refused" not in text
+    rows = [ln for ln in text.splitlines() if ln.startswith("| ") and "|---" not in ln]
+    rows = [ln for ln in rows if not ln.startswith("| run ")]
+    assert len(rows) == 9
+    assert sum("| magnus |" in ln for ln in rows) == 3 and sum("| cma |" in ln for ln in rows) == 6
+
+
 @pytest.mark.slow  # a benchmark's smoke run with a server of its own, ~30 s
 def test_study_benchmark_smoke(tmp_path: Path) -> None:
     """benchmarks/bench_study.py --smoke (a 6 x 6 LTI grid) prints the floor, the library

@@ -435,9 +435,7 @@ class FrequencyResponseSpec(_Mounted):
 
 
 def _load_json(load: Load) -> dict[str, Any]:
-    if isinstance(load, PointForce):
-        return {"kind": "point_force", "position": load.position}
-    return {"kind": "base_acceleration"}
+    return load.to_dict()
 
 
 def point_result(r: FrequencyResponse) -> dict[str, Any]:

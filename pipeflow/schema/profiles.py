@@ -1,7 +1,7 @@
-"""Request models of the time functions of a request, v(t) and w0(t): constant, polynomial,
-harmonic or tabulated (re-exported by :mod:`pipeflow.schema.simulation`, where they were
-defined before).  Each model's :meth:`to_profile` gives the library's
-:class:`~pipeflow.profiles.Profile`."""
+"""Request models of the time functions of a request, v(t), w0(t) and a load's F(t):
+constant, polynomial, harmonic, a half-sine pulse or tabulated (re-exported by
+:mod:`pipeflow.schema.simulation`, where they were defined before).  Each model's
+:meth:`to_profile` gives the library's :class:`~pipeflow.profiles.Profile`."""
 
 from __future__ import annotations
 
@@ -15,8 +15,7 @@ from pipeflow.schema.base import StrictModel
 
 MAX_TABLE_POINTS = 10_000
 MAX_POLY_DEGREE = 8
-#: bounds on profile values (m/s for v, rad/s for w0) and on polynomial coefficients
-#: (unit of the quantity / s^k)
+#: bounds on profile values (m/s for v, rad/s for w0, N for a force...)
 MAX_PROFILE_VALUE = 1e7
 MAX_COEFFICIENT = 1e9
 BoundedValue = Annotated[float, Field(ge=-MAX_PROFILE_VALUE, le=MAX_PROFILE_VALUE)]
@@ -87,6 +86,11 @@ class TableProfile(StrictModel):
     interpolation: Literal["linear", "cubic", "pchip"] = Field(
         "linear", description="linear, cubic (not-a-knot spline) or pchip (monotone)."
     )
+    after: Literal["hold", "zero"] | None = Field(
+        None,
+        description="What the profile does past its last time: 'hold' (keeps the last "
+        "value), 'zero'; null (default): the table must cover the run (t_end).",
+    )
 
     @model_validator(mode="after")
     def _check(self) -> TableProfile:
@@ -99,10 +103,27 @@ class TableProfile(StrictModel):
         return self
 
     def to_profile(self) -> profiles.Profile:
-        return profiles.table(self.t, self.values, self.interpolation)
+        return profiles.table(self.t, self.values, self.interpolation, self.after)
+
+
+class HalfSineProfile(StrictModel):
+    """A half-sine pulse: p(t) = peak sin(pi (t - start) / duration) on
+    [start, start + duration], zero elsewhere (a hammer blow of finite duration)."""
+
+    kind: Literal["half_sine"] = "half_sine"
+    peak: float = Field(
+        ge=-MAX_PROFILE_VALUE,
+        le=MAX_PROFILE_VALUE,
+        description="Peak value, in the unit of the quantity (N for a force).",
+    )
+    start: float = Field(0.0, ge=0, le=1e6, description="Start of the pulse [s].")
+    duration: float = Field(gt=0, le=1e6, description="Duration of the pulse [s].")
+
+    def to_profile(self) -> profiles.Profile:
+        return profiles.HalfSine(self.peak, self.start, self.duration)
 
 
 ProfileSpec = Annotated[
-    ConstantProfile | PolynomialProfile | HarmonicProfile | TableProfile,
+    ConstantProfile | PolynomialProfile | HarmonicProfile | TableProfile | HalfSineProfile,
     Field(discriminator="kind"),
 ]

@@ -27,8 +27,10 @@ from pydantic_core import CoreSchema
 from pipeflow import paper
 from pipeflow.basis import MAX_MODES
 from pipeflow.compare import MAX_METHODS, default_methods
-from pipeflow.errors import InvalidField, PipeflowError
-from pipeflow.loads import MAX_LOADS, BaseAcceleration, DistributedForce, Load, PointForce
+from pipeflow.errors import InvalidField, InvalidInput, PipeflowError
+from pipeflow.loads import (
+    MAX_LOADS,
+)
 from pipeflow.model import Pipe, check_stiffness
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -53,7 +55,18 @@ from pipeflow.schema.drawing import (
     drawing_field,
     from_drawing,
 )
+from pipeflow.schema.loads import BaseAccelerationLoad as BaseAccelerationLoad
+from pipeflow.schema.loads import DistributedForceLoad as DistributedForceLoad
+from pipeflow.schema.loads import LoadSpec as LoadSpec
+from pipeflow.schema.loads import PointForceLoad as PointForceLoad
+from pipeflow.schema.loads import PointImpulseLoad as PointImpulseLoad
+from pipeflow.schema.profiles import MAX_COEFFICIENT as MAX_COEFFICIENT
+from pipeflow.schema.profiles import MAX_POLY_DEGREE as MAX_POLY_DEGREE
+from pipeflow.schema.profiles import MAX_PROFILE_VALUE as MAX_PROFILE_VALUE
+from pipeflow.schema.profiles import MAX_TABLE_POINTS as MAX_TABLE_POINTS
+from pipeflow.schema.profiles import BoundedValue as BoundedValue
 from pipeflow.schema.profiles import ConstantProfile as ConstantProfile
+from pipeflow.schema.profiles import HalfSineProfile as HalfSineProfile
 from pipeflow.schema.profiles import HarmonicProfile as HarmonicProfile
 from pipeflow.schema.profiles import PolynomialProfile as PolynomialProfile
 from pipeflow.schema.profiles import ProfileSpec as ProfileSpec
@@ -71,7 +84,7 @@ MAX_EIGEN_SAMPLES = 2001
 #: the process; 200,001 samples x 145 series, 29 million numbers, had taken 2.7 GB and
 #: stored a 299 MB row); a comparison holds one run per method, so its methods share it
 MAX_OUTPUT_VALUES = 2_000_000
-#: bound on total mass per length [kg/m]
+#: the least total mass per length [kg/m]
 MIN_MASS = 1e-15
 #: the mounting of the pipe beyond the paper's model (issue 14; docs/model.md): one
 #: definition each, used by every simulation and stability request
@@ -290,66 +303,6 @@ class TimeSpec(StrictModel):
 _OPTIONS = Options()
 
 
-class PointForceLoad(StrictModel):
-    """A transverse point force F(t) at x = position, in the plane of motion."""
-
-    kind: Literal["point_force"]
-    position: float = Field(
-        gt=0,
-        le=1e4,
-        description="Station x of the force [m], 0 < x <= pipe.L (x = L: at the tip).",
-    )
-    force: ProfileSpec = Field(
-        description="Force F(t) [N] (profile values in N, polynomial coefficients in "
-        "N/s^k), transverse, in the plane of motion."
-    )
-
-    def to_load(self) -> Load:
-        return PointForce(self.position, self.force.to_profile())
-
-
-class DistributedForceLoad(StrictModel):
-    """A uniform transverse load q(t) per unit length on [start, end]."""
-
-    kind: Literal["distributed_force"]
-    intensity: ProfileSpec = Field(
-        description="Load per unit length q(t) [N/m] (profile values in N/m), transverse, "
-        "in the plane of motion, uniform on [start, end]."
-    )
-    start: float = Field(0.0, ge=0, le=1e4, description="Start x0 of the loaded span [m].")
-    end: float | None = Field(
-        None,
-        gt=0,
-        le=1e4,
-        description="End x1 of the loaded span [m], start < x1 <= pipe.L; null (default): "
-        "the tip, x1 = L.",
-    )
-
-    def to_load(self) -> Load:
-        return DistributedForce(self.intensity.to_profile(), self.start, self.end)
-
-
-class BaseAccelerationLoad(StrictModel):
-    """The transverse acceleration of the clamp; displacements are relative to it."""
-
-    kind: Literal["base_acceleration"]
-    acceleration: ProfileSpec = Field(
-        description="Transverse acceleration a(t) of the clamp [m/s^2] (profile values in "
-        "m/s^2), in the plane of motion. Acts as the inertial load -(M1 + M2) a(t) per unit "
-        "length plus -m_t a(t) on the tip mass; the returned displacements are relative to "
-        "the clamp."
-    )
-
-    def to_load(self) -> Load:
-        return BaseAcceleration(self.acceleration.to_profile())
-
-
-LoadSpec = Annotated[
-    PointForceLoad | DistributedForceLoad | BaseAccelerationLoad,
-    Field(discriminator="kind"),
-]
-
-
 class MethodOptions(StrictModel):
     """Solver options (:class:`pipeflow.solvers.Options`, field for field, with bounds and
     units); a method ignores the ones it does not read (and so does the cache key)."""
@@ -487,8 +440,9 @@ class SimulationSpec(StrictModel):
         max_length=MAX_LOADS,
         description="External loads, each with its time history (any profile kind): "
         "'point_force' (N at position x [m]), 'distributed_force' (N/m on [start, end] [m]) "
-        "and 'base_acceleration' (m/s^2 of the clamp; displacements then stay relative to "
-        f"the clamp). At most {MAX_LOADS}; empty (default): free vibration.",
+        "'base_acceleration' (m/s^2 of the clamp; displacements then stay relative to "
+        "the clamp) and 'impulse' (a blow of J [N s] at position x [m] and time t0 [s]). "
+        f"At most {MAX_LOADS}; empty (default): free vibration.",
     )
 
     @field_validator("method")
@@ -532,43 +486,28 @@ class SimulationSpec(StrictModel):
             ("flow.velocity", self.flow.velocity),
             ("rotation.omega0", self.rotation.omega0),
         ):
-            if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
+            if (
+                isinstance(prof, TableProfile)
+                and prof.after is None
+                and prof.t[-1] < self.time.t_end
+            ):
                 raise InvalidField(
-                    f"{name}: the table ends at {prof.t[-1]} s, before time.t_end", name
+                    f"{name}: the table ends at {prof.t[-1]} s, before time.t_end (or say "
+                    "what it does after its last time: after = 'hold' or 'zero')",
+                    name,
                 )
         self._check_loads()
         return self.within_budget()
 
     def _check_loads(self) -> None:
-        """Stations against the pipe's length, spans ordered, tables covering t_end; the
-        error names the field (``loads.0.position``)."""
-        L = self.pipe.L
-        for i, load in enumerate(self.loads):
-            if isinstance(load, PointForceLoad):
-                if load.position > L:
-                    where = f"loads.{i}.position"
-                    raise InvalidField(
-                        f"{where}: {load.position} m is beyond the tip, L = {L} m", where
-                    )
-                name, prof = "force", load.force
-            elif isinstance(load, DistributedForceLoad):
-                end = L if load.end is None else load.end
-                if end > L:
-                    where = f"loads.{i}.end"
-                    raise InvalidField(f"{where}: {end} m is beyond the tip, L = {L} m", where)
-                if load.start >= end:
-                    where = f"loads.{i}.start"
-                    raise InvalidField(
-                        f"{where}: {load.start} m must be below the end, {end} m", where
-                    )
-                name, prof = "intensity", load.intensity
-            else:
-                name, prof = "acceleration", load.acceleration
-            if isinstance(prof, TableProfile) and prof.t[-1] < self.time.t_end:
-                where = f"loads.{i}.{name}"
-                raise InvalidField(
-                    f"{where}: the table ends at {prof.t[-1]} s, before time.t_end", where
-                )
+        """The library's rules of each load (:meth:`pipeflow.loads.PointForce.check`...:
+        stations on the pipe, spans ordered, tables covering t_end); the error names the
+        field (``loads.0.position``)."""
+        for i, spec in enumerate(self.loads):
+            try:
+                spec.to_load().check(i, self.pipe.L, self.time.t_end)
+            except InvalidInput as exc:
+                raise InvalidField(exc.message, exc.parameter or f"loads.{i}") from None
 
     def output_values(self) -> tuple[int, int, int, str]:
         """The numbers of the answer (:func:`pipeflow.computations.documents.simulation`), an upper

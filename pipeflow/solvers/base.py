@@ -16,6 +16,7 @@ from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.loads import ExternalForcing
 from pipeflow.model import Coefficients, Loading, PipeModel
+from pipeflow.profiles import Shifted
 from pipeflow.solvers.checkpoint import Checkpointer, Checkpoints, fingerprint
 
 #: hard ceilings that no option may lift (they bound what one request can cost)
@@ -189,7 +190,11 @@ class Solver(ABC):
         """Solve ``problem``; the output's diagnostics include the counters and the time."""
         t0 = time.perf_counter()
         stats = SolverStats()
-        out = self._solve_impl(problem, stats)
+        loads = problem.loads
+        if loads is not None and loads.impulsive and not self.applies_impulses(problem):
+            out = self._solve_with_impulses(problem, stats)
+        else:
+            out = self._solve_impl(problem, stats)
         stats.solve_seconds = time.perf_counter() - t0
         out.stats = stats
         out.method = out.method or self.name
@@ -200,6 +205,44 @@ class Solver(ABC):
     @abstractmethod
     def _solve_impl(self, problem: Problem, stats: SolverStats) -> SolverOutput:
         """The method itself: states at ``problem.t``, counting its work in ``stats``."""
+
+    def applies_impulses(self, problem: Problem) -> bool:
+        """True when :meth:`_solve_impl` applies the impulses of ``problem.loads`` itself;
+        otherwise :meth:`solve` superposes them (:meth:`_solve_with_impulses`)."""
+        return False
+
+    def _solve_with_impulses(self, problem: Problem, stats: SolverStats) -> SolverOutput:
+        """The run without its impulses plus, per impulse J g at t_j, the free response
+        Phi(t, t_j) g J for t >= t_j (the system is linear): a run of this method from
+        z = g J restarted at t_j (coefficients shifted by t_j; with a varying spin minus
+        the same run from rest, which carries the spin-up load alone)."""
+        loads = problem.loads
+        assert loads is not None
+        rest = loads.subset([not p.impulsive for p in loads.profiles])
+        main = dataclasses.replace(problem, loads=rest)
+        out = self._solve_impl(main, stats)
+        t = problem.t
+        for when, jump in loads.impulses():
+            k = int(np.searchsorted(t, when, side="left"))  # first output time >= when
+            if k == t.size:
+                continue
+            sub_t = t[k:] - when
+            lead = int(sub_t[0] > 0.0)
+            if lead:
+                sub_t = np.concatenate([[0.0], sub_t])
+            if sub_t.size == 1:
+                out.z[k:] += jump
+                continue
+            loading = Loading(
+                Shifted(problem.loading.flow, when), Shifted(problem.loading.spin, when)
+            )
+            sub = Problem(problem.model, loading, jump, sub_t, problem.options)
+            z = self._solve_impl(sub, stats).z
+            if sub.forced:  # the spin-up load: subtract its own response
+                z = z - self._solve_impl(dataclasses.replace(sub, z0=0.0 * jump), stats).z
+            out.z[k:] += z[lead:]
+        out.diagnostics["impulses"] = "superposed: one restarted run per impulse"
+        return out
 
     def choose(self, problem: Problem) -> tuple[Solver, str]:
         """The solver that will run ``problem`` and why (one line): this one, as requested."""

@@ -15,11 +15,13 @@ with Gauss-Legendre quadrature fine enough for the fastest retained mode.
 
 External loads (:mod:`pipeflow.loads`) enter through the particular integral of eq. (17),
 the convolution of the fundamental solution with the load.  Constant coefficients:
-:mod:`pipeflow.solvers.convolution` evaluates it in the eigenbasis of S, interval by
-output interval, exact up to a 16-point Gauss-Legendre rule on pieces of at most 20 rad
-(phase of the fastest mode plus the load frequency) split at table knots: a relative
-quadrature error below ~1e-12 (:data:`pipeflow.solvers.convolution.QUADRATURE_ERROR`), for
-every profile kind.  Time-variant coefficients: the loads join the Duhamel term above,
+:mod:`pipeflow.solvers.convolution` evaluates it in the eigenbasis of S: in closed form for
+analytic profiles (constant, polynomial, harmonic, half-sine, impulse: exact to rounding,
+in the same modal sum as the homogeneous solution), and for tables interval by output
+interval, exact up to a 16-point Gauss-Legendre rule on pieces of at most 20 rad (phase of
+the fastest mode plus the load frequency) split at table knots: a relative quadrature
+error below ~1e-12 (:data:`pipeflow.solvers.convolution.QUADRATURE_ERROR`).
+Time-variant coefficients: the loads join the Duhamel term above,
 exp(P(t)) integral_0^t exp(-P(tau)) f(tau) dtau, with the same quadrature (pieces of at
 most 20 rad of the spectral radius plus the load frequency); the result carries CMA's
 first-Magnus-term error (physics notes, section 2), which the error estimate measures.
@@ -27,10 +29,9 @@ first-Magnus-term error (physics notes, section 2), which the error estimate mea
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.linalg import expm
 
 from pipeflow._types import FloatArray
@@ -43,7 +44,14 @@ from pipeflow.solvers.base import (
     SolverStats,
     spectral_radius,
 )
-from pipeflow.solvers.convolution import QUADRATURE_ERROR, dense_particular, modal_particular
+from pipeflow.solvers.convolution import (
+    QUADRATURE_ERROR,
+    ClosedForm,
+    dense_particular,
+    modal_exponentials,
+    modal_particular,
+    uniform_step,
+)
 
 #: at most this many exp(-P) evaluations for the Duhamel integral
 MAX_DUHAMEL_NODES = 400_000
@@ -94,8 +102,9 @@ class CMA(Solver):
         limit = problem.options.condition_limit
         diagnostics: dict[str, object] = {"time_invariant": loading.is_time_invariant}
         warnings: list[str] = []
+        eig: tuple[np.ndarray, np.ndarray] | None = None
         if loading.is_time_invariant:
-            z, cond, fallbacks = self._time_invariant(problem)
+            z, cond, fallbacks, eig = self._time_invariant(problem, diagnostics)
             stats.eigendecompositions = 1
             diagnostics["eigenvector_condition_max"] = float(np.max(cond))
         else:
@@ -104,8 +113,10 @@ class CMA(Solver):
             z, cond, fallbacks = self._time_variant(problem, warnings)
             stats.eigendecompositions = 0
             stats.matrix_exponentials = int(t.size)
-        if problem.loads is not None and loading.is_time_invariant:
-            z = z + self._particular(problem, stats, diagnostics, bool(fallbacks))
+        loads = problem.loads
+        if loads is not None and loading.is_time_invariant:
+            if fallbacks or not all(loads.closed_form):  # else in the homogeneous sum
+                z += self._particular(problem, stats, diagnostics, eig if not fallbacks else None)
         stats.matrix_exponentials += int(fallbacks)
         diagnostics["expm_fallbacks"] = int(fallbacks)
         if fallbacks:
@@ -116,13 +127,17 @@ class CMA(Solver):
             )
         return SolverOutput(z=z, diagnostics=diagnostics, warnings=warnings)
 
+    def applies_impulses(self, problem: Problem) -> bool:
+        return problem.loading.is_time_invariant  # as jumps of the modal coordinates
+
     def exact_error(self, problem: Problem, out: SolverOutput) -> tuple[float, str] | None:
         """Constant coefficients: exact up to rounding, amplified by the eigenvector
-        condition number."""
+        condition number (and the quadrature of tabulated loads)."""
         if not problem.loading.is_time_invariant:
             return None
         cond = float(out.diagnostics.get("eigenvector_condition_max", 1.0))
-        if problem.loads is not None:
+        how = str(out.diagnostics.get("load_convolution", ""))
+        if problem.loads is not None and "quadrature" in how:
             return (
                 max(float(np.finfo(float).eps * max(cond, 1.0)), QUADRATURE_ERROR),
                 "exact for constant coefficients up to the load convolution's quadrature "
@@ -133,7 +148,11 @@ class CMA(Solver):
             "exact for constant coefficients: rounding only (eps x eigenvector condition)",
         )
 
-    def _time_invariant(self, problem: Problem) -> tuple[FloatArray, FloatArray, int]:
+    def _time_invariant(
+        self, problem: Problem, diagnostics: dict[str, object]
+    ) -> tuple[FloatArray, FloatArray, int, tuple[np.ndarray, np.ndarray] | None]:
+        """exp(S t) z0 plus the closed-form particular integral of the analytic loads (in
+        the same modal sum); the tables' and impulses' parts are :meth:`_particular`'s."""
         # P(t) = t S: one eigen-decomposition serves every output time (eq. 25-26)
         model, t, z0 = problem.model, problem.t, problem.z0
         S = model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
@@ -144,13 +163,22 @@ class CMA(Solver):
             cond = float("inf")
         if not np.isfinite(cond) or cond > problem.options.condition_limit:
             Z = _expm_marching(S, t, z0)
-            return Z, np.array([cond]), 1
+            return Z, np.array([cond]), 1, None
         c = np.linalg.solve(V, z0.astype(complex))
         # S is real, so LAPACK returns exact conjugate pairs: keep one of each pair and
         # double its real part (half the exponentials and the product), real ones once
         keep = w.imag >= 0
         weight = np.where(w.imag[keep] > 0, 2.0, 1.0)
         coef, Vt = weight * c[keep], V[:, keep].T
+        closed = None
+        if problem.loads is not None:
+            analytic = problem.loads.subset(problem.loads.closed_form)
+            if analytic is not None:
+                closed = ClosedForm(analytic, w, V)
+                diagnostics["load_convolution"] = (
+                    "closed form in the eigenbasis (analytic profiles)"
+                )
+        dt = uniform_step(t)
         # in blocks of output times written into the result: the complex temporaries stay
         # a block's size instead of 4x the output (1e6 samples: 640 MB -> the output's 160)
         Z = np.empty((t.size, model.size))
@@ -158,33 +186,52 @@ class CMA(Solver):
         with np.errstate(over="ignore", invalid="ignore"):
             for s0 in range(0, t.size, block):
                 sl = slice(s0, min(s0 + block, t.size))
-                E = modal_exponentials(t[sl], w[keep], start=s0, dt=_uniform_step(t))
-                Z[sl] = ((E * coef) @ Vt).real
-        return Z, np.array([cond]), 0
+                E = modal_exponentials(t[sl], w[keep], start=s0, dt=dt)
+                A = E * coef
+                if closed is not None:
+                    A += closed.amplitudes(t[sl], None if dt is None else (s0, dt), E)
+                Z[sl] = (A @ Vt).real
+        return Z, np.array([cond]), 0, (w, V)
 
     def _particular(
         self,
         problem: Problem,
         stats: SolverStats,
         diagnostics: dict[str, object],
-        fell_back: bool,
+        eig: tuple[np.ndarray, np.ndarray] | None,
     ) -> FloatArray:
         """The loads' particular integral at constant coefficients (eq. 17's convolution,
-        :mod:`pipeflow.solvers.convolution`): in the eigenbasis of S, or with matrix
-        exponentials where the homogeneous solution fell back to them."""
-        assert problem.loads is not None
-        S = problem.model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
-        if fell_back:
-            Zp, exps = dense_particular(problem.t, problem.loads, S)
+        :mod:`pipeflow.solvers.convolution`): in the eigenbasis of S, in closed form for
+        analytic profiles and by quadrature for tables; or with matrix exponentials where
+        the homogeneous solution fell back to them (``eig`` None; else the eigenvalues and
+        eigenvectors of S it used).  Impulses are jumps of the state."""
+        loads, t = problem.loads, problem.t
+        assert loads is not None
+        if eig is None:
+            S = problem.model.state_matrix(problem.loading.coefficients(np.zeros(1)))[0]
+            Zp, exps = dense_particular(t, loads, S)  # an impulse samples to zero here
+            for when, jump in loads.impulses():
+                k = int(np.searchsorted(t, when, side="left"))
+                if k < t.size:
+                    sub_t = np.concatenate([[0.0], t[k:] - when])
+                    Zp[k:] += _expm_marching(S, sub_t, jump)[1:]
+                    exps += 1
             stats.matrix_exponentials += exps
-            how = "matrix exponentials at the quadrature nodes' offsets (ill-conditioned S)"
-        else:
-            w, V = np.linalg.eig(S)
-            stats.eigendecompositions += 1
-            Zp, nodes = modal_particular(problem.t, problem.loads, w, V)
+            diagnostics["load_convolution"] = (
+                "quadrature with matrix exponentials at the nodes' offsets (ill-conditioned S)"
+            )
+            return Zp
+        w, V = eig  # the homogeneous solution's decomposition
+        closed = loads.closed_form
+        Zp = np.zeros((t.size, problem.model.size))
+        how = [str(diagnostics["load_convolution"])] if "load_convolution" in diagnostics else []
+        tabulated = loads.subset([not f for f in closed])
+        if tabulated is not None:
+            Zq, nodes = modal_particular(t, tabulated, w, V)
+            Zp += Zq
             diagnostics["load_quadrature_nodes"] = nodes
-            how = "modal convolution, 16-point Gauss-Legendre on pieces of <= 20 rad"
-        diagnostics["load_convolution"] = how
+            how.append("modal quadrature of the tables (16-point Gauss-Legendre, pieces <= 20 rad)")
+        diagnostics["load_convolution"] = "; ".join(how)
         return Zp
 
     def _time_variant(
@@ -215,10 +262,11 @@ class CMA(Solver):
         q = 16
         total = int(pieces.sum()) * q
         if total > MAX_DUHAMEL_NODES:
+            fits = float(t[-1]) * MAX_DUHAMEL_NODES / total
             raise BudgetExceeded(
                 f"the Duhamel integral of this forced run needs {total} matrix "
-                f"exponentials (limit {MAX_DUHAMEL_NODES}); use fewer modes or the "
-                "'magnus' method",
+                f"exponentials (limit {MAX_DUHAMEL_NODES}); use time.t_end <= {fits:.3g} s, "
+                "fewer modes or the 'magnus' method (what 'auto' runs here)",
                 parameter="modes",
             )
         x, wq = np.polynomial.legendre.leggauss(q)
@@ -242,34 +290,6 @@ class CMA(Solver):
         out = np.zeros((t.size, model.size))
         out[1:] = np.cumsum(per_interval, axis=0)
         return out
-
-
-def _uniform_step(t: FloatArray) -> float | None:
-    """The step of a uniform grid t_k = k dt (t[0] = 0), or None [s]."""
-    n = t.size
-    if n < 3 or t[0] != 0.0:
-        return None
-    dt = float(t[1] - t[0])
-    ok = np.allclose(t, dt * np.arange(n), rtol=0, atol=1e-14 * abs(float(t[-1])))
-    return dt if ok else None
-
-
-def modal_exponentials(
-    t: FloatArray,
-    w: NDArray[np.complex128],
-    block: int = 64,
-    start: int = 0,
-    dt: float | None = None,
-) -> Any:
-    """exp(outer(t, w)): on a uniform grid t_k = (start + k) dt (``dt`` given) as products
-    exp(w t_b) exp(w j dt) of two small tables (block starts t_b, offsets j dt), one complex
-    multiply per entry instead of one complex exponential; otherwise exp directly."""
-    n = t.size
-    if dt is None or n <= 2 * block:
-        return np.exp(np.outer(t, w))
-    starts = np.exp(np.outer(dt * (start + np.arange(0, n, block)), w))
-    offsets = np.exp(np.outer(dt * np.arange(block), w))
-    return (starts[:, None, :] * offsets[None, :, :]).reshape(-1, w.size)[:n]
 
 
 def _expm_marching(S: FloatArray, t: FloatArray, z0: FloatArray) -> FloatArray:

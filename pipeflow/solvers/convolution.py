@@ -1,5 +1,22 @@
 """The particular integral of the paper's eq. (17) for external loads at constant coefficients.
 
+Analytic profiles (constant, polynomial, harmonic, half-sine pulse, impulse, and sums of
+them over the loads) have it in closed form (:func:`exact_particular`): each profile is a
+sum of pieces c (t - t_a)^k e^{s (t - t_a)} on [t_a, t_b]
+(:meth:`pipeflow.profiles.Profile.terms`), and the response of a modal coordinate
+a' = xi a + q(t), a(0) = 0, to one of them is, for t_a <= t <= t_b and tau = t - t_a,
+
+    a(t) = c k! tau^{k+1} e^{s tau} phi_{k+1}((xi - s) tau),
+    phi_m(z) = sum_j z^j / (j + m)!        (phi_1(z) = (e^z - 1) / z, ...),
+
+(for k = 0 and s = i W: (e^{xi tau} - e^{i W tau}) / (xi - i W), the familiar
+F e^{i W t} / (i W - xi) plus its transient); an impulse (k = -1) gives c e^{xi tau}; past
+t_b the coordinate decays freely, a(t_b) e^{xi (t - t_b)}.  phi_m is evaluated by its
+Taylor series where |z| < 2 and by phi_{m+1} = (phi_m - 1/m!) / z from e^z elsewhere, so
+resonance (xi = s: the limit c tau^{k+1} e^{s tau} / (k + 1)) needs no special case and
+there is no quadrature: exact to rounding, O(1) per sample and mode.  The quadrature
+below serves tables only.
+
 With S constant, the response to the loads f(t) = sum_k g_k p_k(t) (:mod:`pipeflow.loads`) is
 the convolution of the fundamental solution with the load (physics notes, section 5)::
 
@@ -29,6 +46,9 @@ eigenvector condition number), for every profile kind.
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import expm
@@ -36,6 +56,7 @@ from scipy.linalg import expm
 from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded
 from pipeflow.loads import ExternalForcing
+from pipeflow.profiles import Term
 
 #: Gauss-Legendre nodes per piece, and the largest phase (|xi| + w_load) h of a piece [rad]
 PIECE_NODES = 16
@@ -49,6 +70,13 @@ MAX_DENSE_OFFSETS = 100_000
 _CHUNK_ENTRIES = 1_000_000  # node x mode entries formed at once
 
 
+def quadrature_nodes(t: FloatArray, rate: float) -> float:
+    """Gauss nodes the table quadrature needs on the output times ``t`` [s] for a fastest
+    phase rate ``rate`` [rad/s] (before the split at knots), as a float (may be inf)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(np.sum(np.maximum(1.0, np.ceil(rate * np.diff(t) / PIECE_RADIANS))))
+
+
 def load_pieces(
     t: FloatArray, rate: float, knots: FloatArray
 ) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
@@ -60,11 +88,14 @@ def load_pieces(
         m = np.maximum(1.0, np.ceil(rate * dt / PIECE_RADIANS))
     total = float(np.sum(m)) * PIECE_NODES
     if not total <= MAX_CONVOLUTION_NODES:
+        t_end = float(t[-1])
+        fits = t_end * MAX_CONVOLUTION_NODES / total if np.isfinite(total) else 0.0
         raise BudgetExceeded(
-            f"the load convolution of this run needs {total:.3g} quadrature nodes (limit "
-            f"{MAX_CONVOLUTION_NODES}); use fewer modes, fewer samples of a shorter run, a "
-            "slower load or the 'magnus' method",
-            parameter="modes",
+            f"the quadrature of the tabulated loads of this run needs {total:.3g} nodes "
+            f"(limit {MAX_CONVOLUTION_NODES}): use time.t_end <= {fits:.3g} s, fewer modes, "
+            "an analytic profile (constant, polynomial, harmonic, half_sine: exact, no "
+            "quadrature) or the 'magnus' method",
+            parameter="time.t_end",
         )
     counts = m.astype(np.int64)
     owner = np.repeat(np.arange(dt.size), counts)
@@ -186,3 +217,206 @@ def dense_particular(
         z = E[which[k]] @ z + inc[k]
         Z[k + 1] = z
     return Z, int(keys.size + lengths.size)
+
+
+#: |z| below which phi_m(z) is summed as its Taylor series (30 terms: remainder < 1e-23)
+_SERIES_RADIUS = 2.0
+_SERIES_TERMS = 30
+_EXACT_BLOCK = 16_384  # output times per block of the closed-form particular integral
+
+
+def phi(
+    m: int, z: NDArray[np.complex128], ez: NDArray[np.complex128] | None = None
+) -> NDArray[np.complex128]:
+    """phi_m(z) = sum_{j >= 0} z^j / (j + m)! elementwise (phi_0 = e^z), m >= 0: the
+    functions of exponential integrators, without cancellation near z = 0 (``ez``: e^z
+    when the caller has it; it is overwritten)."""
+    z = np.asarray(z, dtype=complex)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        p = _exp(z) if ez is None else ez
+        for i in range(m):  # the recurrence on the whole array, in place
+            p -= 1.0 / math.factorial(i)
+            p /= z
+    if m == 0:
+        return p
+    # the recurrence loses a factor (i + 1) / |z| per step where |z| < i + 1: the series
+    # below radius 1 + m (its terms then fall at least like |z|^j / j!)
+    radius, terms = _SERIES_RADIUS + (m - 1), _SERIES_TERMS + 2 * m
+    small = np.flatnonzero((z.real * z.real + z.imag * z.imag).ravel() < radius**2)
+    if small.size:  # the few entries near 0 (early times, resonance): the series
+        zs = z.ravel()[small]
+        acc = np.full_like(zs, 1.0 / math.factorial(terms + m))
+        for j in range(terms - 1, -1, -1):
+            acc = acc * zs + 1.0 / math.factorial(j + m)
+        p.ravel()[small] = acc
+    return p
+
+
+def _exp(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """e^z with real parts below -700 raised to -700 (e^-700 ~ 1e-304: zero for every
+    purpose here, and it keeps numpy's slow underflow path out of the strongly damped
+    modes' entries)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.asarray(np.exp(np.maximum(z.real, -700.0) + 1j * z.imag))
+
+
+def term_response(
+    term: Term,
+    lam: NDArray[np.complex128],
+    t: FloatArray,
+    grid: tuple[int, float] | None = None,
+) -> NDArray[np.complex128]:
+    """a(t) of a' = lam a + q(t), a(0) = 0, for q the unit piece ``term`` (its ``coef``
+    taken as 1), shape ``(len(t), len(lam))`` (module docstring).  ``grid`` = (k0, dt):
+    the times are (k0 + k) dt, and the exponentials are formed by
+    :func:`modal_exponentials`'s products of two small tables."""
+    tau = np.asarray(t, dtype=float) - term.start
+    width = term.end - term.start
+    within = (tau >= 0.0) & (tau <= width)
+    with np.errstate(over="ignore", invalid="ignore"):
+
+        def inside(x: FloatArray, tabled: bool = False) -> NDArray[np.complex128]:
+            rate = lam if term.power < 0 else lam - term.rate
+            if tabled and grid is not None:
+                ez = np.asarray(modal_exponentials(x, rate, start=grid[0], dt=grid[1]))
+            else:
+                ez = _exp(np.outer(x, rate))
+            if term.power < 0:
+                return ez
+            k = term.power
+            scale = math.factorial(k) * x ** (k + 1) * np.exp(term.rate * x)
+            p = phi(k + 1, np.outer(x, rate), ez)
+            p *= scale[:, None]
+            return p
+
+        if np.all(within) and term.start == 0.0:
+            return inside(tau, tabled=True)
+        out = np.zeros((tau.size, lam.size), dtype=complex)
+        if np.any(within):
+            out[within] = inside(tau[within])
+        past = tau > width
+        if np.any(past):
+            at_end = inside(np.array([width]))
+            out[past] = at_end * np.exp(np.outer(tau[past] - width, lam))
+    return out
+
+
+class ClosedForm:
+    """The particular integral of analytic loads in the modal coordinates of
+    S = V diag(w) V^-1, block of output times by block (module docstring).  S real: one
+    eigenvalue of each conjugate pair is kept (``keep``) and its weight (2 for a pair, 1
+    for a real one) is folded into the amplitudes, as the homogeneous CMA solution does,
+    so that z_p = Re(amplitudes @ V[:, keep].T).  Pieces equal across loads are evaluated
+    once, with their modal loads summed."""
+
+    def __init__(
+        self, loads: ExternalForcing, w: NDArray[np.complex128], V: NDArray[np.complex128]
+    ) -> None:
+        self.keep = w.imag >= 0
+        weight = np.where(w.imag[self.keep] > 0, 2.0, 1.0)
+        self.lam = w[self.keep]
+        coef = np.linalg.solve(V, loads.columns.T.astype(complex))[self.keep]  # (modes, K)
+        coef *= weight[:, None]
+        grouped: dict[Term, NDArray[np.complex128]] = {}
+        for k, profile in enumerate(loads.profiles):
+            for term in profile.terms() or ():
+                if term.coef != 0:
+                    unit = Term(1.0, term.power, complex(term.rate), term.start, term.end)
+                    before = grouped.get(unit, np.zeros(self.lam.size, dtype=complex))
+                    grouped[unit] = np.asarray(before + term.coef * coef[:, k], dtype=complex)
+        self.pieces = grouped
+
+    def amplitudes(
+        self,
+        t: FloatArray,
+        grid: tuple[int, float] | None = None,
+        E: NDArray[np.complex128] | None = None,
+    ) -> NDArray[np.complex128]:
+        """The modal amplitudes (weights folded in) at the times ``t`` [s], shape
+        ``(len(t), kept modes)``; ``grid`` as :func:`term_response`; ``E``: e^{lam t} at
+        these times when the caller has it (a step's response reuses it)."""
+        a = np.zeros((t.size, self.lam.size), dtype=complex)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            for piece, c in self.pieces.items():
+                if (
+                    E is not None
+                    and piece.power == 0
+                    and piece.start == 0
+                    and piece.end == math.inf
+                ):
+                    a += self._from_e(piece.rate, c, t, E)
+                    continue
+                r = term_response(piece, self.lam, t, grid)
+                r *= c
+                a += r
+        return a
+
+    def _from_e(
+        self, s: complex, c: NDArray[np.complex128], t: FloatArray, E: NDArray[np.complex128]
+    ) -> NDArray[np.complex128]:
+        """c e^{s t} from t = 0: c (e^{lam t} - e^{s t}) / (lam - s), from the caller's
+        E = e^{lam t} (one subtraction and one product per entry); where |lam - s| t < 2
+        (near resonance, early times) the series of phi_1 instead."""
+        d = self.lam - s
+        es = np.exp(s * t)
+        r = E - es[:, None]
+        r *= c / d
+        with np.errstate(divide="ignore"):
+            reach = np.where(d != 0, _SERIES_RADIUS / np.abs(d), np.inf)  # [s]
+        # t is increasing: the rows of column j below its reach are the first counts[j]
+        counts = np.searchsorted(t, reach, side="left")
+        if counts.any():
+            cols = np.repeat(np.arange(d.size), counts)
+            first = np.repeat(np.cumsum(counts) - counts, counts)
+            rows = np.arange(cols.size) - first
+            tr = t[rows]
+            r[rows, cols] = c[cols] * tr * es[rows] * phi(1, d[cols] * tr)
+        return r
+
+
+def exact_particular(
+    t: FloatArray,
+    loads: ExternalForcing,
+    w: NDArray[np.complex128],
+    V: NDArray[np.complex128],
+) -> FloatArray:
+    """z_p at the output times ``t`` [s] for S = V diag(w) V^-1 and loads whose profiles
+    all have :meth:`~pipeflow.profiles.Profile.terms`: in closed form (:class:`ClosedForm`)."""
+    form = ClosedForm(loads, w, V)
+    Z = np.zeros((t.size, V.shape[0]))
+    Vt = V[:, form.keep].T
+    dt = uniform_step(t)
+    for s0 in range(0, t.size, _EXACT_BLOCK):
+        sl = slice(s0, min(s0 + _EXACT_BLOCK, t.size))
+        a = form.amplitudes(t[sl], None if dt is None else (s0, dt))
+        with np.errstate(over="ignore", invalid="ignore"):
+            Z[sl] = (a @ Vt).real
+    return Z
+
+
+def uniform_step(t: FloatArray) -> float | None:
+    """The step of a uniform grid t_k = k dt (t[0] = 0), or None [s]."""
+    n = t.size
+    if n < 3 or t[0] != 0.0:
+        return None
+    dt = float(t[1] - t[0])
+    ok = np.allclose(t, dt * np.arange(n), rtol=0, atol=1e-14 * abs(float(t[-1])))
+    return dt if ok else None
+
+
+def modal_exponentials(
+    t: FloatArray,
+    w: NDArray[np.complex128],
+    block: int = 64,
+    start: int = 0,
+    dt: float | None = None,
+) -> Any:
+    """exp(outer(t, w)): on a uniform grid t_k = (start + k) dt (``dt`` given) as products
+    exp(w t_b) exp(w j dt) of two small tables (block starts t_b, offsets j dt), one complex
+    multiply per entry instead of one complex exponential; otherwise exp directly."""
+    n = t.size
+    if dt is None or n <= 2 * block:
+        return np.exp(np.outer(t, w))
+    starts = np.exp(np.outer(dt * (start + np.arange(0, n, block)), w))
+    offsets = np.exp(np.outer(dt * np.arange(block), w))
+    return (starts[:, None, :] * offsets[None, :, :]).reshape(-1, w.size)[:n]

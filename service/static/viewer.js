@@ -227,7 +227,10 @@
     if (p.kind === "table") {
       const t = p.t || [];
       return "table of " + t.length + " values" + u + " over t = " + S(t[0]) + " … " + S(t[t.length - 1])
-        + " s (" + p.interpolation + ")";
+        + " s (" + p.interpolation + (p.after ? ", then " + (p.after === "hold" ? "held" : "zero") : "") + ")";
+    }
+    if (p.kind === "half_sine") {
+      return "half-sine pulse of " + S(p.peak) + u + " from t = " + S(p.start) + " s for " + S(p.duration) + " s";
     }
     return JSON.stringify(p);
   }

@@ -389,12 +389,40 @@ SHORT_TABLE = {"kind": "table", "t": [0, 0.01], "values": [0, 1]}
         ({"kind": "base_acceleration", "acceleration": SHORT_TABLE}, "loads.0.acceleration"),
         ({"kind": "point_force", "position": L, "force": {**ONE, "value": True}}, "value"),
         ({"kind": "torque", "position": L}, "torque"),
+        # issue 32: the impulse load and the half-sine profile
+        ({"kind": "impulse", "position": 2 * L, "impulse": 1e-9, "time": 0.0}, "loads.0.position"),
+        ({"kind": "impulse", "position": L, "impulse": 1e-9, "time": -1.0}, "time"),
+        ({"kind": "impulse", "position": L, "time": 0.0}, "impulse"),
+        (
+            {
+                "kind": "point_force",
+                "position": L,
+                "force": {"kind": "half_sine", "peak": 1.0, "duration": 0.0},
+            },
+            "duration",
+        ),
+        (
+            {"kind": "point_force", "position": L, "force": {**SHORT_TABLE, "after": "repeat"}},
+            "after",
+        ),
     ],
 )
 def test_schema_refuses_bad_loads(load: dict[str, Any], field: str) -> None:
     with pytest.raises(ValidationError) as info:
         SimulationSpec.model_validate(_request(loads=[load]))
     assert field in str(info.value)
+
+
+def test_a_short_table_says_how_to_continue_it() -> None:
+    """A table ending before t_end is refused naming the field and the way out (after =
+    'hold' or 'zero'); with it, the request is valid and the echo keeps it."""
+    load = {"kind": "point_force", "position": L, "force": SHORT_TABLE}
+    with pytest.raises(ValidationError) as info:
+        SimulationSpec.model_validate(_request(loads=[load]))
+    assert "loads.0.force" in str(info.value) and "after" in str(info.value)
+    held = {**load, "force": {**SHORT_TABLE, "after": "hold"}}
+    spec = SimulationSpec.model_validate(_request(loads=[held]))
+    assert load_to_dict(spec.to_simulation().loads[0], L)["force"]["after"] == "hold"
 
 
 def test_schema_and_library_bound_the_number_of_loads() -> None:

@@ -324,3 +324,36 @@ def test_server_without_the_client_extra_says_what_to_install(
     assert main(["run", str(small_spec), "--server", "http://127.0.0.1:9"]) == 2
     err = capsys.readouterr().err
     assert "pip install 'pipeflow[client]'" in err and "httpx" in err, err
+
+
+def test_run_a_hammer_blow_and_a_half_sine_pulse(tmp_path: Path) -> None:
+    """The CLI runs the issue 32 load kinds (an impulse, a half-sine pulse, a table held past
+    its end), and the result echoes them as they were asked."""
+    spec = json.loads(json.dumps(PAPER_EXAMPLE))
+    spec.update(
+        modes=4,
+        time={"t_end": 0.02, "samples": 41},
+        flow={"velocity": {"kind": "constant", "value": 0.0}},
+        initial={"u0": 0.0},
+    )
+    spec["output"] = {"eigen_modes": 2, "eigen_samples": 11}
+    spec["loads"] = [
+        {"kind": "impulse", "position": 0.025, "impulse": 1e-9, "time": 0.005},
+        {
+            "kind": "point_force",
+            "position": 0.02,
+            "force": {"kind": "half_sine", "peak": 1e-7, "start": 0.01, "duration": 1e-3},
+        },
+        {
+            "kind": "point_force",
+            "position": 0.02,
+            "force": {"kind": "table", "t": [0, 0.001], "values": [0, 1e-8], "after": "hold"},
+        },
+    ]
+    path, out = tmp_path / "spec.json", tmp_path / "out.json"
+    path.write_text(json.dumps(spec))
+    assert main(["run", str(path), "-o", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    assert result["status"] == "ok"
+    assert result["loads"][0] == spec["loads"][0]
+    assert result["loads"][2]["force"]["after"] == "hold"

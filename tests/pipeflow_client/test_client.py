@@ -126,3 +126,24 @@ def test_results_are_validated_with_the_services_response_models(sdk_client: Cli
     assert isinstance(pipeflow_client.parse("stability", stability), StabilityResponse)
     with pytest.raises(ValidationError, match="crossings"):
         pipeflow_client.parse("stability", {**stability, "crossings": [{"velocity": 1.0}]})
+
+
+def test_an_impulse_through_the_client(sdk_client: Client) -> None:
+    """A hammer blow (issue 32) through the client and the real app: no response before the
+    blow (u0 = 0), a response after it, the load echoed; a bad station names its field."""
+    body = {
+        **SMALL,
+        "flow": {"velocity": {"kind": "constant", "value": 0.0}},
+        "initial": {"u0": 0.0},
+        "loads": [{"kind": "impulse", "position": 0.025, "impulse": 1e-9, "time": 0.05}],
+    }
+    r = sdk_client.simulate(body)
+    assert r.status == "ok"
+    before = r.t < 0.05
+    assert np.all(r.tip_displacement[before] == 0.0)
+    assert np.max(np.abs(r.tip_displacement[~before])) > 0
+    assert r.raw["loads"] == body["loads"]
+    bad = {**body, "loads": [{**body["loads"][0], "position": 0.03}]}
+    with pytest.raises(ServiceError) as info:
+        sdk_client.simulate(bad)
+    assert "loads.0.position" in str(info.value)

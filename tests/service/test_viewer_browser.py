@@ -241,18 +241,20 @@ def test_harmonic_tip_force_from_rest(server: str, page: Page, screenshot: Any) 
     assert kinds == list(mapping)
     # a new load is a point force at the tip (x = pipe.L as typed), its force harmonic
     assert page.input_value("select[name='loads.0.kind']") == "point_force"
-    assert page.input_value("input[name='loads.0.position']") == "0.025"
+    # (the point force's field: the impulse kind's hidden block has a position too)
+    position = "[data-kind='point_force'] input[name='loads.0.position']"
+    assert page.input_value(position) == "0.025"
     assert page.input_value("select[name='loads.0.force.kind']") == "harmonic"
     # the units are the schema's: position [m], the force's amplitude in N
     item = page.locator("[data-item='loads.0']")
     assert "position [m]" in item.inner_text()
     assert "amplitude [N]" in item.inner_text()
     # the schema's bounds, checked while typing
-    page.fill("input[name='loads.0.position']", "-1")
-    slot = page.locator("[data-error-for='loads.0.position']")
+    page.fill(position, "-1")
+    slot = page.locator("[data-kind='point_force'] [data-error-for='loads.0.position']")
     assert slot.inner_text().startswith("allowed: (0, ")
     # a position beyond the tip: the API's message next to the item's field
-    page.fill("input[name='loads.0.position']", "0.05")
+    page.fill(position, "0.05")
     page.fill("input[name='loads.0.force.amplitude']", "1e-5")
     page.fill("input[name='loads.0.force.frequency']", "244")
     page.click("#run")
@@ -263,7 +265,7 @@ def test_harmonic_tip_force_from_rest(server: str, page: Page, screenshot: Any) 
     assert loads.get_attribute("data-count") == "2"
     page.click("[data-remove='loads.1']")
     assert loads.get_attribute("data-count") == "1"
-    page.fill("input[name='loads.0.position']", "0.025")
+    page.fill(position, "0.025")
     page.click("#run")
     page.wait_for_function("document.getElementById('status').textContent.startsWith('done')")
     page.wait_for_selector("#chart-tip[data-points='2001']")

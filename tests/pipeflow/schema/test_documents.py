@@ -61,6 +61,27 @@ REQUESTS: list[tuple[str, dict[str, Any]]] = [
                     "position": 0.025,
                     "force": {"kind": "table", "t": [0.0, 1.0], "values": [0.0, 1e-6]},
                 },
+                {
+                    "kind": "point_force",
+                    "position": 0.025,
+                    "force": {
+                        "kind": "table",
+                        "t": [0.0, 0.001],
+                        "values": [0.0, 1e-6],
+                        "after": "hold",
+                    },
+                },
+                {
+                    "kind": "point_force",
+                    "position": 0.015,
+                    "force": {
+                        "kind": "half_sine",
+                        "peak": 1e-6,
+                        "start": 0.001,
+                        "duration": 0.0005,
+                    },
+                },
+                {"kind": "impulse", "position": 0.025, "impulse": 1e-9, "time": 0.002},
             ],
         },
     ),
