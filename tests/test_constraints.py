@@ -5,8 +5,8 @@ which holds every other extra); ``constraints.txt`` pins the Docker image's (``s
 ``parquet``, ``client``, ``formats``).  ``bash .ci/lock`` writes both with pip-compile.
 These tests check that every requirement of every extra is pinned, at a version its
 specifier admits (a new dependency without a lock entry fails here), and that the image pins
-the same versions as
-the README; completeness of the transitive set is checked by ``pip check`` after the
+the same versions as the README; completeness of the transitive set is checked by
+``pip check`` after the
 installs in clean virtualenvs (``.ci/run``: the README's venv and the image's).
 """
 
