@@ -88,6 +88,9 @@ class TableProfile(StrictModel):
     )
     after: Literal["hold", "zero"] | None = Field(
         None,
+        # absent from the normal form when absent from the request: the cache keys of the
+        # tables sent before the field existed stay what they were
+        exclude_if=lambda after: after is None,
         description="What the profile does past its last time: 'hold' (keeps the last "
         "value), 'zero'; null (default): the table must cover the run (t_end).",
     )

@@ -89,6 +89,12 @@ def test_explicit_requests_keep_their_keys() -> None:
     assert canonical_key("stability", StabilitySpec.model_validate(stab).canonical()) == (
         "ac533ff8496f5a1020e651d7efdf527757a59e5aa228c7336577cb36bbaf1f99"
     )
+    # a table profile without the later 'after' field (issue 32) keeps its key (68aa4a7)
+    table = {"kind": "table", "t": [0, 0.5, 1.0], "values": [0, 0.2, 0.4]}
+    tabled = {**PAPER_EXAMPLE, "flow": {**PAPER_EXAMPLE["flow"], "velocity": table}}
+    assert canonical_key("simulation", SimulationSpec.model_validate(tabled).canonical()) == (
+        "1c324510c70e628c1dab6a45f43a8b44fcd8cfa10169f7a85de7f193725d0225"
+    )
 
 
 def test_material_with_overrides() -> None:
