@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pipeflow.basis import MAX_MODES, mode_shapes
+from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidInput
 from pipeflow.model import (
     REVERSE_FLOW_CAVEAT,
@@ -320,8 +320,8 @@ def _generalised_force(model: PipeModel, load: Load, shape: FloatArray | None = 
     if isinstance(load, PointForce):
         if shape is not None:
             return shape
-        return mode_shapes(n, np.array([load.position / pipe.L]))[:, 0]
-    f = -pipe.mass * pipe.L * mode_integrals(n, model.quadrature_order).f
+        return model.shapes(np.array([load.position / pipe.L]))[:, 0]
+    f = -pipe.mass * pipe.L * mode_integrals(n, model.quadrature_order, pipe.basis_key).f
     if pipe.tip_mass:
         f = f - pipe.tip_mass * model.tip
     return np.asarray(f)
@@ -466,7 +466,7 @@ def frequency_response(
     op = _operator(pipe, v, w0, n)
     model = op.model
     a: list[float] = [load.position] if isinstance(load, PointForce) else []
-    shapes = mode_shapes(n, np.concatenate([x, a]) / pipe.L)  # (n, p [+ 1])
+    shapes = model.shapes(np.concatenate([x, a]) / pipe.L)  # (n, p [+ 1])
     out = shapes[:, : x.size].T  # (p, n)
     f = _generalised_force(model, load, shapes[:, -1] if a else None)
     b = np.concatenate([np.linalg.solve(model.M, f) / model.omega_ref, np.zeros(n)])

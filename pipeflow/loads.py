@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from pipeflow._types import FloatArray
-from pipeflow.basis import gauss_legendre_unit, mode_shapes
+from pipeflow.basis import gauss_legendre_unit
 from pipeflow.errors import InvalidInput
 from pipeflow.model import PipeModel, mode_integrals
 from pipeflow.profiles import Constant, Harmonic, Polynomial, Profile, Table
@@ -144,8 +144,8 @@ def generalized_force(load: Load, model: PipeModel) -> FloatArray:
     pipe, n = model.pipe, model.n
     L = pipe.L
     if isinstance(load, PointForce):
-        return np.asarray(mode_shapes(n, np.array([load.position / L]))[:, 0])
-    g = mode_integrals(n, model.quadrature_order)
+        return np.asarray(model.shapes(np.array([load.position / L]))[:, 0])
+    g = mode_integrals(n, model.quadrature_order, pipe.basis_key)
     if isinstance(load, DistributedForce):
         end = L if load.end is None else load.end
         if load.start == 0.0 and end == L:
@@ -153,7 +153,7 @@ def generalized_force(load: Load, model: PipeModel) -> FloatArray:
         # the model's rule mapped onto [x0, x1]: integrand smooth, exact to rounding
         xi, w = gauss_legendre_unit(g.quadrature_order)
         a, b = load.start / L, end / L
-        shapes = mode_shapes(n, a + (b - a) * xi)
+        shapes = model.shapes(a + (b - a) * xi)
         return np.asarray(L * (b - a) * (shapes @ w))
     if isinstance(load, BaseAcceleration):
         out = -pipe.mass * L * g.f

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -92,7 +93,7 @@ def nondimensional_pipe(
     """
     if not 0 < beta < 1:
         raise InvalidInput(f"beta must be in (0, 1), got {beta}", parameter="beta")
-    extra: dict[str, float] = {}
+    extra: dict[str, Any] = {}  # the group fields (floats)
     for name, value in (groups or {}).items():
         if name not in GROUP_FIELDS:
             raise InvalidInput(
