@@ -54,6 +54,7 @@ from pipeflow.schema.drawing import (
     drawing_field,
     from_drawing,
 )
+from pipeflow.schema.supports import GravityField, MountingFields, check_pipe
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
@@ -147,7 +148,7 @@ class DampingSpec(StrictModel):
     )
 
 
-class PipeSpec(StrictModel):
+class PipeSpec(MountingFields):
     """Pipe and fluid properties (the paper's section 5 values are the example).
 
     Given explicitly (E, I, L, M1, M2) or by its drawing: L, outer_diameter with
@@ -226,9 +227,12 @@ class PipeSpec(StrictModel):
             check_stiffness(self.E, self.I)
         except PipeflowError as exc:
             raise InvalidField(exc.message, exc.parameter) from None
+        check_pipe(self.to_pipe)  # supports and axial loads (schema/supports.py)
         return self
 
-    def to_pipe(self, hub_radius: float = 0.0, plane: str = "in-plane") -> Pipe:
+    def to_pipe(
+        self, hub_radius: float = 0.0, plane: str = "in-plane", gravity: float = 0.0
+    ) -> Pipe:
         """The library's :class:`~pipeflow.model.Pipe`, mounted at ``hub_radius`` [m] and
         vibrating in ``plane`` (both given by the request's rotation and plane fields)."""
         return Pipe(
@@ -243,6 +247,8 @@ class PipeSpec(StrictModel):
             tip_inertia=self.tip_inertia,
             hub_radius=hub_radius,
             plane=plane,
+            gravity=gravity,
+            **self.mounting(),
         )
 
 
@@ -529,7 +535,7 @@ class OutputSpec(StrictModel):
         }
 
 
-class SimulationSpec(StrictModel):
+class SimulationSpec(GravityField):
     """A simulation request: pipe, loading, initial condition, discretisation and method."""
 
     model_config = ConfigDict(
@@ -694,7 +700,7 @@ class SimulationSpec(StrictModel):
     def to_simulation(self) -> Simulation:
         """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
         return Simulation(
-            pipe=self.pipe.to_pipe(self.rotation.hub_radius, self.plane),
+            pipe=self.pipe.to_pipe(self.rotation.hub_radius, self.plane, self.gravity_along_x()),
             flow=self.flow.velocity.to_profile(),
             spin=self.rotation.omega0.to_profile(),
             u0=self.initial.u0,

@@ -38,6 +38,7 @@ from pipeflow.schema.simulation import (
     StrictModel,
     library_check,
 )
+from pipeflow.schema.supports import GravityField
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import (
     MAX_CHART_WORK,
@@ -133,7 +134,7 @@ class ConstantRotation(Hub):
     )
 
 
-class _Mounted(StrictModel):
+class _Mounted(GravityField):
     """A request with a pipe, a hub radius (``rotation.hub_radius``) and a ``plane``."""
 
     pipe: PipeSpec
@@ -142,7 +143,7 @@ class _Mounted(StrictModel):
 
     def mounted_pipe(self) -> Pipe:
         """The library's pipe with this request's hub radius and plane."""
-        return self.pipe.to_pipe(self.rotation.hub_radius, self.plane)
+        return self.pipe.to_pipe(self.rotation.hub_radius, self.plane, self.gravity_along_x())
 
 
 class ConstantFlow(StrictModel):
