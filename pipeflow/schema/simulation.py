@@ -54,7 +54,13 @@ from pipeflow.schema.drawing import (
     drawing_field,
     from_drawing,
 )
-from pipeflow.schema.supports import GravityField, MountingFields, check_pipe
+from pipeflow.schema.supports import (
+    FlowPressure,
+    GravityField,
+    MountingFields,
+    check_pipe,
+    check_pressure,
+)
 from pipeflow.simulation import Result, Simulation, simulate
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
@@ -231,7 +237,11 @@ class PipeSpec(MountingFields):
         return self
 
     def to_pipe(
-        self, hub_radius: float = 0.0, plane: str = "in-plane", gravity: float = 0.0
+        self,
+        hub_radius: float = 0.0,
+        plane: str = "in-plane",
+        gravity: float = 0.0,
+        pressure: float = 0.0,
     ) -> Pipe:
         """The library's :class:`~pipeflow.model.Pipe`, mounted at ``hub_radius`` [m] and
         vibrating in ``plane`` (both given by the request's rotation and plane fields)."""
@@ -248,6 +258,7 @@ class PipeSpec(MountingFields):
             hub_radius=hub_radius,
             plane=plane,
             gravity=gravity,
+            pressure=pressure,
             **self.mounting(),
         )
 
@@ -345,7 +356,7 @@ class RotationSpec(StrictModel):
     hub_radius: HubRadius = 0.0
 
 
-class FlowSpec(StrictModel):
+class FlowSpec(FlowPressure):
     velocity: ProfileSpec = Field(
         default_factory=ConstantProfile,
         description="Flow velocity v(t) [m/s]; v > 0 flows from the clamped end to the tip.",
@@ -596,6 +607,7 @@ class SimulationSpec(GravityField):
 
     @model_validator(mode="after")
     def _consistent(self) -> SimulationSpec:
+        check_pressure(self.pipe, self.flow)
         if self.output.eigen_modes > self.modes:
             # normalise: there are only `modes` branches (keeps equivalent requests one key)
             self.output.eigen_modes = self.modes
@@ -700,7 +712,9 @@ class SimulationSpec(GravityField):
     def to_simulation(self) -> Simulation:
         """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
         return Simulation(
-            pipe=self.pipe.to_pipe(self.rotation.hub_radius, self.plane, self.gravity_along_x()),
+            pipe=self.pipe.to_pipe(
+                self.rotation.hub_radius, self.plane, self.gravity_along_x(), self.flow.pressure
+            ),
             flow=self.flow.velocity.to_profile(),
             spin=self.rotation.omega0.to_profile(),
             u0=self.initial.u0,

@@ -17,7 +17,7 @@ callback (fraction in [0, 1]) that may raise :class:`pipeflow.errors.Cancelled`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Self
 
 import numpy as np
 from pydantic import AliasChoices, ConfigDict, Field, Strict, model_validator
@@ -38,7 +38,7 @@ from pipeflow.schema.simulation import (
     StrictModel,
     library_check,
 )
-from pipeflow.schema.supports import GravityField
+from pipeflow.schema.supports import FlowPressure, GravityField, check_pressure
 from pipeflow.stability.critical import critical_velocities
 from pipeflow.stability.floquet import (
     MAX_CHART_WORK,
@@ -141,12 +141,25 @@ class _Mounted(GravityField):
     rotation: Hub = Field(default_factory=Hub)
     plane: Plane = "in-plane"
 
+    flow: FlowPressure = Field(
+        default_factory=FlowPressure,
+        exclude_if=lambda v: v == FlowPressure(),
+        description="The flow's internal pressure (the velocity is the analysis' range).",
+    )
+
+    @model_validator(mode="after")
+    def _pressure(self) -> Self:
+        check_pressure(self.pipe, self.flow)
+        return self
+
     def mounted_pipe(self) -> Pipe:
-        """The library's pipe with this request's hub radius and plane."""
-        return self.pipe.to_pipe(self.rotation.hub_radius, self.plane, self.gravity_along_x())
+        """The library's pipe with this request's hub radius, plane, gravity and pressure."""
+        return self.pipe.to_pipe(
+            self.rotation.hub_radius, self.plane, self.gravity_along_x(), self.flow.pressure
+        )
 
 
-class ConstantFlow(StrictModel):
+class ConstantFlow(FlowPressure):
     velocity: ConstantProfile = Field(
         default_factory=ConstantProfile,
         description="Constant flow velocity v [m/s]; v > 0 flows from the clamped end to the tip.",
@@ -490,7 +503,7 @@ class ResonanceChartSweep(_Mounted):
         return documents.resonance_chart(result)
 
 
-class PeriodicFlow(StrictModel):
+class PeriodicFlow(FlowPressure):
     velocity: ConstantProfile | HarmonicProfile = Field(
         discriminator="kind", description="Flow velocity v(t) [m/s]: constant or harmonic."
     )

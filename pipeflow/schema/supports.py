@@ -184,3 +184,31 @@ class GravityField(StrictModel):
     def gravity_along_x(self) -> float:
         """g_x [m/s^2] for :class:`~pipeflow.model.Pipe` (0 without gravity)."""
         return 0.0 if self.gravity is None else self.gravity.along_x()
+
+
+#: the largest |internal pressure| [Pa] (1e10: far above any pipe's burst pressure)
+MAX_PRESSURE = 1e10
+
+
+class FlowPressure(StrictModel):
+    """The flow block's internal pressure (a base of every request's ``flow``)."""
+
+    pressure: float = Field(
+        0.0,
+        ge=-MAX_PRESSURE,
+        le=MAX_PRESSURE,
+        exclude_if=lambda v: v == 0.0,
+        description="Internal gauge pressure p [Pa], constant in time (needs pipe.flow_area); "
+        "its force p A (1 - 2 nu delta) compresses the pipe like the flow's M v^2, except at "
+        "a free, discharging end x = L, where it cancels (docs/model.md 9).",
+    )
+
+
+def check_pressure(pipe: Any, flow: Any) -> None:
+    """Refuse a pressure without the flow area it acts on (names ``pipe.flow_area``)."""
+    if getattr(flow, "pressure", 0.0) and not pipe.flow_area:
+        raise InvalidField(
+            "flow.pressure needs pipe.flow_area, the flow cross-section A [m^2] "
+            "(the pressure's force is p A)",
+            "pipe.flow_area",
+        )

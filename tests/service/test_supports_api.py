@@ -131,3 +131,24 @@ def test_cache_keys_without_the_new_fields_are_unchanged() -> None:
     assert "gravity" not in plain
     sim = SimulationSpec.model_validate({"pipe": UNIT}).canonical()
     assert "gravity" not in sim and "supports" not in sim["pipe"]
+
+
+def test_pressure_shifts_the_spool_divergence(api: TestClient) -> None:
+    """u^2 + Pi = pi^2 (pinned-pinned, not axially restrained: delta = 0): Pi = p A L^2/EI
+    = 2 lowers u_cr to sqrt(pi^2 - 2)."""
+    body = {**SPOOL, "pipe": {**SPOOL["pipe"], "flow_area": 0.5}, "flow": {"pressure": 4.0}}
+    doc = api.post("/v1/stability", json=body).json()
+    assert doc["critical_velocity"] * math.sqrt(0.5) == pytest.approx(
+        math.sqrt(math.pi**2 - 2.0), rel=1e-8
+    )
+
+
+def test_pressure_needs_the_flow_area(api: TestClient) -> None:
+    body = {**SPOOL, "flow": {"pressure": 4.0}}
+    assert "pipe.flow_area" in _fields(_problem(api.post("/v1/stability", json=body), 422))
+    sim = {"pipe": UNIT, "flow": {"pressure": 1e5}}
+    assert "pipe.flow_area" in _fields(_problem(api.post("/v1/simulations", json=sim), 422))
+
+
+def test_stability_canonical_without_pressure_has_no_flow() -> None:
+    assert "flow" not in StabilitySpec.model_validate(SPOOL).canonical()
