@@ -235,7 +235,14 @@ class SupportBasis:
     def shapes(self, xi: FloatArray, derivative: int = 0) -> FloatArray:
         """d^k phi_j / dxi^k at ``xi`` [-], shape ``(n, len(xi))``."""
         xi = np.atleast_1d(np.asarray(xi, dtype=float))
-        under = np.array([m.values(xi, derivative) for m in self.modes])
+        lam = np.array([m.lam for m in self.modes])
+        coef = np.array([m.coef for m in self.modes])  # (N, 4)
+        under = np.empty((lam.size, xi.size))
+        for krylov in (True, False):
+            rows = (lam < _SWITCH) == krylov
+            if rows.any():
+                f = _fundamental(lam[rows, None], xi[None, :], derivative, krylov)  # (4, r, P)
+                under[rows] = np.einsum("ri,irp->rp", coef[rows], f)
         return np.asarray(self.coef @ under)
 
 

@@ -153,6 +153,8 @@ def sign_changes(
         elif not trio.any():
             if not (s[k] >= s[k - 1] and s[k] >= s[k + 1]):
                 continue
+            if np.max(np.abs(s[k - 1 : k + 2])) <= tol[k]:
+                continue  # rounding on the imaginary axis (a conservative, supported pipe)
             sign = -1.0  # maximise: does it poke above zero?
         else:
             continue
