@@ -324,3 +324,24 @@ def test_server_without_the_client_extra_says_what_to_install(
     assert main(["run", str(small_spec), "--server", "http://127.0.0.1:9"]) == 2
     err = capsys.readouterr().err
     assert "pip install 'pipeflow[client]'" in err and "httpx" in err, err
+
+
+def test_stability_of_a_supported_pipe(tmp_path: Path) -> None:
+    """A pinned-pinned spool from a spec file (issue 31): divergence at u = pi, named."""
+    spec = tmp_path / "spool.json"
+    spec.write_text(
+        json.dumps(
+            {
+                "pipe": {"E": 1.0, "I": 1.0, "L": 1.0, "M1": 0.5, "M2": 0.5,
+                         "supports": {"x0": "pinned", "xL": "pinned"}},
+                "modes": 8,
+                "velocity_range": [0.0, 6.0],
+                "points": 61,
+            }
+        )
+    )  # fmt: skip
+    out = tmp_path / "out.json"
+    assert main(["stability", str(spec), "-o", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    assert result["mechanism"] == "divergence"
+    assert result["critical_velocity"] == pytest.approx(3.141592653589793 / 0.5**0.5, rel=1e-9)
