@@ -70,3 +70,17 @@ def test_frequency_response_of_a_pinned_pinned_pipe() -> None:
     first = terms[:40].sum(axis=0)
     assert np.max(np.abs(got.real - first) / np.abs(first)) < 1e-10
     assert np.max(np.abs(got.real - terms.sum(axis=0))) < 1e-9
+
+
+def test_a_diverging_supported_pipe_is_stopped_without_stations() -> None:
+    """Pinned-pinned past divergence (u = 4 > pi): the tip is held (w(L) = 0), yet the run
+    stops with status 'diverged' at an interior station past 0.1 L, without any positions."""
+    pp = Supports(Support("pinned"), Support("pinned"))
+    pipe = Pipe(E=1.0, I=1.0, L=1.0, M1=0.5, M2=0.5, supports=pp)
+    v = float(pipe.velocity_from_flow_number(4.0))
+    r = simulate(
+        Simulation(pipe=pipe, flow=profiles.Constant(v), spin=profiles.Constant(0.0), u0=1e-3,
+                   du0=0.0, modes=8, t_end=10.0, samples=201)
+    )  # fmt: skip
+    assert r.status == "diverged"
+    assert "x = " in " ".join(r.warnings)
