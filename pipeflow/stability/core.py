@@ -194,6 +194,22 @@ def mechanisms(xi: ComplexArray, tol: float, radius: float) -> list[str]:
     return out
 
 
+def crossing_kind(
+    spectrum: Callable[[float], ComplexArray], x: float, loss: bool
+) -> tuple[str, float]:
+    """``(kind, omega)`` of a change of stability at ``x``: the fastest-growing eigenvalue on
+    the unstable side (x (1 + 1e-6) for a loss, x (1 - 1e-6) for a gain) is real
+    ("divergence", omega 0) or a pair ("flutter", its |omega| [rad/s]).  Read on the unstable
+    side because at x itself a divergence is a pair meeting at 0, whose rounding leaves an
+    omega of order sqrt(eps) |xi| that a test at x would call flutter."""
+    side = x * (1 + 1e-6) if loss else x * (1 - 1e-6)
+    w = np.asarray(spectrum(side))
+    top = w[np.argmax(w.real)]
+    if abs(top.imag) <= 1e-3 * max(abs(top), 1e-300):
+        return "divergence", 0.0
+    return "flutter", abs(float(top.imag))
+
+
 def stable_intervals(
     lo: float, hi: float, stable_at_start: bool, boundary: list[tuple[float, bool]]
 ) -> list[list[float]]:

@@ -96,3 +96,23 @@ def test_no_critical_velocity_no_mechanism() -> None:
     p = _pipe("clamped", "free", 0.2)
     r = critical_velocities(p, 0.0, (0.0, float(p.velocity_from_flow_number(3.0))), modes=8)
     assert r.critical_velocity is None and r.mechanism is None
+
+
+def test_maps_and_argand_name_divergence_restabilisation_and_flutter() -> None:
+    """The spin map (its w0 = 0 line) and the Argand sweep classify each change of stability
+    of the clamped-clamped pipe (beta = 0.5, 12 modes) as the critical velocity does:
+    divergence loss at 2 pi, divergence gain at 8.987, flutter loss at 9.295.  Before, both
+    read the eigenvalue at the crossing itself, where a divergence's pair meeting at 0 keeps
+    a rounding omega, and called all three flutter."""
+    from pipeflow.stability.maps import spin_map
+    from pipeflow.stability.sweeps import sweep
+
+    p = _pipe("clamped", "clamped", 0.5)
+    vmax = float(p.velocity_from_flow_number(10.0))
+    expected = [("divergence", "loss"), ("divergence", "gain"), ("flutter", "loss")]
+    m = spin_map(p, (0.0, vmax), (0.0, 1.0), modes=12, velocity_points=200, spin_points=2)
+    assert [(c.kind, c.direction) for c in m.crossings[0]] == expected
+    s = sweep(p, "velocity", (0.0, vmax), modes=12, tracked=3, points=201)
+    assert [(c.kind, c.direction) for c in s.boundary] == expected
+    u = [float(p.flow_number(c.value)) for c in s.boundary]
+    assert u == pytest.approx([6.2832, 8.987, 9.2948], abs=2e-3)
