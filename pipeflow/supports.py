@@ -168,6 +168,14 @@ def check_mounting(pipe: Pipe) -> None:
         if p.position in seen:
             raise ValueError(f"pipe.intermediate_supports.{i}.position: {p.position} m repeated")
         seen.add(p.position)
+    held = [e.kind in ("clamped", "pinned") or (e.kind == "elastic" and e.translational > 0)
+            for e in (s.x0, s.xL)]  # fmt: skip
+    if not any(held) and not pts:
+        raise ValueError(
+            f"pipe.supports: nothing holds the pipe transversely ({s.describe()}): it would "
+            "translate freely; clamp, pin or spring (translational) one end, or add an "
+            "intermediate support"
+        )
     for name in ("tension", "pressure", "gravity"):
         val = getattr(pipe, name)
         if not math.isfinite(val):

@@ -125,6 +125,8 @@ def _static_zeros(model: PipeModel, omega0: float, grid: FloatArray) -> list[flo
     method: independent of the branch tracking, which cannot tell a pair meeting at 0 from
     a swap (sigma ~ sqrt(v - v_d) there)."""
     Kb = model.K_0 if model.K_bend is None else model.K_bend
+    if np.any(np.diag(Kb) <= 0):
+        return []  # a rigid-body mode (a pinned-free pipe's rotation): det K = 0 throughout
     scale = 1.0 / np.abs(np.diag(Kb))
     base = model.K_0 + omega0 * omega0 * model.K_w2
 

@@ -55,9 +55,7 @@ def relative_errors(galerkin: np.ndarray, ref: np.ndarray) -> np.ndarray:
         (P, P, math.pi),
         (C, P, 3.926602312),
         (C, F, 1.875104069),
-        (F, F, 4.730040745),  # first elastic mode (two rigid-body modes below)
         (S, P, math.pi / 2),
-        (S, S, math.pi),  # first elastic mode (one rigid-body mode below)
         (C, S, 2.365020372),
     ],
 )
@@ -81,6 +79,12 @@ def test_general_basis_reproduces_cantilever_modes() -> None:
 
     b = support_basis(40, ("clamped", 0.0, 0.0), ("free", 0.0, 0.0))
     assert np.max(np.abs(b.lam4**0.25 / np.array(cantilever_roots(40)) - 1)) < 1e-13
+    # the bases with rigid-body modes (no model takes them alone: nothing holds the pipe):
+    # free-free 0, 0, 4.7300, 7.8532 and sliding-sliding 0, pi, 2 pi (Blevins table 8-1)
+    ff = support_basis(4, ("free", 0.0, 0.0), ("free", 0.0, 0.0)).lam4 ** 0.25
+    assert ff == pytest.approx([0.0, 0.0, 4.730040745, 7.853204624], abs=1e-9)
+    ss = support_basis(3, ("sliding", 0.0, 0.0), ("sliding", 0.0, 0.0)).lam4 ** 0.25
+    assert ss == pytest.approx([0.0, math.pi, 2 * math.pi], abs=1e-9)
     # a spring of 1e14 at x = 0 clamps it: same spectrum with flow through another path
     stiff = Support("elastic", translational=1e14, rotational=1e14)
     xi = spectrum(pipe(stiff, F), 12, 3.0)
@@ -346,3 +350,15 @@ def test_default_supports_leave_the_model_unchanged() -> None:
 def test_refused_mountings(kw: dict[str, object], field: str) -> None:
     with pytest.raises(ValueError, match=field):
         Pipe(E=1.0, I=1.0, L=1.0, M1=0.5, M2=0.5, **kw)  # type: ignore[arg-type]
+
+
+def test_a_pipe_nothing_holds_is_refused_and_a_rigid_rotation_is_flagged() -> None:
+    """Free-free, sliding-free, sliding-sliding translate freely: refused (naming
+    pipe.supports).  Pinned-free rotates freely: accepted, with the basis caveat."""
+    from pipeflow.model import basis_caveats
+
+    for x0, xL in ((F, F), (S, F), (S, S)):
+        with pytest.raises(ValueError, match=r"pipe\.supports"):
+            pipe(x0, xL)
+    assert any("rigid body" in w for w in basis_caveats(pipe(P, F)))
+    assert not basis_caveats(pipe(C, P))

@@ -101,6 +101,7 @@ def test_supported_simulation_runs(api: TestClient) -> None:
         ({"intermediate_supports": [{"position": 0.1 * (i + 1), "kind": "pinned"}
                                     for i in range(9)]}, "pipe.intermediate_supports"),
         ({"poisson": 0.7}, "pipe.poisson"),
+        ({"supports": {"x0": "free", "xL": "free"}}, "pipe.supports"),
         ({"tension": 1e13}, "pipe.tension"),
     ],
 )  # fmt: skip
