@@ -153,3 +153,30 @@ def test_pressure_needs_the_flow_area(api: TestClient) -> None:
 
 def test_stability_canonical_without_pressure_has_no_flow() -> None:
     assert "flow" not in StabilitySpec.model_validate(SPOOL).canonical()
+
+
+def test_the_new_fields_take_units_like_every_field() -> None:
+    """Quantities {value, unit} convert to the SI unit each description states: 2 kN of
+    tension, a support 500 mm along, a 5 kN/m spring, 50 bar, g in ft/s^2."""
+    spring = {"translational": {"value": 5, "unit": "kN/m"}}
+    point = {"position": {"value": 500, "unit": "mm"}, "kind": "pinned"}
+    pipe_json = {
+        **UNIT,
+        "flow_area": 1e-3,
+        "tension": {"value": 2, "unit": "kN"},
+        "supports": {"x0": "pinned", "xL": spring},
+        "intermediate_supports": [point],
+    }
+    spec = SimulationSpec.model_validate(
+        {
+            "pipe": pipe_json,
+            "flow": {"pressure": {"value": 50, "unit": "bar"}},
+            "gravity": {"g": {"value": 32.174, "unit": "ft/s^2"}},
+        }
+    )  # fmt: skip
+    pipe = spec.to_simulation().pipe
+    assert pipe.tension == pytest.approx(2000.0)
+    assert pipe.supports.xL.translational == pytest.approx(5000.0)
+    assert pipe.intermediate_supports[0].position == pytest.approx(0.5)
+    assert pipe.pressure == pytest.approx(5e6)
+    assert pipe.gravity == pytest.approx(9.80665, rel=1e-5)
