@@ -84,3 +84,26 @@ def test_a_diverging_supported_pipe_is_stopped_without_stations() -> None:
     )  # fmt: skip
     assert r.status == "diverged"
     assert "x = " in " ".join(r.warnings)
+
+
+@pytest.mark.parametrize(("freq", "unstable"), [(14.0, False), (18.0, True), (22.0, False)])
+def test_floquet_parametric_resonance_of_a_pinned_pipe(freq: float, unstable: bool) -> None:
+    """Pulsating flow u(t) = 1 + sin(Omega t) on a pinned-pinned pipe (beta = 0.5, 4 modes):
+    the principal parametric resonance lies near Omega = 2 omega_1 of the mean flow,
+    omega_1^2 = pi^4 - <u^2> pi^2 = pi^4 - 1.5 pi^2 (2 omega_1 = 18.2; Paidoussis & Issid 1974,
+    Paidoussis vol. 1 ch. 3.6).  Inside it a multiplier leaves the unit circle (measured
+    1.20 at Omega = 18); outside, the conservative gyroscopic pipe keeps every |mu| = 1
+    (to 1e-9: Hamiltonian, no dissipation through a free end)."""
+    from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
+
+    pipe = {"E": 1.0, "I": 1.0, "L": 1.0, "M1": 0.5, "M2": 0.5,
+            "supports": {"x0": "pinned", "xL": "pinned"}}  # fmt: skip
+    s = 1.0 / np.sqrt(0.5)
+    velocity = {"kind": "harmonic", "mean": s, "amplitude": s, "frequency": freq}
+    body = {"kind": "floquet", "pipe": pipe, "modes": 4, "flow": {"velocity": velocity}}
+    request = parse(SWEEP_KINDS, body)
+    doc = computation_for(request).execute(request)
+    if unstable:
+        assert doc["max_multiplier"] > 1.1 and doc["verdict"].startswith("unstable")
+    else:
+        assert abs(doc["max_multiplier"] - 1.0) < 1e-9
