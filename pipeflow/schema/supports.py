@@ -212,3 +212,24 @@ def check_pressure(pipe: Any, flow: Any) -> None:
             "(the pressure's force is p A)",
             "pipe.flow_area",
         )
+
+
+#: the new fields' defaults, which the dump leaves out (exclude_if): a study varies them
+MOUNTING_DEFAULTS: dict[str, Any] = {
+    "tension": 0.0,
+    "flow_area": 0.0,
+    "poisson": 0.3,
+}
+
+
+def with_defaults(spec: Any, full: dict[str, Any]) -> dict[str, Any]:
+    """``full`` (a request's JSON dump) with the numeric defaults of these fields put back
+    (``pipe.tension``, ``pipe.flow_area``, ``pipe.poisson``, ``flow.pressure``), so that a
+    study may vary them by path like every numeric field."""
+    out = dict(full)
+    if isinstance(out.get("pipe"), dict):
+        out["pipe"] = {**MOUNTING_DEFAULTS, **out["pipe"]}
+    flow = getattr(spec, "flow", None)
+    if isinstance(flow, FlowPressure):
+        out["flow"] = {"pressure": 0.0, **out.get("flow", {})}
+    return out

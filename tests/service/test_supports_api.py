@@ -180,3 +180,27 @@ def test_the_new_fields_take_units_like_every_field() -> None:
     assert pipe.intermediate_supports[0].position == pytest.approx(0.5)
     assert pipe.pressure == pytest.approx(5e6)
     assert pipe.gravity == pytest.approx(9.80665, rel=1e-5)
+
+
+def test_a_study_varies_tension_and_pressure() -> None:
+    """A grid over pipe.tension and flow.pressure (fields whose defaults the dump leaves
+    out) on the pinned-pinned pipe: every case diverges at u = sqrt(pi^2 - Pi + Gamma)
+    (Paidoussis sec. 3.3; Pi = p A L^2/EI, Gamma = T L^2/EI), to 1e-10 (the basis holds
+    the buckling mode)."""
+    from pipeflow.schema.registry import COMPUTATIONS
+    from pipeflow.schema.study import StudySpec
+
+    base = {**SPOOL, "pipe": {**SPOOL["pipe"], "flow_area": 1.0}, "modes": 8}
+    body = {
+        "base": {"kind": "stability", "spec": base},
+        "grid": {"pipe.tension": [-2.0, 0.0, 3.0], "flow.pressure": [0.0, 1.0]},
+    }
+    study = COMPUTATIONS["study"].execute(StudySpec.model_validate(body))
+    names = [c["name"] for c in study["columns"]]
+    assert study["counts"]["ok"] == 6
+    for row in study["rows"]:
+        case = dict(zip(names, row, strict=True))
+        u = case["critical_velocity"] * math.sqrt(0.5)
+        exact = math.sqrt(math.pi**2 - case["flow.pressure"] + case["pipe.tension"])
+        assert case["critical_kind"] == "divergence"
+        assert u == pytest.approx(exact, rel=1e-10)
