@@ -174,8 +174,10 @@ class Pipe:
 
     @property
     def is_paper_model(self) -> bool:
-        """No damping, no tip body, no hub, in-plane: exactly the paper's model."""
-        return self.in_plane and not any(getattr(self, n) for n in EXTENSION_FIELDS)
+        """No damping, no tip body, no hub, in-plane, the cantilever without axial loads:
+        exactly the paper's model."""
+        mounted = self.basis_key is not None or self.has_static_axial_force
+        return self.in_plane and not mounted and not any(getattr(self, n) for n in EXTENSION_FIELDS)
 
     def dimensionless_groups(self) -> dict[str, float]:
         """The extended model's groups [-], ``{name: value}`` in the order and with the

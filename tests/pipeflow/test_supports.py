@@ -362,3 +362,12 @@ def test_a_pipe_nothing_holds_is_refused_and_a_rigid_rotation_is_flagged() -> No
             pipe(x0, xL)
     assert any("rigid body" in w for w in basis_caveats(pipe(P, F)))
     assert not basis_caveats(pipe(C, P))
+
+
+def test_only_the_bare_cantilever_is_the_paper_model() -> None:
+    assert pipe(C, F).is_paper_model
+    assert not pipe(P, P).is_paper_model
+    assert not pipe(C, F, tension=1.0).is_paper_model
+    assert not pipe(C, F, gravity=9.81).is_paper_model
+    # a pressure on the free discharging cantilever cancels: still the paper's equations
+    assert pipe(C, F, pressure=1e5, flow_area=1e-3).is_paper_model
