@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pipeflow import loads
-from pipeflow.basis import MAX_MODES, mode_shapes
+from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidInput
 from pipeflow.model import (
     REVERSE_FLOW_CAVEAT,
@@ -547,7 +547,7 @@ def frequency_response(
     op = _operator(pipe, v, w0, n)
     model = op.model
     a = load.stations
-    shapes = mode_shapes(n, np.concatenate([x, a]) / pipe.L)  # (n, p [+ 1])
+    shapes = model.shapes(np.concatenate([x, a]) / pipe.L)  # (n, p [+ 1])
     out = shapes[:, : x.size].T  # (p, n)
     f = _generalised_force(model, load, shapes[:, -1] if a else None)
     b = np.concatenate([np.linalg.solve(model.M, f) / model.omega_ref, np.zeros(n)])
@@ -582,8 +582,16 @@ def frequency_response(
         )
     growth = float(max_growth_rates(op.xi[None])[0])
     stable = growth <= 0.0
+    # the static solution (pipeflow.statics) is the clamped-free pipe's without axial load
+    cantilever = pipe.basis_key is None and not pipe.has_static_axial_force
     if residual is None:
-        residual = v == 0.0 and pipe.tip_inertia == 0.0 and stable
+        residual = v == 0.0 and pipe.tip_inertia == 0.0 and stable and cantilever
+    if residual and not cantilever:
+        warnings.append(
+            "the residual flexibility of the truncated modes is computed for the clamped-free "
+            "pipe without tension, pressure or gravity only, so it is left out here"
+        )
+        residual = False
     R = _residual_flexibility(op, load, x, out, f, v, w0) if residual else None
     if residual and R is None:
         warnings.append(

@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from pipeflow._types import FloatArray
-from pipeflow.basis import gauss_legendre_unit, mode_shapes
+from pipeflow.basis import gauss_legendre_unit
 from pipeflow.errors import InvalidInput
 from pipeflow.model import PipeModel, mode_integrals
 from pipeflow.profiles import Impulse, Profile
@@ -65,7 +65,7 @@ def _out_of_span(i: int, name: str, message: str) -> InvalidInput:
 
 
 def _point_shapes(position: float, model: PipeModel) -> FloatArray:
-    return np.asarray(mode_shapes(model.n, np.array([position / model.pipe.L]))[:, 0])
+    return np.asarray(model.shapes(np.array([position / model.pipe.L]))[:, 0])
 
 
 class _LoadRules:
@@ -191,13 +191,13 @@ class DistributedForce(_LoadRules):
     def generalized_force(self, model: PipeModel) -> FloatArray:
         L = model.pipe.L
         end = L if self.end is None else self.end
-        g = mode_integrals(model.n, model.quadrature_order)
+        g = mode_integrals(model.n, model.quadrature_order, model.pipe.basis_key)
         if self.start == 0.0 and end == L:
             return np.asarray(L * g.f)  # [m]
         # the model's rule mapped onto [x0, x1]: integrand smooth, exact to rounding
         xi, w = gauss_legendre_unit(g.quadrature_order)
         a, b = self.start / L, end / L
-        shapes = mode_shapes(model.n, a + (b - a) * xi)
+        shapes = model.shapes(a + (b - a) * xi)
         return np.asarray(L * (b - a) * (shapes @ w))
 
     def check_span(self, i: int, L: float) -> None:
@@ -226,7 +226,7 @@ class BaseAcceleration(_LoadRules):
 
     def generalized_force(self, model: PipeModel) -> FloatArray:
         pipe = model.pipe
-        g = mode_integrals(model.n, model.quadrature_order)
+        g = mode_integrals(model.n, model.quadrature_order, model.pipe.basis_key)
         out = -pipe.mass * pipe.L * g.f  # [kg]
         if pipe.tip_mass:
             out = out - pipe.tip_mass * g.tip

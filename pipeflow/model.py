@@ -53,8 +53,21 @@ from pipeflow.basis import (
     tip_slopes,
     tip_values,
 )
+from pipeflow.beam_modes import support_basis
 from pipeflow.errors import InvalidInput
 from pipeflow.profiles import Profile
+from pipeflow.supports import (
+    CANTILEVER,
+    BasisKey,
+    PointSupport,
+    Supports,
+    axial_matrix,
+    basis_key,
+    check_mounting,
+    effective_pressure,
+    spin_axial_force,
+    static_axial_force,
+)
 
 #: the planes of motion: "in-plane" (the paper's eq. (1), chordwise) or "out-of-plane" (flapwise)
 PLANES = ("in-plane", "out-of-plane")
@@ -82,8 +95,20 @@ class Pipe:
     plane : "in-plane" (the paper's eq. (1): chordwise, with the -(M1+M2) w0^2 u softening
         and the angular-acceleration forcing) or "out-of-plane" (flapwise: neither term).
 
-    The last six describe the pipe as mounted (damping, tip body, hub); all default to the
-    paper's model, which they then reproduce bit for bit (``docs/model.md``).
+    supports : the end supports (:class:`~pipeflow.supports.Supports`; default clamped at
+        x = 0, free at x = L).
+    intermediate_supports : up to 8 point supports 0 < x < L (springs [N/m] or pins).
+    tension : axial pre-tension T [N] (negative: compression).
+    pressure : internal gauge pressure p [Pa] (cancelled by a free, discharging end).
+    flow_area : flow cross-section A [m^2] (needed with a pressure).
+    poisson : Poisson's ratio nu of the wall [-].
+    axially_restrained : both ends axially fixed (delta = 1 in p A (1 - 2 nu delta); the
+        axial body forces, centrifugal and gravity, are then shared by both ends).
+    gravity : component of gravity along +x [m/s^2]: +g hanging from x = 0, -g standing on it.
+
+    The fields after ``plane`` describe the pipe as mounted (damping, tip body, hub, supports,
+    axial loads); all default to the paper's model, which they then reproduce bit for bit
+    (``docs/model.md``).
     """
 
     E: float
@@ -97,6 +122,14 @@ class Pipe:
     tip_inertia: float = 0.0
     hub_radius: float = 0.0
     plane: str = "in-plane"
+    supports: Supports = CANTILEVER
+    intermediate_supports: tuple[PointSupport, ...] = ()
+    tension: float = 0.0
+    pressure: float = 0.0
+    flow_area: float = 0.0
+    poisson: float = 0.3
+    axially_restrained: bool = False
+    gravity: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("E", "I", "L"):
@@ -116,6 +149,7 @@ class Pipe:
         if self.plane not in PLANES:
             raise ValueError(f"unknown plane {self.plane!r}; use one of {', '.join(PLANES)}")
         check_stiffness(self.E, self.I)
+        check_mounting(self)
 
     @property
     def in_plane(self) -> bool:
@@ -129,9 +163,21 @@ class Pipe:
         return bool(self.kelvin_voigt or self.viscous)
 
     @property
+    def basis_key(self) -> BasisKey | None:
+        """The support set on the unit interval (None: the cantilever's own basis)."""
+        return basis_key(self)
+
+    @property
+    def has_static_axial_force(self) -> bool:
+        """Tension, pressure (not cancelled) or gravity act at rest."""
+        return bool(self.tension or self.gravity or effective_pressure(self))
+
+    @property
     def is_paper_model(self) -> bool:
-        """No damping, no tip body, no hub, in-plane: exactly the paper's model."""
-        return self.in_plane and not any(getattr(self, n) for n in EXTENSION_FIELDS)
+        """No damping, no tip body, no hub, in-plane, the cantilever without axial loads:
+        exactly the paper's model."""
+        mounted = self.basis_key is not None or self.has_static_axial_force
+        return self.in_plane and not mounted and not any(getattr(self, n) for n in EXTENSION_FIELDS)
 
     def dimensionless_groups(self) -> dict[str, float]:
         """The extended model's groups [-], ``{name: value}`` in the order and with the
@@ -255,14 +301,28 @@ REVERSE_FLOW_CAVEAT = (
 
 def basis_caveats(pipe: Pipe) -> list[str]:
     """What a result must say about the cantilever-mode basis for this pipe (one text for
-    all analyses): the tip body's rotary inertia converges only like 1/modes."""
-    if not pipe.tip_inertia:
-        return []
-    return [
-        "pipe.tip_inertia: the cantilever modes lack the tip curvature its boundary condition "
-        "needs, so eigenvalues converge only like 1/modes (about 1e-2 relative for the third "
-        "mode at 40 modes when J_t/(m L^3) = 0.01, docs/model.md sec. 5); use many modes"
-    ]
+    all analyses): the tip body's rotary inertia converges only like 1/modes; a support set
+    with a rigid-body mode (a pinned or elastic end without rotational spring opposite a free
+    one) keeps a neutral zero eigenvalue."""
+    out = []
+    if pipe.tip_inertia:
+        out.append(
+            "pipe.tip_inertia: the cantilever modes lack the tip curvature its boundary "
+            "condition needs, so eigenvalues converge only like 1/modes (about 1e-2 relative "
+            "for the third mode at 40 modes when J_t/(m L^3) = 0.01, docs/model.md sec. 5); "
+            "use many modes"
+        )
+    key = pipe.basis_key
+    if key is not None and not key[2] and "free" in (key[0][0], key[1][0]):
+        held = key[0] if key[1][0] == "free" else key[1]
+        if held[0] == "pinned" or (held[0] == "elastic" and held[2] == 0.0):
+            out.append(
+                "pipe.supports: the pipe can rotate as a rigid body (a zero eigenvalue at every "
+                "velocity); where another eigenvalue passes zero the Galerkin model shows a "
+                "narrow divergence window that shrinks with modes (pinned-free, beta = 0.2, "
+                "near u = 2 pi: growth 1.7e-3 at 10 modes, 4e-5 at 16): check with more modes"
+            )
+    return out
 
 
 @dataclass(frozen=True)
@@ -289,25 +349,41 @@ class ModeIntegrals:
     xd: FloatArray
     f: FloatArray
     tip: FloatArray
+    x2d: FloatArray
     tip_slope: FloatArray
 
 
 @lru_cache(maxsize=64)
-def mode_integrals(n: int, quadrature_order: int | None = None) -> ModeIntegrals:
-    """Gauss-Legendre evaluation of the Galerkin integrals (cached per ``(n, order)``)."""
+def mode_integrals(
+    n: int, quadrature_order: int | None = None, supports: BasisKey | None = None
+) -> ModeIntegrals:
+    """Gauss-Legendre evaluation of the Galerkin integrals (cached per ``(n, order)``) on the
+    cantilever modes, or with ``supports`` (:attr:`Pipe.basis_key`) on the basis of
+    :func:`pipeflow.beam_modes.support_basis` (``k4`` is then its diagonal bending matrix,
+    the springs included)."""
     if not 1 <= n <= MAX_MODES:
         raise ValueError(f"modes must be between 1 and {MAX_MODES}, got {n}")
-    q = default_quadrature_order(n) if quadrature_order is None else int(quadrature_order)
+    if supports is None:
+        q = default_quadrature_order(n) if quadrature_order is None else int(quadrature_order)
+    else:
+        basis = support_basis(n, *supports)
+        top = max(m.lam for m in basis.modes)
+        q = int(max(48, np.ceil(top + 40))) if quadrature_order is None else int(quadrature_order)
     if q < 2 * n:
         raise ValueError(f"quadrature order {q} is too low for {n} modes (need >= {2 * n})")
     xi, w = gauss_legendre_unit(q)
-    p0 = mode_shapes(n, xi, 0)
-    p1 = mode_shapes(n, xi, 1)
-    p2 = mode_shapes(n, xi, 2)
-    p4 = mode_shapes(n, xi, 4)
+    if supports is None:
+        p0, p1, p2, p4 = (mode_shapes(n, xi, k) for k in (0, 1, 2, 4))
+        k4 = (p0 * w) @ p4.T
+        tip, slope = tip_values(n), tip_slopes(n)
+    else:
+        p0, p1, p2 = (basis.shapes(xi, k) for k in (0, 1, 2))
+        k4 = np.diag(basis.lam4)
+        tip, slope = basis.shapes(np.ones(1), 0)[:, 0], basis.shapes(np.ones(1), 1)[:, 0]
     pw = p0 * w
 
     def ro(a: FloatArray) -> FloatArray:
+        a = np.asarray(a)
         a.setflags(write=False)
         return a
 
@@ -319,14 +395,26 @@ def mode_integrals(n: int, quadrature_order: int | None = None) -> ModeIntegrals
         c=ro(pw @ p2.T),
         xb=ro((pw * xi) @ p1.T),
         tc=ro((pw * (1.0 - xi**2)) @ p2.T),
-        k4=ro(pw @ p4.T),
+        k4=ro(k4),
         xf=ro(pw @ xi),
         d=ro((p1 * w) @ p1.T),
         xd=ro((p1 * (w * xi)) @ p1.T),
         f=ro(pw.sum(axis=1)),
-        tip=ro(tip_values(n)),
-        tip_slope=ro(tip_slopes(n)),
+        tip=ro(tip),
+        tip_slope=ro(slope),
+        x2d=ro((p1 * (w * xi * xi)) @ p1.T),
     )
+
+
+def basis_shapes(
+    n: int, xi: FloatArray, derivative: int = 0, supports: BasisKey | None = None
+) -> FloatArray:
+    """d^k phi_j / dxi^k [-] of the model's basis (cantilever modes, or the supports' basis),
+    shape ``(n, len(xi))``."""
+    xi = np.atleast_1d(np.asarray(xi, dtype=float))
+    if supports is None:
+        return mode_shapes(n, xi, derivative)
+    return support_basis(n, *supports).shapes(xi, derivative)
 
 
 @dataclass(frozen=True)
@@ -435,6 +523,9 @@ class PipeModel:
     S_w2: FloatArray = field(repr=False)
     f_wdot: FloatArray = field(repr=False)
     tip: FloatArray = field(repr=False)
+    #: the bending stiffness alone (with the support springs) [N/m]; K_0 adds the static
+    #: axial forces (tension, pressure, gravity).  None: K_0 itself
+    K_bend: FloatArray | None = field(default=None, repr=False)
 
     @property
     def size(self) -> int:
@@ -488,20 +579,27 @@ class PipeModel:
         n = self.n
         return z[..., n:], z[..., :n] * self.omega_ref
 
+    def shapes(self, xi: ArrayLike, derivative: int = 0) -> FloatArray:
+        """The basis functions' ``derivative``-th derivatives d^k phi_j / dxi^k [-] at
+        ``xi = x/L``, shape ``(n, len(xi))`` (cantilever modes or the supports' basis)."""
+        xi = np.atleast_1d(np.asarray(xi, dtype=float))
+        return basis_shapes(self.n, xi, derivative, self.pipe.basis_key)
+
     def displacement(self, d: FloatArray, xi: ArrayLike) -> FloatArray:
         """u(x, t) [m] at non-dimensional positions ``xi = x/L`` from modal coordinates."""
-        shapes = mode_shapes(self.n, np.atleast_1d(np.asarray(xi, dtype=float)))
-        return np.asarray(d @ shapes)
+        return np.asarray(d @ self.shapes(xi))
 
     def natural_frequencies(self) -> FloatArray:
         """Undamped no-flow, no-spin natural frequencies [rad/s] (Rao, Table 8.1 roots; with
         a tip body, the Galerkin eigenvalues of (K_0, M)), ascending."""
         p = self.pipe
-        if not (p.tip_mass or p.tip_inertia):
+        if not (p.tip_mass or p.tip_inertia or p.basis_key or p.has_static_axial_force):
             lam = np.asarray(cantilever_roots(self.n))
             return lam**2 * math.sqrt(p.EI / (p.mass * p.L**4))
+        # supports, springs and axial loads: the Galerkin eigenvalues; a pipe buckled at
+        # rest (a negative omega^2: divergence) reports 0 for those modes
         w2 = scipy.linalg.eigh(self.K_0, self.M, eigvals_only=True)
-        return np.sqrt(np.sort(w2))
+        return np.sqrt(np.clip(np.sort(w2), 0.0, None))
 
     def initial_state(
         self, u0: float, du0: float, shape: str = "paper"
@@ -512,10 +610,23 @@ class PipeModel:
         so the initial tip displacement is 2.7244 u0 [m].
         ``shape="tip"``: s is the first mode scaled to a unit tip value, so u0 is the
         initial tip displacement [m].
+        With other supports (``docs/supports.md``) s is the first basis function scaled to a
+        largest |s| of 1 for ``"paper"`` (u0 is the largest initial deflection [m]) and to a
+        unit tip value for ``"tip"`` (refused where the tip is held: w(L) = 0).
         """
         d0 = np.zeros(self.n)
         v0 = np.zeros(self.n)
-        if shape == "paper":
+        if shape not in ("paper", "tip"):
+            raise ValueError(f"unknown initial shape {shape!r} (use 'paper' or 'tip')")
+        if self.pipe.basis_key is not None and shape == "paper":
+            scale = 1.0 / float(np.max(np.abs(self.shapes(np.linspace(0.0, 1.0, 1001))[0])))
+        elif self.pipe.basis_key is not None and abs(float(self.tip[0])) < 1e-9:
+            raise InvalidInput(
+                "the initial shape 'tip' needs a moving tip; with the supports "
+                f"({self.pipe.supports.describe()}) use 'paper' (largest deflection u0)",
+                "initial_shape",
+            )
+        elif shape == "paper":
             scale = paper_scale(1)[0]
         elif shape == "tip":
             scale = 1.0 / float(self.tip[0])
@@ -576,7 +687,8 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     ``docs/model.md``; each is added only when its field is non-zero, so the paper's model
     gives the same arrays, bit for bit, as before they existed.
     """
-    g = mode_integrals(n, quadrature_order)
+    key = pipe.basis_key
+    g = mode_integrals(n, quadrature_order, key)
     L, m, M1, M2, EI = pipe.L, pipe.mass, pipe.M1, pipe.M2, pipe.EI
     R, mt, Jt = pipe.hub_radius, pipe.tip_mass, pipe.tip_inertia
     # dimensional integrals: dx = L dxi, d/dx = (1/L) d/dxi
@@ -592,7 +704,15 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     C_0 = np.zeros((n, n))
     tip = g.tip
     slope = g.tip_slope / L  # d phi_j / dx at x = L [1/m]
-    if R:
+    if key is not None or pipe.axially_restrained:
+        # any supports: the centrifugal tension in weak form, integral of N phi_i' phi_j' / L,
+        # with N(x) following the axial boundary conditions (docs/model.md 9)
+        K_w2 = axial_matrix(spin_axial_force(pipe), g, L)
+        if pipe.in_plane:
+            K_w2 = K_w2 - m * gram
+        if pipe.in_plane and R:
+            F_wdot = F_wdot - m * R * L * g.f
+    elif R:
         # tension M1 w0^2 R (L - x), zero at the tip: weak form = strong form
         K_w2 = K_w2 + M1 * R * (g.d - g.xd)
         if pipe.in_plane:
@@ -600,8 +720,10 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     if mt:
         M = M + mt * np.outer(tip, tip)
         # the tip mass's tension m_t w0^2 (R + L) along the whole pipe (weak form: the
-        # natural boundary condition EI u_xxx - T(L) u_x = ... carries its tip part)
-        K_w2 = K_w2 + mt * (R + L) / L * g.d
+        # natural boundary condition EI u_xxx - T(L) u_x = ... carries its tip part);
+        # with other supports it is in spin_axial_force
+        if key is None and not pipe.axially_restrained:
+            K_w2 = K_w2 + mt * (R + L) / L * g.d
         if pipe.in_plane:
             K_w2 = K_w2 - mt * np.outer(tip, tip)
             F_wdot = F_wdot - mt * (R + L) * tip
@@ -609,15 +731,23 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
         M = M + Jt * np.outer(slope, slope)
         if pipe.in_plane:
             F_wdot = F_wdot - Jt * slope
+    K_bend = K_0
+    if pipe.has_static_axial_force:
+        # tension, pressure and gravity at rest: K_0 gains integral of N phi_i' phi_j' / L
+        K_0 = K_0 + axial_matrix(static_axial_force(pipe), g, L)
     if pipe.kelvin_voigt:
-        C_0 = C_0 + pipe.kelvin_voigt * K_0
+        C_0 = C_0 + pipe.kelvin_voigt * K_bend
     if pipe.viscous:
         C_0 = C_0 + pipe.viscous * gram
 
     _check_mass_conditioning(M, mt * float(tip @ tip), Jt * float(slope @ slope))
     # M is diagonal up to rounding without a tip body (n <= 40): one solve for every block
     Minv = np.linalg.solve(M, np.eye(n))
-    omega_ref = np.sqrt(np.diag(K_0) / np.diag(M))
+    omega_ref = np.sqrt(np.diag(K_bend) / np.diag(M))
+    if key is not None:
+        # a rigid-body mode (a free or sliding end) has no bending stiffness: balance it on
+        # the beam's frequency scale sqrt(EI / (m L^4)) instead (any positive scale works)
+        omega_ref = np.maximum(omega_ref, math.sqrt(EI / (m * L**4)))
     T = np.concatenate([omega_ref, np.ones(n)])  # y = T z
 
     def balanced(upper_left: FloatArray, upper_right: FloatArray, lower: bool) -> FloatArray:
@@ -636,11 +766,11 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     S_v2 = balanced(zero, -Minv @ K_v2, False)
     S_w2 = balanced(zero, -Minv @ K_w2, False)
     f_wdot = np.concatenate([(Minv @ F_wdot) / omega_ref, np.zeros(n)])
-    arrays = [M, C_0, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref]
+    arrays = [M, C_0, C_v, K_0, K_bend, K_vdot, K_v2, K_w2, F_wdot, omega_ref]
     arrays += [S_0, S_v, S_vdot, S_v2, S_w2, f_wdot]
     for a in arrays:
         a.setflags(write=False)
     return PipeModel(
         pipe, n, g.quadrature_order, M, C_0, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref,
-        S_0, S_v, S_vdot, S_v2, S_w2, f_wdot, tip,
+        S_0, S_v, S_vdot, S_v2, S_w2, f_wdot, tip, None if K_bend is K_0 else K_bend,
     )  # fmt: skip

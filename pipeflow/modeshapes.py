@@ -6,7 +6,8 @@ is a complex vector of Galerkin amplitudes, and the mode shape of branch j is
 
     Phi_j(x, t) = sum_k d_jk phi_k(x / L)
 
-with phi_k the cantilever modes of :mod:`pipeflow.basis`.  Flow makes the shapes complex
+with phi_k the model's basis (the cantilever modes of :mod:`pipeflow.basis`, or the supports'
+basis of :mod:`pipeflow.beam_modes`).  Flow makes the shapes complex
 (travelling-wave content: the real and imaginary parts peak at different stations); without
 flow and spin they are real multiples of the cantilever modes.
 
@@ -28,7 +29,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow._types import ComplexArray, FloatArray
-from pipeflow.basis import mode_shapes as cantilever_shapes
 from pipeflow.model import Loading, PipeModel
 from pipeflow.spectra import assign, decompose, match_branches, order_lowest
 
@@ -93,7 +93,7 @@ def frozen_mode_shapes(
     n = model.n
     d = np.take_along_axis(V[at][:, n:, :], cols[:, None, :], axis=2)  # (T, n, B)
     x = np.linspace(0.0, model.pipe.L, points)
-    phi = cantilever_shapes(n, x / model.pipe.L)  # (n, P)
+    phi = model.shapes(x / model.pipe.L)  # (n, P)
     shapes = np.einsum("tkb,kp->tbp", d, phi)
     peak = np.take_along_axis(shapes, np.argmax(np.abs(shapes), axis=2)[..., None], axis=2)
     return ModeShapes(t=times, x=x, xi=xi, shapes=shapes / peak)

@@ -251,10 +251,16 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     # the linear model's range (pipeflow.divergence): the history stops at the first
     # sample past the bound, before any overflow
     bound = sim.divergence_bound
+    watch, where = displacements, np.asarray(sim.positions, dtype=float)
+    if sim.pipe.basis_key is not None:
+        # supports: the tip may be held (w(L) = 0), so watch 19 interior stations too
+        inner = np.linspace(0.05, 0.95, 19)
+        watch = np.vstack([displacements, model.displacement(d, inner).T])
+        where = np.concatenate([where, inner * sim.pipe.L])
     if bound is None:
-        start = max(abs(float(tip[0])), float(np.max(np.abs(displacements[:, 0]), initial=0.0)))
+        start = max(abs(float(tip[0])), float(np.max(np.abs(watch[:, 0]), initial=0.0)))
         bound = default_bound(sim.pipe.L, start)
-    stop = divergence(t, tip, displacements, np.asarray(sim.positions), bound, model, loading)
+    stop = divergence(t, tip, watch, where, bound, model, loading)
     if stop is not None:
         k = stop.index + 1
         t, d, ddot, tip, displacements = t[:k], d[:k], ddot[:k], tip[:k], displacements[:, :k]

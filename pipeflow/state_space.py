@@ -28,7 +28,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pipeflow.basis import mode_shapes
 from pipeflow.frequency import (
     Load,
     PointForce,
@@ -106,7 +105,7 @@ def state_space(
     f = _generalised_force(model, load)
     w = np.asarray(model.omega_ref, dtype=float)
     B = np.concatenate([np.linalg.solve(model.M, f) / w, np.zeros(n)])[:, None]
-    Phi = mode_shapes(n, x / pipe.L).T  # (p, n)
+    Phi = model.shapes(x / pipe.L).T  # (p, n)
     p = x.size
     if quantity == "displacement":
         C = np.hstack([np.zeros((p, n)), Phi])

@@ -209,6 +209,7 @@ def critical_velocities(result: CriticalVelocity) -> dict[str, Any]:
     return r.document(
         r.StabilityResponse,
         critical_velocity=result.critical_velocity,
+        mechanism=result.mechanism,
         stable_throughout=result.stable_throughout,
         stable_at_start=result.stable_at_start,
         instability_at_start=list(result.instability_at_start),

@@ -105,7 +105,7 @@ def warnings(spec: SimulationSpec) -> list[str]:
         )
     velocity = _peak(spec.flow.velocity, t_end)
     if p.M2 > 0 and velocity > 0:
-        pipe = p.to_pipe(spec.rotation.hub_radius, spec.plane)
+        pipe = p.to_pipe(spec.rotation.hub_radius, spec.plane, spec.gravity_along_x())
         u = float(pipe.flow_number(velocity))
         if u > FLOW_FACTOR * U_CR_FLOOR:
             try:

@@ -71,6 +71,13 @@ from pipeflow.schema.profiles import HarmonicProfile as HarmonicProfile
 from pipeflow.schema.profiles import PolynomialProfile as PolynomialProfile
 from pipeflow.schema.profiles import ProfileSpec as ProfileSpec
 from pipeflow.schema.profiles import TableProfile as TableProfile
+from pipeflow.schema.supports import (
+    FlowPressure,
+    GravityField,
+    MountingFields,
+    check_pipe,
+    check_pressure,
+)
 from pipeflow.simulation import Simulation
 from pipeflow.solvers import SOLVERS, Options
 from pipeflow.solvers.base import MAX_STEPS_CEILING
@@ -159,7 +166,7 @@ class DampingSpec(StrictModel):
     )
 
 
-class PipeSpec(StrictModel):
+class PipeSpec(MountingFields):
     """Pipe and fluid properties (the paper's section 5 values are the example).
 
     Given explicitly (E, I, L, M1, M2) or by its drawing: L, outer_diameter with
@@ -238,9 +245,16 @@ class PipeSpec(StrictModel):
             check_stiffness(self.E, self.I)
         except PipeflowError as exc:
             raise InvalidField(exc.message, exc.parameter) from None
+        check_pipe(self.to_pipe)  # supports and axial loads (schema/supports.py)
         return self
 
-    def to_pipe(self, hub_radius: float = 0.0, plane: str = "in-plane") -> Pipe:
+    def to_pipe(
+        self,
+        hub_radius: float = 0.0,
+        plane: str = "in-plane",
+        gravity: float = 0.0,
+        pressure: float = 0.0,
+    ) -> Pipe:
         """The library's :class:`~pipeflow.model.Pipe`, mounted at ``hub_radius`` [m] and
         vibrating in ``plane`` (both given by the request's rotation and plane fields)."""
         return Pipe(
@@ -255,6 +269,9 @@ class PipeSpec(StrictModel):
             tip_inertia=self.tip_inertia,
             hub_radius=hub_radius,
             plane=plane,
+            gravity=gravity,
+            pressure=pressure,
+            **self.mounting(),
         )
 
 
@@ -265,7 +282,7 @@ class RotationSpec(StrictModel):
     hub_radius: HubRadius = 0.0
 
 
-class FlowSpec(StrictModel):
+class FlowSpec(FlowPressure):
     velocity: ProfileSpec = Field(
         default_factory=ConstantProfile,
         description="Flow velocity v(t) [m/s]; v > 0 flows from the clamped end to the tip.",
@@ -395,7 +412,7 @@ class OutputSpec(StrictModel):
         }
 
 
-class SimulationSpec(StrictModel):
+class SimulationSpec(GravityField):
     """A simulation request: pipe, loading, initial condition, discretisation and method."""
 
     model_config = ConfigDict(
@@ -457,6 +474,7 @@ class SimulationSpec(StrictModel):
 
     @model_validator(mode="after")
     def _consistent(self) -> SimulationSpec:
+        check_pressure(self.pipe, self.flow)
         if self.output.eigen_modes > self.modes:
             # normalise: there are only `modes` branches (keeps equivalent requests one key)
             self.output.eigen_modes = self.modes
@@ -546,7 +564,9 @@ class SimulationSpec(StrictModel):
     def to_simulation(self) -> Simulation:
         """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
         return Simulation(
-            pipe=self.pipe.to_pipe(self.rotation.hub_radius, self.plane),
+            pipe=self.pipe.to_pipe(
+                self.rotation.hub_radius, self.plane, self.gravity_along_x(), self.flow.pressure
+            ),
             flow=self.flow.velocity.to_profile(),
             spin=self.rotation.omega0.to_profile(),
             u0=self.initial.u0,

@@ -16,7 +16,7 @@ filled in) for the cache key.  How each runs (the plain library call and its doc
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Self
 
 import numpy as np
 from pydantic import AliasChoices, ConfigDict, Field, Strict, model_validator
@@ -35,6 +35,7 @@ from pipeflow.schema.simulation import (
     StrictModel,
     library_check,
 )
+from pipeflow.schema.supports import FlowPressure, GravityField, check_pressure
 from pipeflow.stability.floquet import (
     MAX_CHART_WORK,
     chart_work,
@@ -126,19 +127,32 @@ class ConstantRotation(Hub):
     )
 
 
-class _Mounted(StrictModel):
+class _Mounted(GravityField):
     """A request with a pipe, a hub radius (``rotation.hub_radius``) and a ``plane``."""
 
     pipe: PipeSpec
     rotation: Hub = Field(default_factory=Hub)
     plane: Plane = "in-plane"
 
+    flow: FlowPressure = Field(
+        default_factory=FlowPressure,
+        exclude_if=lambda v: v == FlowPressure(),
+        description="The flow's internal pressure (the velocity is the analysis' range).",
+    )
+
+    @model_validator(mode="after")
+    def _pressure(self) -> Self:
+        check_pressure(self.pipe, self.flow)
+        return self
+
     def mounted_pipe(self) -> Pipe:
-        """The library's pipe with this request's hub radius and plane."""
-        return self.pipe.to_pipe(self.rotation.hub_radius, self.plane)
+        """The library's pipe with this request's hub radius, plane, gravity and pressure."""
+        return self.pipe.to_pipe(
+            self.rotation.hub_radius, self.plane, self.gravity_along_x(), self.flow.pressure
+        )
 
 
-class ConstantFlow(StrictModel):
+class ConstantFlow(FlowPressure):
     velocity: ConstantProfile = Field(
         default_factory=ConstantProfile,
         description="Constant flow velocity v [m/s]; v > 0 flows from the clamped end to the tip.",
@@ -393,7 +407,7 @@ class ResonanceChartSweep(_Mounted):
         )
 
 
-class PeriodicFlow(StrictModel):
+class PeriodicFlow(FlowPressure):
     velocity: ConstantProfile | HarmonicProfile = Field(
         discriminator="kind", description="Flow velocity v(t) [m/s]: constant or harmonic."
     )

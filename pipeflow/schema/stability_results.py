@@ -96,6 +96,14 @@ class StabilityResponse(Result):
         "the first loss after stability is regained, not a critical velocity from rest: read "
         "stable_intervals and crossings."
     )
+    mechanism: Literal["flutter", "divergence"] | None = Field(
+        None,
+        description="How the pipe loses stability at critical_velocity: 'divergence' (a "
+        "frequency reaching zero: supported pipes, conservative ends) or 'flutter' (a complex "
+        "pair with growing amplitude: the cantilever, or coupled-mode flutter of a supported "
+        "pipe at higher velocity); null without a critical velocity.  Every crossing names its "
+        "own in 'kind'.",
+    )
     stable_throughout: bool = Field(description="Stable over the whole v >= 0 part of the range.")
     stable_at_start: bool | None = Field(
         description="Stable at max(v_min, 0) (null when the whole range is v < 0)."

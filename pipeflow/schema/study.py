@@ -83,6 +83,7 @@ from pipeflow.schema.simulation import (
     costs_unchecked,
 )
 from pipeflow.schema.stability import PAPER_PIPE_JSON, StabilitySpec
+from pipeflow.schema.supports import with_defaults
 
 #: bound on the cases of one study (list length or grid product) [-]
 MAX_CASES = 10_000
@@ -395,7 +396,8 @@ class StudySpec(StrictModel):
     def _base_json(self) -> tuple[dict[str, Any], dict[str, Any]]:
         """The base request as given (sparse) and with its defaults (full)."""
         spec = self.base.spec
-        return spec.model_dump(mode="json", exclude_unset=True), spec.model_dump(mode="json")
+        full = with_defaults(spec, spec.model_dump(mode="json"))  # supports.py's fields
+        return spec.model_dump(mode="json", exclude_unset=True), full
 
     def case_data(self, overrides: dict[str, int | float]) -> dict[str, Any]:
         """The JSON request of the case with ``overrides`` (the base's own parts shared)."""
@@ -632,7 +634,7 @@ class StudySpec(StrictModel):
         return i
 
     def _check_paths(self) -> None:
-        full = self.base.spec.model_dump(mode="json")
+        full = with_defaults(self.base.spec, self.base.spec.model_dump(mode="json"))
         where: dict[str, tuple[Any, ...]] = {}
         if self.grid is not None:
             where = {p: ("grid", p) for p in self.grid}

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -92,7 +93,7 @@ def nondimensional_pipe(
     """
     if not 0 < beta < 1:
         raise InvalidInput(f"beta must be in (0, 1), got {beta}", parameter="beta")
-    extra: dict[str, float] = {}
+    extra: dict[str, Any] = {}  # the group fields (floats)
     for name, value in (groups or {}).items():
         if name not in GROUP_FIELDS:
             raise InvalidInput(
@@ -152,6 +153,8 @@ def sign_changes(
         elif not trio.any():
             if not (s[k] >= s[k - 1] and s[k] >= s[k + 1]):
                 continue
+            if np.max(np.abs(s[k - 1 : k + 2])) <= tol[k]:
+                continue  # rounding on the imaginary axis (a conservative, supported pipe)
             sign = -1.0  # maximise: does it poke above zero?
         else:
             continue
@@ -189,6 +192,22 @@ def mechanisms(xi: ComplexArray, tol: float, radius: float) -> list[str]:
         if kind not in out:
             out.append(kind)
     return out
+
+
+def crossing_kind(
+    spectrum: Callable[[float], ComplexArray], x: float, loss: bool
+) -> tuple[str, float]:
+    """``(kind, omega)`` of a change of stability at ``x``: the fastest-growing eigenvalue on
+    the unstable side (x (1 + 1e-6) for a loss, x (1 - 1e-6) for a gain) is real
+    ("divergence", omega 0) or a pair ("flutter", its |omega| [rad/s]).  Read on the unstable
+    side because at x itself a divergence is a pair meeting at 0, whose rounding leaves an
+    omega of order sqrt(eps) |xi| that a test at x would call flutter."""
+    side = x * (1 + 1e-6) if loss else x * (1 - 1e-6)
+    w = np.asarray(spectrum(side))
+    top = w[np.argmax(w.real)]
+    if abs(top.imag) <= 1e-3 * max(abs(top), 1e-300):
+        return "divergence", 0.0
+    return "flutter", abs(float(top.imag))
 
 
 def stable_intervals(

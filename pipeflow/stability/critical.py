@@ -16,15 +16,17 @@ and no threshold.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Literal
 
 import numpy as np
+from scipy.optimize import brentq
 
-from pipeflow._types import FloatArray, Progress
+from pipeflow._types import ComplexArray, FloatArray, Progress
 from pipeflow.errors import InvalidInput
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.spectra import Branches, follow, rounding_level
 from pipeflow.stability.core import (
     check_modes,
@@ -96,6 +98,9 @@ class CriticalVelocity:
     warnings: list[str] = field(default_factory=list)
     diagnostics: dict[str, Any] = field(default_factory=dict)
     instability_at_start: list[str] = field(default_factory=list)
+    #: how the pipe loses stability at critical_velocity: "divergence" (a frequency reaching
+    #: zero, supported pipes) or "flutter" (a complex pair, the cantilever); None without one
+    mechanism: Kind | None = None
 
     @property
     def stable_throughout(self) -> bool:
@@ -111,6 +116,116 @@ class CriticalVelocity:
         if self.critical_velocity is None or p.M2 == 0:
             return None
         return float(p.flow_number(self.critical_velocity))
+
+
+def _static_zeros(model: PipeModel, omega0: float, grid: FloatArray) -> list[float]:
+    """Velocities [m/s] where K(v) = K_0 + v^2 K_v2 + w0^2 K_w2 is singular: there S has a
+    zero eigenvalue (det S = det(M^-1 K)), a divergence or a restabilisation.  Found on the
+    sweep's grid by the sign of det(K D) (D = diag(K_bend)^-1 scales it to O(1)) and Brent's
+    method: independent of the branch tracking, which cannot tell a pair meeting at 0 from
+    a swap (sigma ~ sqrt(v - v_d) there)."""
+    Kb = model.K_0 if model.K_bend is None else model.K_bend
+    if np.any(np.diag(Kb) <= 0):
+        return []  # a rigid-body mode (a pinned-free pipe's rotation): det K = 0 throughout
+    scale = 1.0 / np.abs(np.diag(Kb))
+    base = model.K_0 + omega0 * omega0 * model.K_w2
+
+    def det(v: float | FloatArray) -> FloatArray:
+        vv = np.atleast_1d(np.asarray(v, dtype=float))
+        K = base[None] + (vv * vv)[:, None, None] * model.K_v2[None]
+        return np.asarray(np.linalg.det(K * scale[None, None, :]))
+
+    vals = det(grid)
+    out: list[float] = []
+    for a, b, fa, fb in zip(grid[:-1], grid[1:], vals[:-1], vals[1:], strict=True):
+        if fa * fb < 0:
+            out.append(float(brentq(lambda v: float(det(v)[0]), a, b, xtol=1e-14 * b, rtol=1e-13)))
+    return out
+
+
+def _with_divergence(
+    model: PipeModel,
+    omega0: float,
+    br: Branches,
+    crossings: list[Crossing],
+    lo: float,
+    hi: float,
+    tol: float,
+) -> list[Crossing]:
+    """Every change of the number of unstable eigenvalues in [lo, hi] [m/s], as crossings.
+
+    Candidates: the tracker's crossings, every zero of det K (:func:`_static_zeros`, exact
+    divergence velocities that replace a tracker crossing within 1e-4 relative: the tracker
+    locates a pair meeting at 0 only to ~sqrt(rtol)), and any change of the whole spectrum's
+    stability between two grid points that no candidate explains (located on the largest
+    sigma, continuous in v).  Each is kept only if the count of eigenvalues with sigma > tol
+    differs between v (1 - 1e-6) and v (1 + 1e-6) (so a tracking swap is no crossing), with
+    its direction, whether the pipe as a whole changes stability (``boundary``), and its kind
+    from the eigenvalue that changes side (real: divergence; complex: flutter)."""
+    pipe = model.pipe
+    grid = np.asarray(br.p[(br.p >= lo) & (br.p <= hi)], dtype=float)
+    zeros = _static_zeros(model, omega0, grid) if grid.size > 1 else []
+    step = 1e-6
+
+    def spectrum(v: float) -> ComplexArray:
+        return np.asarray(np.linalg.eigvals(state_matrices(model, np.array([v]), omega0)[0]))
+
+    def growth(v: float) -> float:
+        return float(spectrum(v).real.max())
+
+    candidates: list[tuple[float, Crossing | None]] = []
+    used: set[float] = set()
+    for c in crossings:
+        hit = [z for z in zeros if abs(c.velocity - z) <= 1e-4 * abs(z)]
+        if hit:
+            used.add(hit[0])
+            candidates.append((hit[0], None))
+        else:
+            candidates.append((c.velocity, c))
+    candidates += [(z, None) for z in zeros if z not in used]
+
+    def classify(v: float, old: Crossing | None) -> Crossing | None:
+        below, above = spectrum(max(v * (1 - step), 0.0)), spectrum(v * (1 + step))
+        n_below, n_above = int(np.sum(below.real > tol)), int(np.sum(above.real > tol))
+        if n_below == n_above:
+            return None
+        side = above if n_above > n_below else below
+        unstable = side[side.real > tol]
+        new = unstable[np.argmin(unstable.real)]  # the one that just crossed
+        divergence = old is None and any(abs(v - z) <= 1e-12 * abs(z) for z in zeros)
+        divergence = divergence or abs(new.imag) <= 1e-3 * max(abs(new), 1e-300)
+        freq = 0.0 if divergence else abs(float(new.imag))
+        if old is not None:
+            mode = old.mode
+        else:
+            k = int(np.clip(np.searchsorted(br.p, v), 0, br.p.size - 1))
+            mode = int(br.mode[int(np.argmin(np.abs(br.xi[k] - new)))])
+        return Crossing(
+            velocity=v,
+            frequency=freq,
+            mode=mode,
+            kind="divergence" if divergence else "flutter",
+            direction="loss" if n_above > n_below else "gain",
+            boundary=(n_below == 0) != (n_above == 0),
+            flow_number=None if pipe.M2 == 0 else float(pipe.flow_number(v)),
+            dimensionless_frequency=freq * pipe.time_scale,
+        )
+
+    found = [classify(v, old) for v, old in candidates]
+    out = [c for c in found if c is not None]
+    sig = br.xi.real.max(axis=1)
+    inside = np.flatnonzero((br.p >= lo) & (br.p <= hi))
+    for a_i, b_i in itertools.pairwise(inside):
+        a, b = float(br.p[a_i]), float(br.p[b_i])
+        if (sig[a_i] > tol) == (sig[b_i] > tol):
+            continue
+        if any(c.boundary and a * (1 - 1e-3) <= c.velocity <= b * (1 + 1e-3) for c in out):
+            continue
+        v = float(brentq(lambda x: growth(x) - tol, a, b, xtol=1e-14 * b))
+        extra = classify(v, None)
+        if extra is not None:
+            out.append(extra)
+    return sorted(out, key=lambda c: c.velocity)
 
 
 def _branch_sigma(br: Branches, j: int, x: float, k: int) -> float:
@@ -206,9 +321,11 @@ def critical_velocities(
     swaps = 0
     for v, j, k, loss in sorted(found):
         xi = br.branch_at(j, k, v)
-        if abs(xi.real) > 1e-6 * max(abs(xi), 1e-9 * radius):
+        if abs(xi.real) > 1e-6 * max(abs(xi), 1e-9 * radius) and abs(xi) > 1e-5 * radius:
             # sigma jumps instead of passing zero: the grid tracking swapped two branches
-            # there (confidence too low); the pipe's stability does not change at a swap
+            # there (confidence too low); the pipe's stability does not change at a swap.
+            # (A divergence, a pair meeting at xi = 0, has sigma ~ sqrt(v - v_d): there the
+            # located root leaves |xi| ~ sqrt(rtol) radius, which is a crossing, not a swap.)
             swaps += 1
             continue
         if xi.imag < -1e-9 * max(abs(xi), 1e-9 * radius):
@@ -228,6 +345,7 @@ def critical_velocities(
                 dimensionless_frequency=(0.0 if divergence else abs(xi.imag)) * pipe.time_scale,
             )
         )
+    crossings = _with_divergence(model, omega0, br, crossings, lo, v_max, float(np.max(tol)))
     result.crossings = crossings
     result.stable_at_start = not any(unstable0[j] and br.upper(j, start) for j in range(m))
     if not result.stable_at_start:
@@ -235,6 +353,7 @@ def critical_velocities(
     first = [c for c in crossings if c.boundary and c.direction == "loss"]
     if first:
         result.critical_velocity = first[0].velocity
+        result.mechanism = first[0].kind
     result.stable_intervals = stable_intervals(
         lo,
         v_max,

@@ -26,6 +26,7 @@ from pipeflow.spectra import rounding_level
 from pipeflow.stability.core import (
     check_modes,
     check_range,
+    crossing_kind,
     eigenvalues,
     mechanisms,
     nondimensional_pipe,
@@ -82,7 +83,6 @@ def _line(
     """Boundary crossings along one line of constant spin, v >= 0 part only."""
     g = xi.real.max(axis=-1)
     tol = rounding_level(xi)
-    radius = float(np.max(np.abs(xi)))
     start = int(np.searchsorted(v, 0.0))
 
     def growth(x: float, k: int) -> float:
@@ -90,15 +90,10 @@ def _line(
 
     out = []
     for x, _, loss in sign_changes(v, g, tol, growth, start, rtol):
-        w = eigenvalues(model, x, w0)[0]
-        top = w[np.argmax(w.real)]
-        divergence = abs(top.imag) <= 1e-7 * radius
+        kind, omega = crossing_kind(lambda y: eigenvalues(model, y, w0)[0], x, loss)
         out.append(
             BoundaryCrossing(
-                velocity=x,
-                direction="loss" if loss else "gain",
-                kind="divergence" if divergence else "flutter",
-                frequency=0.0 if divergence else abs(float(top.imag)),
+                velocity=x, direction="loss" if loss else "gain", kind=kind, frequency=omega
             )
         )
     return out

@@ -34,6 +34,7 @@ from pipeflow.spectra import follow, order_lowest, rounding_level
 from pipeflow.stability.core import (
     check_modes,
     check_range,
+    crossing_kind,
     mechanisms,
     sign_changes,
     stable_intervals,
@@ -178,17 +179,8 @@ def pipe_stability(
     out = []
     g = br.xi.real.max(axis=1)
     for x, _, loss in sign_changes(br.p, g, tol, growth, 0, CROSSING_RTOL):
-        w = spectrum(x)
-        top = w[np.argmax(w.real)]
-        divergence = abs(top.imag) <= 1e-7 * radius
-        out.append(
-            BoundaryCrossing(
-                x,
-                "loss" if loss else "gain",
-                "divergence" if divergence else "flutter",
-                0.0 if divergence else abs(float(top.imag)),
-            )
-        )
+        kind, omega = crossing_kind(spectrum, x, loss)
+        out.append(BoundaryCrossing(x, "loss" if loss else "gain", kind, omega))  # type: ignore[arg-type]
     intervals = stable_intervals(
         float(br.p[0]), float(br.p[-1]), not how, [(c.value, c.direction == "loss") for c in out]
     )

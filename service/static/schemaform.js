@@ -58,6 +58,15 @@ window.SchemaForm = (function () {
         delete own.anyOf;
         s = Object.assign({}, deref(doc, others[0]), own, nullable ? { nullable: true } : {},
           s.anyOf.some(quantity) ? { quantity: true } : {});
+      } else {
+        // a named choice or an object (an end support: "pinned" ... or {"translational":
+        // k}): the form offers the names; the object form goes in the JSON body
+        const named = others.filter((o) => Array.isArray(o.enum));
+        if (named.length === 1 && others.length > 1) {
+          const own = Object.assign({}, s);
+          delete own.anyOf;
+          s = Object.assign({}, named[0], own, nullable ? { nullable: true } : {});
+        }
       }
     }
     if (s.items && typeof s.items === "object" && Array.isArray(s.items.anyOf)) {

@@ -357,3 +357,24 @@ def test_run_a_hammer_blow_and_a_half_sine_pulse(tmp_path: Path) -> None:
     assert result["status"] == "ok"
     assert result["loads"][0] == spec["loads"][0]
     assert result["loads"][2]["force"]["after"] == "hold"
+
+
+def test_stability_of_a_supported_pipe(tmp_path: Path) -> None:
+    """A pinned-pinned spool from a spec file (issue 31): divergence at u = pi, named."""
+    spec = tmp_path / "spool.json"
+    spec.write_text(
+        json.dumps(
+            {
+                "pipe": {"E": 1.0, "I": 1.0, "L": 1.0, "M1": 0.5, "M2": 0.5,
+                         "supports": {"x0": "pinned", "xL": "pinned"}},
+                "modes": 8,
+                "velocity_range": [0.0, 6.0],
+                "points": 61,
+            }
+        )
+    )  # fmt: skip
+    out = tmp_path / "out.json"
+    assert main(["stability", str(spec), "-o", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    assert result["mechanism"] == "divergence"
+    assert result["critical_velocity"] == pytest.approx(3.141592653589793 / 0.5**0.5, rel=1e-9)
