@@ -94,7 +94,7 @@ def test_floquet_parametric_resonance_of_a_pinned_pipe(freq: float, unstable: bo
     Paidoussis vol. 1 ch. 3.6).  Inside it a multiplier leaves the unit circle (measured
     1.20 at Omega = 18); outside, the conservative gyroscopic pipe keeps every |mu| = 1
     (to 1e-9: Hamiltonian, no dissipation through a free end)."""
-    from pipeflow.schema.registry import SWEEP_KINDS, computation_for, parse
+    from pipeflow.computations.registry import SWEEP_KINDS, computation_for, parse
 
     pipe = {"E": 1.0, "I": 1.0, "L": 1.0, "M1": 0.5, "M2": 0.5,
             "supports": {"x0": "pinned", "xL": "pinned"}}  # fmt: skip

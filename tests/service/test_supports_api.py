@@ -187,8 +187,7 @@ def test_a_study_varies_tension_and_pressure() -> None:
     out) on the pinned-pinned pipe: every case diverges at u = sqrt(pi^2 - Pi + Gamma)
     (Paidoussis sec. 3.3; Pi = p A L^2/EI, Gamma = T L^2/EI), to 1e-10 (the basis holds
     the buckling mode)."""
-    from pipeflow.schema.registry import COMPUTATIONS
-
+    from pipeflow.computations.registry import COMPUTATIONS
     from pipeflow.schema.study import StudySpec
 
     base = {**SPOOL, "pipe": {**SPOOL["pipe"], "flow_area": 1.0}, "modes": 8}
