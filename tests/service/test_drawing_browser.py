@@ -23,6 +23,17 @@ pytestmark = pytest.mark.slow
 __all__ = ["page"]
 
 
+#: the supports/axial-load fields of the pipe block at their defaults (issue 31)
+MOUNTING_DEFAULTS = {
+    "supports": {"x0": "clamped", "xL": "free"},
+    "intermediate_supports": [],
+    "tension": 0,
+    "flow_area": 0,
+    "poisson": 0.3,
+    "axially_restrained": False,
+}
+
+
 def test_the_form_takes_the_pipe_from_its_drawing(server: str, page: Page, screenshot: Any) -> None:
     bodies: list[dict[str, Any]] = []
     page.on(
@@ -66,6 +77,11 @@ def test_the_form_takes_the_pipe_from_its_drawing(server: str, page: Page, scree
         "material": "steel",
         "fluid": "water",
         **{k: v for k, v in sent["pipe"].items() if k == "damping" or k.startswith("tip_")},
+        **{k: v for k, v in sent["pipe"].items() if k in MOUNTING_DEFAULTS},
+    }
+    # the supports form (issue 31) sends its fields at their defaults: today's cantilever
+    assert {k: sent["pipe"][k] for k in MOUNTING_DEFAULTS if k in sent["pipe"]} == {
+        k: v for k, v in MOUNTING_DEFAULTS.items() if k in sent["pipe"]
     }
     # the key of the explicit request the drawing stands for
     explicit = dict(sent, pipe=PipeSpec.model_validate(sent["pipe"]).model_dump())
