@@ -48,6 +48,7 @@ from pipeflow.schema.stability import (
     Modes,
     _Mounted,
 )
+from pipeflow.schema.supports import mounting_canonical
 
 #: the most output positions of one request
 MAX_FRF_POSITIONS = 64
@@ -299,7 +300,9 @@ class FrequencyResponseSpec(_Mounted):
     @model_validator(mode="after")
     def _consistent(self) -> FrequencyResponseSpec:
         if self.operating_points is not None:
-            if "flow" in self.model_fields_set or "omega0" in self.rotation.model_fields_set:
+            # the flow block may still carry the pressure, which applies to every point
+            velocity_given = "velocity" in self.flow.model_fields_set
+            if velocity_given or "omega0" in self.rotation.model_fields_set:
                 raise InvalidField(
                     "give operating_points or flow.velocity and rotation.omega0, not both",
                     "operating_points",
@@ -392,6 +395,7 @@ class FrequencyResponseSpec(_Mounted):
         }
         if self.residual_flexibility is not None:  # the default keeps earlier keys
             out["residual_flexibility"] = self.residual_flexibility
+        out |= mounting_canonical(self)
         return out
 
     def grid(self) -> list[float] | Any:

@@ -29,6 +29,7 @@ from pipeflow.schema.stability import (
     Modes,
     _Mounted,
 )
+from pipeflow.schema.supports import mounting_canonical
 from pipeflow.state_space import state_space
 
 #: library parameter -> request field
@@ -105,18 +106,22 @@ class StateSpaceSpec(_Mounted):
 
     def canonical(self) -> dict[str, Any]:
         """One shape for the cache key (defaults filled in)."""
-        return {
+        out: dict[str, Any] = {
             "pipe": self.pipe.model_dump(mode="json"),
             "rotation": {
-                "omega0": self.rotation.omega0.value,
+                "omega0": {"kind": "constant", "value": self.rotation.omega0.value},
                 "hub_radius": self.rotation.hub_radius,
             },
-            "flow": {"velocity": self.flow.velocity.value},
+            "flow": {"velocity": {"kind": "constant", "value": self.flow.velocity.value}},
             "plane": self.plane,
             "modes": self.modes,
             "load": self.load.model_dump(mode="json"),
             "response": self.response.model_dump(mode="json"),
         }
+        mounting = mounting_canonical(self)
+        if "flow" in mounting:
+            out["flow"] |= mounting.pop("flow")
+        return out | mounting
 
     def run(self, progress: Progress | None = None) -> dict[str, Any]:
         """The realisation as JSON (:class:`StateSpaceResponse`)."""

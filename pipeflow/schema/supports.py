@@ -204,6 +204,20 @@ class FlowPressure(StrictModel):
     )
 
 
+def mounting_canonical(spec: Any) -> dict[str, Any]:
+    """The top-level ``gravity`` and the flow's ``pressure`` of ``spec`` for a request kind
+    whose :meth:`canonical` lists its fields by hand (frequency responses, state space):
+    ``{"gravity": {...}, "flow": {"pressure": p}}``, each only when set, so a request
+    without them keeps its key and two requests that differ in them never share one."""
+    out: dict[str, Any] = {}
+    if getattr(spec, "gravity", None) is not None:
+        out["gravity"] = spec.gravity.model_dump(mode="json")
+    pressure = getattr(getattr(spec, "flow", None), "pressure", 0.0)
+    if pressure:
+        out["flow"] = {"pressure": pressure}
+    return out
+
+
 def check_pressure(pipe: Any, flow: Any) -> None:
     """Refuse a pressure without the flow area it acts on (names ``pipe.flow_area``)."""
     if getattr(flow, "pressure", 0.0) and not pipe.flow_area:

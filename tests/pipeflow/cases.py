@@ -68,6 +68,14 @@ TINY["frequency_response"] = {
     "response": {"positions": [PIPE["L"] / 3, 2 * PIPE["L"] / 3, PIPE["L"]]},
     "frequencies": {"min": 10.0, "max": 6000.0, "count": 50, "spacing": "log"},
 }
+TINY["state_space"] = {
+    "pipe": PIPE,
+    "modes": 3,
+    "flow": {"velocity": {"kind": "constant", "value": 5.0}},
+    "rotation": {"omega0": {"kind": "constant", "value": 100.0}},
+    "load": {"kind": "point_force", "position": PIPE["L"]},
+    "response": {"positions": [PIPE["L"]]},
+}
 TINY["study"] = {
     "base": {"kind": "simulation", "spec": TINY["simulation"]},
     "cases": [{}, {"pipe.E": 8e9}],

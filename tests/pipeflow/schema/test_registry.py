@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import typing
+from typing import Any
 
 import pytest
 
@@ -11,6 +13,7 @@ from pipeflow.computations import registry
 from pipeflow.computations.registry import COMPUTATIONS, SIMULATION, SWEEP_KINDS
 from pipeflow.errors import InvalidInput
 from pipeflow.io.plots import available_plots
+from pipeflow.schema.keys import canonical_key
 from pipeflow.schema.simulation import PAPER_EXAMPLE, MethodOptions, SimulationSpec
 from pipeflow.solvers import Options
 from tests.pipeflow.cases import TINY, tiny_request
@@ -94,3 +97,47 @@ def test_every_plot_a_result_can_have_is_named_by_its_entry(name: str) -> None:
     raw = {"kind": name, **raw} if "kind" in c.response.model_fields else raw
     assert set(available_plots(raw)) <= set(c.plots)
     assert c.execute(tiny_request(name))["plots"] == available_plots(raw)
+
+
+def _first_example(name: str) -> dict[str, Any]:
+    examples = COMPUTATIONS[name].examples or {}
+    return copy.deepcopy(next(iter(examples.values()))["value"])
+
+
+@pytest.mark.parametrize("name", [n for n in COMPUTATIONS if COMPUTATIONS[n].examples])
+def test_every_normal_form_is_a_request_again_with_the_same_key(name: str) -> None:
+    """A job is recovered from its stored normal form: it must parse and keep its key (the
+    state-space form once wrote bare numbers where profiles belong: a 500 on recovery)."""
+    entry = COMPUTATIONS[name]
+    spec = entry.request.model_validate(_first_example(name))
+    again = entry.request.model_validate(spec.canonical())
+    assert canonical_key(name, again.canonical()) == canonical_key(name, spec.canonical())
+
+
+MOUNTED = [n for n in COMPUTATIONS if "gravity" in COMPUTATIONS[n].request.model_fields]
+
+
+@pytest.mark.parametrize("name", MOUNTED)
+def test_gravity_and_pressure_are_part_of_every_key(name: str) -> None:
+    """Two requests that differ only in gravity or in the internal pressure (issue 31) never
+    share a cache key, in every kind that takes them (the frequency response's and the state
+    space's hand-written normal forms had left both out: one answer for two pipes)."""
+    entry = COMPUTATIONS[name]
+    base = _first_example(name)
+    base["pipe"]["flow_area"] = 1e-4
+    hanging = copy.deepcopy(base) | {"gravity": {"g": 9.81, "orientation": "hanging"}}
+    pressed = copy.deepcopy(base)
+    pressed.setdefault("flow", {})["pressure"] = 1e5
+    keys = set()
+    for body in (base, hanging, pressed):
+        spec = entry.request.model_validate(body)
+        again = entry.request.model_validate(spec.canonical())
+        assert again.canonical() == spec.canonical()
+        keys.add(canonical_key(name, spec.canonical()))
+    assert len(keys) == 3
+
+
+def test_every_kind_has_a_tiny_case() -> None:
+    """The fuzz app answers every kind with its tiny case's result (tests/service/fuzz_app.py):
+    a kind without one made its fake task fail on every attempt (state space: a timeout)."""
+    assert set(TINY) == set(COMPUTATIONS)
