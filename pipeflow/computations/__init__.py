@@ -4,8 +4,9 @@
   the table of computations the service's routes, job kinds and OpenAPI document are built
   from (request model, run function, response model, cost, summaries), and where library
   parameter names are mapped onto request fields;
-- :mod:`pipeflow.computations.kinds`: how each kind of request runs (validated request in,
-  plain library call, response document out);
+- :mod:`pipeflow.computations.simulation`, :mod:`pipeflow.computations.stability` and
+  :mod:`pipeflow.computations.frequency` (frequency responses, state-space models): how each
+  kind of request runs (validated request in, plain library call, response document out);
 - :mod:`pipeflow.computations.documents`: the response documents written from the library's
   results (one function per result type, every object through
   :func:`pipeflow.schema.results.document`);

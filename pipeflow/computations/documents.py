@@ -14,7 +14,8 @@ None), in the order of the bytes the service sends.
 - :func:`critical_velocities` (with :func:`crossing` and :func:`stability_dimensionless`);
 - :func:`sweep` (with :func:`excitation_crossing` and :func:`zero_crossing`);
 - :func:`spin_map`, :func:`beta_map`;
-- :func:`floquet`, :func:`resonance_chart` (with :func:`resonance_regions`).
+- :func:`floquet`, :func:`resonance_chart` (with :func:`resonance_regions`);
+- :func:`frequency_response` (with :func:`frequency_point`), :func:`state_space`.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import numpy as np
 
 from pipeflow.compare import Comparison
 from pipeflow.diagnostics import summary
+from pipeflow.frequency import FrequencyResponse
 from pipeflow.io.json import json_safe
 from pipeflow.loads import load_to_dict
 from pipeflow.modeshapes import ModeShapes
@@ -37,6 +39,7 @@ from pipeflow.stability.critical import CriticalVelocity, Crossing
 from pipeflow.stability.floquet import Floquet, ResonanceChart
 from pipeflow.stability.maps import BetaMap, SpinMap
 from pipeflow.stability.sweeps import RPM, ExcitationCrossing, Sweep, ZeroCrossing
+from pipeflow.state_space import StateSpace
 
 # -- one simulation ------------------------------------------------------------------------
 
@@ -524,3 +527,101 @@ def resonance_chart(chart: ResonanceChart) -> dict[str, Any]:
             "galerkin_modes": chart.modes,
         },
     )
+
+
+def frequency_point(fr: FrequencyResponse) -> dict[str, Any]:
+    """One operating point's block of a frequency response (numbers as the library gives
+    them)."""
+    d = fr.diagnostics
+    return {
+        "velocity": fr.velocity,
+        "omega0": fr.omega0,
+        "stable": fr.stable,
+        "max_growth_rate": fr.max_growth_rate,
+        "responses": [
+            {
+                "position": float(x),
+                "real": fr.H[i].real.tolist(),
+                "imag": fr.H[i].imag.tolist(),
+                "magnitude": fr.magnitude[i].tolist(),
+                "phase": fr.phase[i].tolist(),
+            }
+            for i, x in enumerate(fr.positions)
+        ],
+        "peaks": [
+            {
+                "frequency": p.frequency,
+                "natural_frequency": p.natural_frequency,
+                "damping_ratio": p.damping_ratio,
+                "mode": p.mode,
+                "magnitude": list(p.magnitude),
+            }
+            for p in fr.peaks
+        ],
+        "diagnostics": {
+            "check_frequencies": list(d.check_frequencies),
+            "max_relative_difference": d.max_relative_difference,
+            "eigenvector_condition": d.eigenvector_condition,
+            "method": d.method,
+            "residual_flexibility": fr.residual,
+        },
+        "warnings": list(fr.warnings),
+    }
+
+
+def frequency_response(responses: list[FrequencyResponse]) -> dict[str, Any]:
+    """The document of the responses at several operating points (same load, positions,
+    quantity and frequencies): shared fields once, one block per point.
+
+    The top-level ``warnings`` are every point's, once: a warning every point has as is,
+    another prefixed with its operating point."""
+    first = responses[0]
+    warnings: list[str] = []
+    for fr in responses:
+        for w in fr.warnings:
+            shared = all(w in o.warnings for o in responses)
+            text = w if shared else f"at v = {fr.velocity:g} m/s, w0 = {fr.omega0:g} rad/s: {w}"
+            if text not in warnings:
+                warnings.append(text)
+    return {
+        "quantity": first.quantity,
+        "unit": first.unit,
+        "load": first.load.to_dict(),
+        "modes": first.modes,
+        "positions": first.positions.tolist(),
+        "frequencies": first.frequencies.tolist(),
+        "stable": all(fr.stable for fr in responses),
+        "max_growth_rate": max(fr.max_growth_rate for fr in responses),
+        "operating_points": [frequency_point(fr) for fr in responses],
+        "warnings": warnings,
+    }
+
+
+def state_space(ss: StateSpace) -> dict[str, Any]:
+    """The document of a state-space realisation (the real matrices, the names of the
+    states, input and outputs, and their units)."""
+    return {
+        "A": ss.A.tolist(),
+        "B": ss.B.tolist(),
+        "C": ss.C.tolist(),
+        "D": ss.D.tolist(),
+        "states": list(ss.states),
+        "inputs": list(ss.inputs),
+        "outputs": list(ss.outputs),
+        "units": {
+            "time": "s",
+            "states": "m",
+            "inputs": ss.input_unit,
+            "outputs": ss.output_unit,
+            "A": "1/s",
+            "B": f"m/({ss.input_unit} s)",
+            "C": f"{ss.output_unit}/m",
+            "D": f"{ss.output_unit}/{ss.input_unit}",
+        },
+        "velocity": ss.velocity,
+        "omega0": ss.omega0,
+        "quantity": ss.quantity,
+        "positions": ss.positions.tolist(),
+        "natural_frequencies": ss.natural_frequencies.tolist(),
+        "warnings": list(ss.warnings),
+    }

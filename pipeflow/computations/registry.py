@@ -28,6 +28,7 @@ from pydantic import BaseModel, Field, TypeAdapter
 from pipeflow._types import Progress
 from pipeflow.compare import MAX_METHODS
 from pipeflow.computations import stability as stability_runs
+from pipeflow.computations.frequency import run_frequency_response, run_state_space
 from pipeflow.computations.simulation import SIMULATION_SUMMARY as SIMULATION_SUMMARY
 from pipeflow.computations.simulation import (
     metered_run_time_simulation as metered_run_time_simulation,
@@ -290,18 +291,6 @@ COMPARE = register(
         },
     )
 )
-
-
-def run_frequency_response(
-    spec: f.FrequencyResponseSpec, progress: Progress | None
-) -> dict[str, Any]:
-    """A frequency response: its model's ``run`` (the plain library call)."""
-    return spec.run(progress)
-
-
-def run_state_space(spec: ssp.StateSpaceSpec, progress: Progress | None) -> dict[str, Any]:
-    """A state-space model: its model's ``run`` (the plain library call)."""
-    return spec.run(progress)
 
 
 #: the paper's pipe (beta = 0.467) at w0 = 100 rad/s: flutter of mode 3 at v = 27.69 m/s

@@ -34,8 +34,9 @@ def simulate_spec(spec: SimulationSpec, progress: Progress | None = None) -> Res
     outside the pipe's scales, likely meant in another unit, adds a warning (issue 34,
     item 8)."""
     with request_fields(SIMULATION_FIELDS):
-        result = simulate(spec.to_simulation(), progress=progress)
-    result.warnings.extend(plausibility.warnings(spec))
+        sim = spec.to_simulation()  # the request's library arguments, built once
+        result = simulate(sim, progress=progress)
+    result.warnings.extend(plausibility.warnings(spec, sim))
     return result
 
 

@@ -6,9 +6,8 @@ stability schemas: damping, tip body, hub radius, plane), one operating point (c
 list of them (``operating_points``), the ``load`` (a point force or the clamp's
 acceleration), the ``response`` wanted (positions [m] and quantity) and the ``frequencies``
 [rad/s] (a range, to which the resonances are added, or an explicit list answered at exactly
-those values).  Its ``run`` is the plain library call
-(:func:`pipeflow.frequency.frequency_response` at each operating point); the result's JSON
-has one block per operating point (:func:`frequency_result`).
+those values).  What runs it (:func:`pipeflow.frequency.frequency_response` at each
+operating point) and writes its document is :mod:`pipeflow.computations.frequency`.
 
 Same conventions as :mod:`pipeflow.schema.stability`: strict models, units in every
 description, bounds on everything a request can spend (:data:`MAX_FRF_VALUES`),
@@ -22,7 +21,6 @@ from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field, model_validator
 
-from pipeflow._types import Progress
 from pipeflow.errors import InvalidField
 from pipeflow.frequency import (
     MAX_FREQUENCIES,
@@ -31,12 +29,8 @@ from pipeflow.frequency import (
     QUANTITIES,
     UNITS,
     BaseAcceleration,
-    FrequencyResponse,
     Load,
     PointForce,
-    frequency_grid,
-    frequency_response,
-    resonances,
 )
 from pipeflow.paper import PAPER_PIPE_JSON
 from pipeflow.schema.simulation import Cost, PipeSpec, StrictModel
@@ -398,116 +392,6 @@ class FrequencyResponseSpec(_Mounted):
         out |= mounting_canonical(self)
         return out
 
-    def grid(self) -> list[float] | Any:
-        """The frequencies [rad/s]: the explicit list, or the range with every operating
-        point's resonances in it (:func:`~pipeflow.frequency.frequency_grid`)."""
-        f = self.frequencies
-        if f.values is not None:
-            return list(f.values)
-        pipe = self.mounted_pipe()
-        found = [r for v, w in self.points() for r in resonances(pipe, v, w, modes=self.modes)]
-        assert f.min is not None and f.max is not None  # the validator's range form
-        return frequency_grid(f.min, f.max, f.count, f.spacing, resonances=found)
-
-    def responses(self, progress: Progress | None = None) -> list[FrequencyResponse]:
-        """:func:`~pipeflow.frequency.frequency_response` at each operating point."""
-        pipe = self.mounted_pipe()
-        W = self.grid()
-        points = self.points()
-        out = []
-        for i, (v, w) in enumerate(points):
-            out.append(
-                frequency_response(
-                    pipe,
-                    v,
-                    w,
-                    load=self.load.to_load(),
-                    positions=self.response.positions,
-                    frequencies=W,
-                    quantity=self.response.quantity,
-                    modes=self.modes,
-                    residual=self.residual_flexibility,
-                )
-            )
-            if progress is not None:
-                progress((i + 1) / len(points))
-        return out
-
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """The responses at every operating point as JSON (:func:`frequency_result`)."""
-        return frequency_result(self.responses(progress))
-
-
-def _load_json(load: Load) -> dict[str, Any]:
-    return load.to_dict()
-
-
-def point_result(r: FrequencyResponse) -> dict[str, Any]:
-    """One operating point's block of the answer (numbers as the library gives them)."""
-    d = r.diagnostics
-    return {
-        "velocity": r.velocity,
-        "omega0": r.omega0,
-        "stable": r.stable,
-        "max_growth_rate": r.max_growth_rate,
-        "responses": [
-            {
-                "position": float(x),
-                "real": r.H[i].real.tolist(),
-                "imag": r.H[i].imag.tolist(),
-                "magnitude": r.magnitude[i].tolist(),
-                "phase": r.phase[i].tolist(),
-            }
-            for i, x in enumerate(r.positions)
-        ],
-        "peaks": [
-            {
-                "frequency": p.frequency,
-                "natural_frequency": p.natural_frequency,
-                "damping_ratio": p.damping_ratio,
-                "mode": p.mode,
-                "magnitude": list(p.magnitude),
-            }
-            for p in r.peaks
-        ],
-        "diagnostics": {
-            "check_frequencies": list(d.check_frequencies),
-            "max_relative_difference": d.max_relative_difference,
-            "eigenvector_condition": d.eigenvector_condition,
-            "method": d.method,
-            "residual_flexibility": r.residual,
-        },
-        "warnings": list(r.warnings),
-    }
-
-
-def frequency_result(responses: list[FrequencyResponse]) -> dict[str, Any]:
-    """The JSON of the responses at several operating points (same load, positions,
-    quantity and frequencies): shared fields once, one block per point.
-
-    The top-level ``warnings`` are every point's, once: a warning every point has as is,
-    another prefixed with its operating point."""
-    first = responses[0]
-    warnings: list[str] = []
-    for r in responses:
-        for w in r.warnings:
-            shared = all(w in o.warnings for o in responses)
-            text = w if shared else f"at v = {r.velocity:g} m/s, w0 = {r.omega0:g} rad/s: {w}"
-            if text not in warnings:
-                warnings.append(text)
-    return {
-        "quantity": first.quantity,
-        "unit": first.unit,
-        "load": _load_json(first.load),
-        "modes": first.modes,
-        "positions": first.positions.tolist(),
-        "frequencies": first.frequencies.tolist(),
-        "stable": all(r.stable for r in responses),
-        "max_growth_rate": max(r.max_growth_rate for r in responses),
-        "operating_points": [point_result(r) for r in responses],
-        "warnings": warnings,
-    }
-
 
 __all__ = [
     "FREQUENCY_FIELDS",
@@ -516,5 +400,4 @@ __all__ = [
     "MAX_FRF_VALUES",
     "UNITS",
     "FrequencyResponseSpec",
-    "frequency_result",
 ]

@@ -30,7 +30,9 @@ from pipeflow.errors import PipeflowError
 from pipeflow.schema import units
 
 if TYPE_CHECKING:
+    from pipeflow.profiles import Profile
     from pipeflow.schema.simulation import SimulationSpec
+    from pipeflow.simulation import Simulation
 
 #: a spin above this many first bending frequencies is implausible [-]
 SPIN_FACTOR = 10.0
@@ -55,9 +57,9 @@ def first_bending_frequency(E: float, I: float, M1: float, M2: float, L: float) 
     return LAMBDA1**2 * math.sqrt(E * I / ((M1 + M2) * L**4))
 
 
-def _peak(profile: Any, t_end: float) -> float:
-    """max |p(t)| over [0, t_end] of a profile spec (sampled)."""
-    values = profile.to_profile().value(np.linspace(0.0, t_end, _SAMPLES))
+def _peak(profile: Profile, t_end: float) -> float:
+    """max |p(t)| over [0, t_end] of a library profile (sampled)."""
+    values = profile.value(np.linspace(0.0, t_end, _SAMPLES))
     return float(np.max(np.abs(values)))
 
 
@@ -88,14 +90,19 @@ def _suggestion(
     )
 
 
-def warnings(spec: SimulationSpec) -> list[str]:
-    """The plausibility warnings of a simulation request (empty for ordinary values)."""
+def warnings(spec: SimulationSpec, sim: Simulation | None = None) -> list[str]:
+    """The plausibility warnings of a simulation request (empty for ordinary values).
+
+    ``sim``: the request's library arguments (:meth:`SimulationSpec.to_simulation`) when
+    the caller has them already (the request is then not converted a second time)."""
     from pipeflow.stability.critical import critical_velocities
 
+    if sim is None:
+        sim = spec.to_simulation()
     out: list[str] = []
     p, t_end = spec.pipe, spec.time.t_end
     w1 = first_bending_frequency(p.E, p.I, p.M1, p.M2, p.L)
-    spin = _peak(spec.rotation.omega0, t_end)
+    spin = _peak(sim.spin, t_end)
     if spin > SPIN_FACTOR * w1:
         field = "rotation.omega0"
         out.append(
@@ -103,9 +110,9 @@ def warnings(spec: SimulationSpec) -> list[str]:
             f"frequency ({w1:.3g} rad/s)"
             + _suggestion(field, spec.rotation.omega0, spin, "rad/s", SPIN_UNITS, ORDINARY * w1)
         )
-    velocity = _peak(spec.flow.velocity, t_end)
+    velocity = _peak(sim.flow, t_end)
     if p.M2 > 0 and velocity > 0:
-        pipe = p.to_pipe(spec.rotation.hub_radius, spec.plane, spec.gravity_along_x())
+        pipe = sim.pipe
         u = float(pipe.flow_number(velocity))
         if u > FLOW_FACTOR * U_CR_FLOOR:
             try:

@@ -1,7 +1,8 @@
 """Request and response models of a state-space realisation (``POST /v1/state-space``,
 issue 32): the body of a frequency response without its frequencies (one operating
 point), answered with the real matrices A, B, C, D of :func:`pipeflow.state_space.state_space`,
-the names of the states, input and outputs, and their units.
+the names of the states, input and outputs, and their units.  What runs it is
+:mod:`pipeflow.computations.frequency`.
 """
 
 from __future__ import annotations
@@ -10,7 +11,6 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from pipeflow._types import Progress
 from pipeflow.errors import InvalidField
 from pipeflow.schema.frequency import (
     HAMMER_EXAMPLE,
@@ -30,7 +30,6 @@ from pipeflow.schema.stability import (
     _Mounted,
 )
 from pipeflow.schema.supports import mounting_canonical
-from pipeflow.state_space import state_space
 
 #: library parameter -> request field
 STATE_SPACE_FIELDS: dict[str, str] = {
@@ -122,45 +121,6 @@ class StateSpaceSpec(_Mounted):
         if "flow" in mounting:
             out["flow"] |= mounting.pop("flow")
         return out | mounting
-
-    def run(self, progress: Progress | None = None) -> dict[str, Any]:
-        """The realisation as JSON (:class:`StateSpaceResponse`)."""
-        ss = state_space(
-            self.mounted_pipe(),
-            self.flow.velocity.value,
-            self.rotation.omega0.value,
-            load=self.load.to_load(),
-            positions=self.response.positions,
-            quantity=self.response.quantity,
-            modes=self.modes,
-        )
-        if progress is not None:
-            progress(1.0)
-        return {
-            "A": ss.A.tolist(),
-            "B": ss.B.tolist(),
-            "C": ss.C.tolist(),
-            "D": ss.D.tolist(),
-            "states": list(ss.states),
-            "inputs": list(ss.inputs),
-            "outputs": list(ss.outputs),
-            "units": {
-                "time": "s",
-                "states": "m",
-                "inputs": ss.input_unit,
-                "outputs": ss.output_unit,
-                "A": "1/s",
-                "B": f"m/({ss.input_unit} s)",
-                "C": f"{ss.output_unit}/m",
-                "D": f"{ss.output_unit}/{ss.input_unit}",
-            },
-            "velocity": ss.velocity,
-            "omega0": ss.omega0,
-            "quantity": ss.quantity,
-            "positions": ss.positions.tolist(),
-            "natural_frequencies": ss.natural_frequencies.tolist(),
-            "warnings": list(ss.warnings),
-        }
 
 
 class StateSpaceUnits(BaseModel):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import threading
+import traceback
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,22 @@ from service.main import create_app
 from service.settings import Settings
 from tests.service.conftest import SMALL
 
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def package_files(stack: list[traceback.FrameSummary]) -> list[str]:
+    """The files of ``pipeflow`` and ``service`` on ``stack`` (outermost first), each
+    consecutive run of frames in one file once: a change of file is a hop of the walk."""
+    out: list[str] = []
+    for frame in stack:
+        path = Path(frame.filename).resolve()
+        if not any(path.is_relative_to(ROOT / p) for p in ("pipeflow", "service")):
+            continue
+        name = str(path.relative_to(ROOT))
+        if not out or out[-1] != name:
+            out.append(name)
+    return out
+
 
 class InProcessRunner(Runner):
     """The engine with its Dask cluster replaced by a thread running the task function."""
@@ -35,8 +52,12 @@ class InProcessRunner(Runner):
     def __init__(self, settings: Settings, store: Any) -> None:
         super().__init__(settings, store)
         self._connected.set()  # no cluster to connect to
+        #: the files on the stack where the engine hands the job to its cluster
+        self.submitted_from: list[str] = []
 
     def _execute(self, flight: Flight, job: Any) -> Any:
+        if not self.submitted_from:
+            self.submitted_from = package_files(traceback.extract_stack()[:-1])
         return asyncio.ensure_future(
             asyncio.to_thread(
                 run_job, flight.job.computation, flight.job.request, job.key, self._config()
@@ -63,7 +84,11 @@ def test_body_to_pipe_model_validates_once(tmp_path: Path, monkeypatch: pytest.M
         calls["canonical"] += 1
         return canonical(self)
 
+    model_reached_from: list[str] = []
+
     def recording_build_model(pipe: Pipe, modes: int, *args: Any, **kw: Any) -> Any:
+        if not built:
+            model_reached_from.extend(package_files(traceback.extract_stack()[:-1]))
         built.append((pipe, modes))
         calls[f"validations before the model #{len(built)}"] = calls["SimulationSpec"]
         return build_model(pipe, modes, *args, **kw)
@@ -74,10 +99,13 @@ def test_body_to_pipe_model_validates_once(tmp_path: Path, monkeypatch: pytest.M
     # no fast lane: its warm-up validates and runs requests of its own in this process
     app: Any = create_app(Settings(data_dir=tmp_path, workers=1, fast_lane_threads=0))
 
+    runners: list[InProcessRunner] = []
+
     async def walk() -> httpx.Response:
         # one thread for the app (so the profiler sees it); the worker thread starts later
         async with app.router.lifespan_context(app):
             app.state.runner = InProcessRunner(app.state.settings, app.state.store)
+            runners.append(app.state.runner)
             app.state.runner.ready = True
             transport = httpx.ASGITransport(app=app)
             async with httpx.AsyncClient(transport=transport, base_url="http://walk") as c:
@@ -103,3 +131,16 @@ def test_body_to_pipe_model_validates_once(tmp_path: Path, monkeypatch: pytest.M
     assert calls["canonical"] == 1, calls
     assert built and built[0] == (Pipe(**body["pipe"]), 2)
     assert calls["validations before the model #1"] == 1
+    # the walk's engine and worker parts, file by file (issue 33: "the walks shorter"; the
+    # part below the registry is tests/pipeflow/schema/test_walk.py's).  The engine's task
+    # (Flights.start in service/engine/flight.py) starts the driver, which hands the flight
+    # back to the runner's submit callback:
+    assert runners[0].submitted_from == ["service/engine/drive.py", "service/engine/runner.py"]
+    # the worker's task function (the cluster's submit, Dask, in the real engine) hands the
+    # validated request to the registry, which runs the library:
+    assert model_reached_from == [
+        "service/engine/task.py",  # run_job, _run_job, _compute
+        "pipeflow/computations/registry.py",  # Computation.execute
+        "pipeflow/computations/simulation.py",  # run_simulation, simulate_spec
+        "pipeflow/simulation.py",  # simulate
+    ]

@@ -140,4 +140,5 @@ def test_gravity_and_pressure_are_part_of_every_key(name: str) -> None:
 def test_every_kind_has_a_tiny_case() -> None:
     """The fuzz app answers every kind with its tiny case's result (tests/service/fuzz_app.py):
     a kind without one made its fake task fail on every attempt (state space: a timeout)."""
-    assert set(TINY) == set(COMPUTATIONS)
+    # (a kind some test registers for itself, ``test-...``, needs none)
+    assert {name for name in COMPUTATIONS if not name.startswith("test-")} == set(TINY)
