@@ -297,6 +297,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _spec_pipe(data: Any) -> Any:
+    """The library pipe of a spec's ``pipe`` (its supports are drawn on the plots along x),
+    or None for a result (which does not carry its request's pipe)."""
+    data = _unwrap(data)
+    if _is_result(data) or not isinstance(data, dict) or not isinstance(data.get("pipe"), dict):
+        return None
+    from pydantic import ValidationError
+
+    from pipeflow.schema.simulation import PipeSpec
+
+    try:  # the run above has validated the spec; a kind with another pipe draws none
+        return PipeSpec.model_validate(data["pipe"]).to_pipe()
+    except ValidationError:
+        return None
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
     from pipeflow.io.plots import PlotError, render
 
@@ -305,7 +321,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
         raise PlotError("give --out a .png or .svg file name, or --format", field="--out")
     from pipeflow.io.plots import available_plots
 
-    result = _result_for(args, _read_json(args.input))
+    data = _read_json(args.input)
+    result = _result_for(args, data)
     names = available_plots(result)
     name = args.name or (names[0] if names else "tip_displacement")
     if name not in names:
@@ -314,7 +331,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
             field="--name",
         )
     units = {"spin": args.spin_unit, "frequency": args.frequency_unit}
-    _write(args.out, render(result, name, fmt, title=args.title, units=units))
+    pipe = _spec_pipe(data)
+    _write(args.out, render(result, name, fmt, title=args.title, units=units, pipe=pipe))
     if args.out not in (None, "-"):
         print(f"wrote {args.out}", file=sys.stderr)
     return 0

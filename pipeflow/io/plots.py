@@ -29,6 +29,8 @@ if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not to list 
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+    from pipeflow.model import Pipe
+
 Format = Literal["png", "svg"]
 MEDIA_TYPES: dict[str, str] = {"png": "image/png", "svg": "image/svg+xml"}
 Series = tuple[str | None, dict[str, Any]]
@@ -670,6 +672,10 @@ PLOTS: dict[str, PlotKind] = {
 }
 
 
+#: the plots whose x axis is the position along the pipe x [m]: they draw the supports
+ALONG_PIPE = ("mode_shapes", "deflection")
+
+
 def available_plots(result: dict[str, Any]) -> list[str]:
     """Names of the plots that can be drawn from ``result`` (in :data:`PLOTS` order)."""
     return [name for name, kind in PLOTS.items() if kind.applies(result)]
@@ -682,12 +688,15 @@ def figure(
     title: str | None = None,
     size: tuple[float, float] = (6.4, 4.0),
     units: Mapping[str, str] | None = None,
+    pipe: Pipe | None = None,
 ) -> Figure:
     """A figure of kind ``name`` with one curve (family) per ``(label, result)`` in ``series``.
 
     ``title`` overrides the kind's default title; labels of ``None`` draw no legend entry.
     ``units`` shows spin and frequency axes in another unit (``{"spin": "rpm",
-    "frequency": "Hz"}``, :data:`DISPLAY_UNITS`); the data stay in rad/s.
+    "frequency": "Hz"}``, :data:`DISPLAY_UNITS`); the data stay in rad/s.  ``pipe`` draws
+    its supports (:mod:`pipeflow.io.support_symbols`) on the plots along x [m]
+    (:data:`ALONG_PIPE`); ``None`` draws none.
     """
     if name not in PLOTS:
         raise PlotError(f"unknown plot {name!r}; choose one of {', '.join(PLOTS)}")
@@ -708,6 +717,10 @@ def figure(
     ax.set_ylabel(kind.ylabel)
     for label, result in series:
         kind.draw(ax, result, label)  # may refine the labels (e.g. the swept parameter)
+    if pipe is not None and name in ALONG_PIPE:
+        from pipeflow.io.support_symbols import draw_supports
+
+        draw_supports(ax, pipe)
     if kind.suptitle:
         fig.suptitle(title if title is not None else kind.title, fontsize=10)
     else:
@@ -750,8 +763,10 @@ def render(
     *,
     title: str | None = None,
     units: Mapping[str, str] | None = None,
+    pipe: Pipe | None = None,
 ) -> bytes:
-    """PNG or SVG bytes of plot ``name`` of one JSON result (``units``: see :func:`figure`)."""
+    """PNG or SVG bytes of plot ``name`` of one JSON result (``units``, ``pipe``: see
+    :func:`figure`)."""
     if fmt not in MEDIA_TYPES:
         raise PlotError(f"unknown image format {fmt!r}; choose png or svg", field="format")
-    return to_bytes(figure(name, [(None, result)], title=title, units=units), fmt)
+    return to_bytes(figure(name, [(None, result)], title=title, units=units, pipe=pipe), fmt)

@@ -378,3 +378,22 @@ def test_stability_of_a_supported_pipe(tmp_path: Path) -> None:
     result = json.loads(out.read_text())
     assert result["mechanism"] == "divergence"
     assert result["critical_velocity"] == pytest.approx(3.141592653589793 / 0.5**0.5, rel=1e-9)
+
+
+def test_plot_of_a_spec_draws_its_supports(tmp_path: Path) -> None:
+    """`pipeflow plot SPEC` draws the spec's supports on the mode shapes (issue 31)."""
+    spec = json.loads(json.dumps(PAPER_EXAMPLE))
+    spec.update(modes=4, time={"t_end": 0.05, "samples": 11})
+    spec["pipe"]["supports"] = {"x0": "pinned", "xL": "pinned"}
+    spec["pipe"]["intermediate_supports"] = [
+        {"position": spec["pipe"]["L"] / 2, "translational": 1e3}
+    ]
+    spec["output"] = {"eigen_modes": 2, "eigen_samples": 3, "mode_shapes": {"times": [0.0]}}
+    path = tmp_path / "pp.json"
+    path.write_text(json.dumps(spec))
+    svg = tmp_path / "shapes.svg"
+    argv = ["plot", str(path), "--name", "mode_shapes", "--out", str(svg), "--quiet"]
+    assert main(argv) == 0
+    text = svg.read_text()
+    for gid in ("support:x0:pinned", "support:xL:pinned", "support:point0:elastic"):
+        assert f'id="{gid}"' in text
