@@ -85,7 +85,8 @@ class CaseSummary:
 
 def eligible(sim: Simulation) -> bool:
     """Whether :func:`lti_summaries` computes ``sim`` itself: constant flow and spin, method
-    ``cma`` or ``auto``, no external loads, no mode shapes and no output stations."""
+    ``cma`` or ``auto``, no external loads, no mode shapes and no output stations, the
+    cantilever's supports."""
     return (
         sim.method in BATCHED_METHODS
         and not sim.loads
@@ -93,6 +94,9 @@ def eligible(sim: Simulation) -> bool:
         and not sim.positions  # a station may pass the divergence bound before the tip
         and sim.flow.is_constant
         and sim.spin.is_constant
+        # a held tip (supports, issue 31): simulate watches interior stations, these read
+        # the tip only, which is rounding there
+        and sim.pipe.basis_key is None
     )
 
 
@@ -275,6 +279,9 @@ def time_variant(sim: Simulation) -> bool:
         and not sim.mode_shape_times
         and not sim.positions  # a station may pass the divergence bound before the tip
         and not (sim.flow.is_constant and sim.spin.is_constant)
+        # a held tip (supports, issue 31): simulate watches interior stations, these read
+        # the tip only, which is rounding there
+        and sim.pipe.basis_key is None
     )
 
 
