@@ -379,3 +379,32 @@ def test_phi_against_exact_rational_sums(m: int) -> None:
     for x, g in zip(xs, got, strict=True):
         e = _phi_exact(m, x)
         assert abs(g - e) <= 2e-14 * abs(e), (m, x, g, e)
+
+
+def test_the_reference_integrator_does_not_step_over_a_short_late_pulse() -> None:
+    """A 0.1 ms half-sine at t = 0.1234 s on a pipe at rest: the reference integrator,
+    started from rest, had stepped over it (an all-zero answer with a tiny error estimate);
+    integrated piecewise between the loads' break points it equals cma's closed form
+    (constant coefficients: exact to rounding) to 1e-5 (the reference's default atol, 1e-15, against
+    a response of ~4e-10 m bounds it: measured 1e-6; before the fix, 1.0)."""
+    L = PAPER_PIPE.L
+    load = PointForce(0.6 * L, HalfSine(1e-6, 0.1234, 1e-4))
+    runs = {
+        method: simulate(
+            Simulation(
+                PAPER_PIPE,
+                Constant(1.0),
+                Constant(0.0),
+                modes=6,
+                t_end=0.3,
+                samples=301,
+                u0=0.0,
+                loads=(load,),
+                method=method,
+            )
+        )
+        for method in ("cma", "reference")
+    }
+    exact = runs["cma"].tip_displacement
+    assert np.max(np.abs(exact)) > 0
+    assert relative_difference(runs["reference"].tip_displacement, exact) < 1e-5
