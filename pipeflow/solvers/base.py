@@ -284,6 +284,22 @@ def relative_difference(a: Any, ref: Any, size: int | None = None) -> float:
     return diff / scale
 
 
+#: steps per shortest stretch between the loads' break points (a pulse, a table segment)
+STEPS_PER_LOAD_PIECE = 4
+
+
+def load_step_cap(problem: Problem) -> float:
+    """The longest step [s] that cannot pass over a load's piece: the shortest stretch
+    between the loads' break points (a pulse's ends, table knots, 0 and t_end) over
+    :data:`STEPS_PER_LOAD_PIECE`; inf without loads.  A step plan from the spectrum alone
+    had stepped over a short or late pulse (an all-zero answer with a tiny estimate)."""
+    if problem.loads is None:
+        return math.inf
+    t_end = float(problem.t[-1])
+    edges = np.concatenate([[0.0], problem.loads.knots(t_end), [t_end]])
+    return float(np.min(np.diff(edges))) / STEPS_PER_LOAD_PIECE
+
+
 def step_budget(options: Options) -> int:
     """Steps one run may take: ``options.max_steps``, never above :data:`MAX_STEPS_CEILING`."""
     return int(min(options.max_steps, MAX_STEPS_CEILING))

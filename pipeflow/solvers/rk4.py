@@ -24,6 +24,7 @@ from pipeflow.solvers.base import (
     SolverStats,
     frozen_eigenvalues,
     given_step,
+    load_step_cap,
     step_budget,
     step_counts,
 )
@@ -91,7 +92,7 @@ class RK4(Solver):
                 )
             h_target = step
         else:
-            h_target = SAFETY * h_stable
+            h_target = min(SAFETY * h_stable, load_step_cap(problem))
         dt = np.diff(t)
         substeps = step_counts(dt, h_target, step_budget(opts), "RK4", step is not None)
         n_steps = int(substeps.sum())

@@ -23,6 +23,7 @@ from pipeflow.solvers.base import (
     SolverOutput,
     SolverStats,
     given_step,
+    load_step_cap,
     relative_difference,
     step_budget,
     step_counts,
@@ -310,7 +311,11 @@ def _start(problem: Problem) -> _Control:
     step = given_step(opts)
     if step is None and not (0 < opts.tolerance < 1):
         raise InvalidInput("tolerance must be in (0, 1)", parameter="tolerance")
-    h0 = step if step is not None else float(problem.t[-1]) / PILOT_STEPS
+    h0 = (
+        step
+        if step is not None
+        else min(float(problem.t[-1]) / PILOT_STEPS, load_step_cap(problem))
+    )
     # dense output: the control runs on the coarse times (None: on every output time)
     dense = None if gen.invariant or step is not None else DenseOutput.on(problem.t, h0)
     t = problem.t if dense is None else dense.times
