@@ -11,19 +11,16 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from pipeflow.errors import InvalidField
 from pipeflow.schema.frequency import (
     HAMMER_EXAMPLE,
-    HarmonicPointForce,
     LoadSpec,
     ResponseSpec,
+    check_point_and_stations,
     refuse_time_variant,
 )
 from pipeflow.schema.result_base import Result
 from pipeflow.schema.simulation import Cost, PipeSpec
 from pipeflow.schema.stability import (
-    MAX_SPEED,
-    MAX_SPIN,
     ConstantFlow,
     ConstantRotation,
     Modes,
@@ -77,26 +74,7 @@ class StateSpaceSpec(_Mounted):
 
     @model_validator(mode="after")
     def _consistent(self) -> StateSpaceSpec:
-        if abs(self.flow.velocity.value) > MAX_SPEED:
-            raise InvalidField(
-                f"flow.velocity must lie within +-{MAX_SPEED:g} m/s", "flow.velocity.value"
-            )
-        if abs(self.rotation.omega0.value) > MAX_SPIN:
-            raise InvalidField(
-                f"rotation.omega0 must lie within +-{MAX_SPIN:g} rad/s", "rotation.omega0.value"
-            )
-        L = self.pipe.L
-        for i, x in enumerate(self.response.positions):
-            if x > L:
-                raise InvalidField(
-                    f"response.positions[{i}] = {x} m is outside (0, L = {L} m]",
-                    "response.positions",
-                )
-        if isinstance(self.load, HarmonicPointForce) and self.load.position > L:
-            raise InvalidField(
-                f"load.position = {self.load.position} m is outside (0, L = {L} m]",
-                "load.position",
-            )
+        check_point_and_stations(self)
         return self.within_budget()
 
     def cost(self) -> Cost | None:
