@@ -46,6 +46,7 @@ from pipeflow.profiles import (
     HalfSine,
     Harmonic,
     Impulse,
+    Profile,
     Term,
     polynomial,
     table,
@@ -381,33 +382,34 @@ def test_phi_against_exact_rational_sums(m: int) -> None:
         assert abs(g - e) <= 2e-14 * abs(e), (m, x, g, e)
 
 
+def _pulse_tip(method: str, flow: Profile, position: float) -> np.ndarray:
+    """Tip displacement [m] of the paper pipe at rest under a 1 uN half-sine of 0.1 ms at
+    t = 0.1234 s (a pulse a step plan can pass over), 6 modes, 0.3 s."""
+    load = PointForce(position, HalfSine(1e-6, 0.1234, 1e-4))
+    sim = Simulation(
+        PAPER_PIPE,
+        flow,
+        Constant(0.0),
+        modes=6,
+        t_end=0.3,
+        samples=301,
+        u0=0.0,
+        loads=(load,),
+        method=method,
+    )
+    return simulate(sim).tip_displacement
+
+
 def test_the_reference_integrator_does_not_step_over_a_short_late_pulse() -> None:
     """A 0.1 ms half-sine at t = 0.1234 s on a pipe at rest: the reference integrator,
     started from rest, had stepped over it (an all-zero answer with a tiny error estimate);
     integrated piecewise between the loads' break points it equals cma's closed form
-    (constant coefficients: exact to rounding) to 1e-5 (the reference's default atol, 1e-15, against
-    a response of ~4e-10 m bounds it: measured 1e-6; before the fix, 1.0)."""
-    L = PAPER_PIPE.L
-    load = PointForce(0.6 * L, HalfSine(1e-6, 0.1234, 1e-4))
-    runs = {
-        method: simulate(
-            Simulation(
-                PAPER_PIPE,
-                Constant(1.0),
-                Constant(0.0),
-                modes=6,
-                t_end=0.3,
-                samples=301,
-                u0=0.0,
-                loads=(load,),
-                method=method,
-            )
-        )
-        for method in ("cma", "reference")
-    }
-    exact = runs["cma"].tip_displacement
+    (constant coefficients: exact to rounding) to 1e-5 (the reference's default atol,
+    1e-15, against a response of ~4e-10 m bounds it: measured 1e-6; before the fix, 1.0)."""
+    exact = _pulse_tip("cma", Constant(1.0), 0.6 * PAPER_PIPE.L)
     assert np.max(np.abs(exact)) > 0
-    assert relative_difference(runs["reference"].tip_displacement, exact) < 1e-5
+    reference = _pulse_tip("reference", Constant(1.0), 0.6 * PAPER_PIPE.L)
+    assert relative_difference(reference, exact) < 1e-5
 
 
 @pytest.mark.parametrize("method", ["auto", "magnus", "rk4"])
@@ -417,24 +419,10 @@ def test_the_steppers_do_not_step_over_a_short_late_pulse(method: str) -> None:
     and rk4 stepped over the pulse (all zeros, magnus claiming 6e-14). Against the reference
     (piecewise, atol-bound ~1e-6 on this ~2e-7 m response): magnus 1.3e-6 measured, so 1e-4;
     rk4 at 0.9 of its stable step is a 4th-order method on a coarse grid: 8.6e-3, so 3e-2."""
-    L = PAPER_PIPE.L
-    load = PointForce(0.3 * L, HalfSine(1e-6, 0.1234, 1e-4))
-
-    def run(m: str) -> np.ndarray:
-        sim = Simulation(
-            PAPER_PIPE,
-            polynomial(1.0, 0.5),
-            Constant(0.0),
-            modes=6,
-            t_end=0.3,
-            samples=301,
-            u0=0.0,
-            loads=(load,),
-            method=m,
-        )
-        return simulate(sim).tip_displacement
-
-    reference = run("reference")
+    position = 0.3 * PAPER_PIPE.L
+    reference = _pulse_tip("reference", polynomial(1.0, 0.5), position)
     assert np.max(np.abs(reference)) > 1e-7
     bound = 3e-2 if method == "rk4" else 1e-4
-    assert relative_difference(run(method), reference) < bound
+    assert (
+        relative_difference(_pulse_tip(method, polynomial(1.0, 0.5), position), reference) < bound
+    )
