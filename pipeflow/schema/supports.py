@@ -65,7 +65,11 @@ class IntermediateSupportSpec(StrictModel):
 
     position: float = Field(gt=0, le=1e4, description="Position x, 0 < x < L [m].")
     translational: float | None = Field(
-        None, ge=0, le=MAX_SPRING, description="Spring stiffness k [N/m] (or give kind)."
+        None,
+        ge=0,
+        le=MAX_SPRING,
+        description="Spring stiffness k [N/m] (or give kind); k L^3 / EI >= 1e10 is computed "
+        "as a rigid pin (its frequencies differ from the pin's by under 1e-8).",
     )
     kind: Literal["pinned"] | None = Field(
         None, description="'pinned': a rigid point support w(x) = 0 (or give translational)."

@@ -326,6 +326,35 @@ def test_intermediate_spring_limits() -> None:
     assert first_two(1e9)[1] == pytest.approx(2 * 3.926602312, rel=1e-4)
 
 
+@pytest.mark.parametrize("k", [1e10, 1e12, 1e15, 1e18])
+def test_a_rigid_intermediate_spring_is_a_pin(k: float) -> None:
+    """K = k L^3 / EI >= 1e10 (pipeflow.supports.RIGID_POINT_SPRING) is the pin: before,
+    the Ritz eigenproblem diag(lambda^4) + K phi phi^T lost the low eigenvalues to rounding
+    (lambda_1 of this pipe off by 7e-5 at K = 1e14 and 58 % at 1e18).  Expected: the
+    exact two-span values of test_midspan_pin_two_equal_spans (2 pi exact in this basis;
+    2 x 3.9266 to the basis' 2e-5 at 40 modes), the same tolerances."""
+    p = Pipe(E=1.0, I=1.0, L=1.0, M1=0.5, M2=0.5, supports=Supports(P, P),
+             intermediate_supports=(PointSupport(0.5, translational=k),))  # fmt: skip
+    lam = np.sort(omega2(p, 40))[:2] ** 0.25
+    assert lam[0] == pytest.approx(2 * math.pi, rel=1e-10)
+    assert lam[1] == pytest.approx(2 * 3.926602312, rel=2e-5)
+
+
+def test_a_stiff_spring_below_the_rigid_threshold_approaches_the_pin() -> None:
+    """Just below the threshold the spring is still a spring, and already within the
+    basis' truncation (4e-4 at 30 modes, measured: the spring's Ritz space has one function
+    fewer than the pin's null space) of the pin; the 1/K physics is far below that."""
+
+    def first_two(k: float) -> np.ndarray:
+        p = Pipe(E=1.0, I=1.0, L=1.0, M1=0.5, M2=0.5, supports=Supports(P, P),
+                 intermediate_supports=(PointSupport(0.5, translational=k),))  # fmt: skip
+        return np.sort(omega2(p, 30))[:2] ** 0.25
+
+    below, above = first_two(0.99e10), first_two(1e10)
+    assert below == pytest.approx(above, rel=1e-3)
+    assert above[0] == pytest.approx(2 * math.pi, rel=1e-10)
+
+
 # -- the default is today's model ----------------------------------------------------------------
 def test_default_supports_leave_the_model_unchanged() -> None:
     """Explicit default supports and zero loads: the same arrays, bit for bit."""
