@@ -231,9 +231,13 @@ class SupportBasis:
     modes: tuple[_Mode, ...]
     coef: FloatArray
     lam4: FloatArray
+    #: ``{derivative: stations}`` the supports hold at zero: w at a clamped or pinned end
+    #: and at a pin, w' at a clamped or sliding end (exactly 0 there, not rounding's 1e-15)
+    held: tuple[tuple[int, tuple[float, ...]], ...] = ()
 
     def shapes(self, xi: FloatArray, derivative: int = 0) -> FloatArray:
-        """d^k phi_j / dxi^k at ``xi`` [-], shape ``(n, len(xi))``."""
+        """d^k phi_j / dxi^k at ``xi`` [-], shape ``(n, len(xi))``; exactly 0 where a
+        support holds that derivative (:attr:`held`)."""
         xi = np.atleast_1d(np.asarray(xi, dtype=float))
         lam = np.array([m.lam for m in self.modes])
         coef = np.array([m.coef for m in self.modes])  # (N, 4)
@@ -243,7 +247,21 @@ class SupportBasis:
             if rows.any():
                 f = _fundamental(lam[rows, None], xi[None, :], derivative, krylov)  # (4, r, P)
                 under[rows] = np.einsum("ri,irp->rp", coef[rows], f)
-        return np.asarray(self.coef @ under)
+        out = np.asarray(self.coef @ under)
+        for k, stations in self.held:
+            if k == derivative:
+                out[:, np.isin(xi, stations)] = 0.0
+        return out
+
+
+def _held(
+    x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...]
+) -> tuple[tuple[int, tuple[float, ...]], ...]:
+    """:attr:`SupportBasis.held` of the supports."""
+    value = [at for at, spec in ((0.0, x0), (1.0, xL)) if spec[0] in ("clamped", "pinned")]
+    value += [xs for xs, k in points if math.isinf(k)]
+    slope = [at for at, spec in ((0.0, x0), (1.0, xL)) if spec[0] in ("clamped", "sliding")]
+    return ((0, tuple(value)), (1, tuple(slope)))
 
 
 @lru_cache(maxsize=32)
@@ -253,7 +271,7 @@ def support_basis(
     """The Galerkin basis of ``n`` functions for the supports (see the module docstring)."""
     if not points:
         modes, lam4 = end_support_modes(x0, xL, n)
-        return SupportBasis(n, modes, np.eye(n), lam4)
+        return SupportBasis(n, modes, np.eye(n), lam4, _held(x0, xL, points))
     pins = [p for p in points if math.isinf(p[1])]
     count = n + len(pins) + _EXTRA
     modes, lam4 = end_support_modes(x0, xL, count)
@@ -271,4 +289,4 @@ def support_basis(
     coef = (Z @ Y[:, :n]).T
     lam4_n = np.asarray(mu[:n], dtype=float)
     lam4_n.setflags(write=False)
-    return SupportBasis(n, modes, coef, lam4_n)
+    return SupportBasis(n, modes, coef, lam4_n, _held(x0, xL, points))

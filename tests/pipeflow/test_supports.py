@@ -400,3 +400,19 @@ def test_only_the_bare_cantilever_is_the_paper_model() -> None:
     assert not pipe(C, F, gravity=9.81).is_paper_model
     # a pressure on the free discharging cantilever cancels: still the paper's equations
     assert pipe(C, F, pressure=1e5, flow_area=1e-3).is_paper_model
+
+
+@pytest.mark.parametrize(("x0", "xL"), [(C, P), (P, P), (C, C), (S, P), (C, S)])
+def test_held_ends_hold_exactly(x0: Support, xL: Support) -> None:
+    """w = 0 at a clamped or pinned end and at a pin, w' = 0 at a clamped or sliding end:
+    exactly, not to rounding (the basis' values there were ~1e-15, so a held tip "moved")."""
+    p = Pipe(E=1.0, I=1.0, L=1.0, M1=0.5, M2=0.5, supports=Supports(x0, xL),
+             intermediate_supports=(PointSupport(0.3, pinned=True),))  # fmt: skip
+    m = build_model(p, 12)
+    for at, spec in ((0.0, x0), (1.0, xL)):
+        w, slope = m.shapes(np.array([at]))[:, 0], m.shapes(np.array([at]), 1)[:, 0]
+        assert np.all(w == 0.0) == (spec.kind in ("clamped", "pinned"))
+        assert np.all(slope == 0.0) == (spec.kind in ("clamped", "sliding"))
+    assert np.all(m.shapes(np.array([0.3]))[:, 0] == 0.0)
+    if xL.kind in ("clamped", "pinned"):
+        assert np.all(m.tip == 0.0)
