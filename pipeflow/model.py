@@ -334,6 +334,8 @@ class ModeIntegrals:
     ``xb = xi phi_i phi_j'``, ``tc = (1 - xi^2) phi_i phi_j''``, ``k4 = phi_i phi_j''''``;
     ``d = phi_i' phi_j'``, ``xd = xi phi_i' phi_j'``; ``xf = xi phi_i`` and ``f = phi_i`` are
     vectors, and so are the end values ``tip = phi_i(1)`` and ``tip_slope = phi_i'(1)``.
+    ``flex = phi_i'' phi_j''`` is the beam's own strain energy: ``k4`` less the springs'
+    (None when no spring holds the pipe: it then equals ``k4``).
     """
 
     n: int
@@ -351,6 +353,7 @@ class ModeIntegrals:
     tip: FloatArray
     x2d: FloatArray
     tip_slope: FloatArray
+    flex: FloatArray | None = None
 
 
 @lru_cache(maxsize=64)
@@ -403,7 +406,15 @@ def mode_integrals(
         tip=ro(tip),
         tip_slope=ro(slope),
         x2d=ro((p1 * (w * xi * xi)) @ p1.T),
+        flex=ro((p2 * w) @ p2.T) if supports is not None and _has_springs(supports) else None,
     )
+
+
+def _has_springs(supports: BasisKey) -> bool:
+    """Whether an elastic end or a point spring holds the pipe (its bending matrix then
+    carries spring energy the beam's material damping does not act on)."""
+    x0, xL, points = supports
+    return x0[0] == "elastic" or xL[0] == "elastic" or any(not math.isinf(k) for _, k in points)
 
 
 def basis_shapes(
@@ -736,7 +747,10 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
         # tension, pressure and gravity at rest: K_0 gains integral of N phi_i' phi_j' / L
         K_0 = K_0 + axial_matrix(static_axial_force(pipe), g, L)
     if pipe.kelvin_voigt:
-        C_0 = C_0 + pipe.kelvin_voigt * K_bend
+        # the material's damping acts on the beam's strain energy, not on the support
+        # springs (external elements): without springs the two are the same matrix
+        K_flex = K_bend if g.flex is None else EI / L**3 * g.flex
+        C_0 = C_0 + pipe.kelvin_voigt * K_flex
     if pipe.viscous:
         C_0 = C_0 + pipe.viscous * gram
 
