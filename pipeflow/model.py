@@ -168,6 +168,20 @@ class Pipe:
         return basis_key(self)
 
     @property
+    def first_bending_frequency(self) -> float:
+        """w1 = lambda_1^2 sqrt(EI / ((M1 + M2) L^4)) [rad/s]: the first non-zero bending
+        frequency of the bare pipe on its own supports and springs, at rest, without flow,
+        spin, axial load or tip body (lambda_1 = 1.8751 for the cantilever; a rigid-body
+        mode of a pinned-free pipe is skipped)."""
+        key = self.basis_key
+        if key is None:
+            lam4 = cantilever_roots(1)[0] ** 4
+        else:
+            values = support_basis(2, *key).lam4
+            lam4 = float(values[values > 1e-9][0])
+        return math.sqrt(lam4 * self.EI / (self.mass * self.L**4))
+
+    @property
     def has_static_axial_force(self) -> bool:
         """Tension, pressure (not cancelled) or gravity act at rest."""
         return bool(self.tension or self.gravity or effective_pressure(self))

@@ -6,8 +6,9 @@ request may well be out of the ordinary).  So a simulation's result warns, namin
 field, the value, the pipe's scale and the unit that would make the value ordinary:
 
 - the spin: max |w0(t)| over the run above :data:`SPIN_FACTOR` times the first bending
-  frequency of the clamped-free pipe at rest, w1 = 1.8751^2 sqrt(EI / ((M1 + M2) L^4))
-  [rad/s];
+  frequency of the pipe on its supports at rest, w1 = lambda_1^2 sqrt(EI / ((M1 + M2) L^4))
+  [rad/s] (:attr:`pipeflow.model.Pipe.first_bending_frequency`; lambda_1 = 1.8751 for the
+  cantilever);
 - the flow: the flow number u = v L sqrt(M2 / EI) [-] of max |v(t)| above
   :data:`FLOW_FACTOR` times the pipe's critical flow number u_cr without spin (found by
   :func:`pipeflow.stability.critical_velocities`, 8 modes, searched only up to max |v| /
@@ -21,7 +22,6 @@ value: below :data:`ORDINARY` times the scale (w1, v_cr); none if no such unit.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -43,18 +43,11 @@ FLOW_FACTOR = 10.0
 U_CR_FLOOR = 3.0
 #: an ordinary value is below this many times its scale (w1, v_cr) [-]
 ORDINARY = 2.0
-#: lambda_1 L of the clamped-free beam [-]
-LAMBDA1 = 1.8751
 #: units a number meant in them could have been sent as SI, by field
 SPIN_UNITS = ("rpm", "deg/s")
 VELOCITY_UNITS = ("ft/s", "km/h", "cm/s", "mm/s")
 #: samples of a profile over the run for its max |value|
 _SAMPLES = 2001
-
-
-def first_bending_frequency(E: float, I: float, M1: float, M2: float, L: float) -> float:
-    """w1 = 1.8751^2 sqrt(EI / ((M1 + M2) L^4)) [rad/s] of the clamped-free pipe at rest."""
-    return LAMBDA1**2 * math.sqrt(E * I / ((M1 + M2) * L**4))
 
 
 def _peak(profile: Profile, t_end: float) -> float:
@@ -101,7 +94,7 @@ def warnings(spec: SimulationSpec, sim: Simulation | None = None) -> list[str]:
         sim = spec.to_simulation()
     out: list[str] = []
     p, t_end = spec.pipe, spec.time.t_end
-    w1 = first_bending_frequency(p.E, p.I, p.M1, p.M2, p.L)
+    w1 = sim.pipe.first_bending_frequency
     spin = _peak(sim.spin, t_end)
     if spin > SPIN_FACTOR * w1:
         field = "rotation.omega0"

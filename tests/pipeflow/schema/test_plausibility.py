@@ -13,7 +13,10 @@ import copy
 import math
 from typing import Any
 
+import pytest
+
 from pipeflow.computations.simulation import simulate_spec
+from pipeflow.model import Pipe
 from pipeflow.schema import plausibility
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 
@@ -31,7 +34,43 @@ def test_first_bending_frequency_by_hand() -> None:
     E, I, L, M1, M2 = 7.8e9, 1.21e-17, 0.025, 1.884e-5, 1.6485e-5
     hand = 1.8751**2 * math.sqrt(E * I / ((M1 + M2) * L**4))
     assert abs(hand - 291.0) < 0.5
-    assert plausibility.first_bending_frequency(E, I, M1, M2, L) == hand
+    # 1.8751 by hand, 1.8751040687 in the library: 4e-5 relative
+    w1 = Pipe(E=E, I=I, L=L, M1=M1, M2=M2).first_bending_frequency
+    assert w1 == pytest.approx(hand, rel=5e-5)
+
+
+@pytest.mark.parametrize(
+    ("x0", "xL", "lam1"),
+    [
+        ("clamped", "clamped", 4.730040745),  # Blevins 1979, table 8-1
+        ("pinned", "pinned", math.pi),
+        ("clamped", "pinned", 3.926602312),
+        ("pinned", "free", 3.926602312),  # the rigid rotation (lambda = 0) is skipped
+    ],
+)
+def test_the_spin_scale_is_the_supported_pipes_own(x0: str, xL: str, lam1: float) -> None:
+    """The spin warning's scale w1 is the first bending frequency of the pipe on its own
+    supports (Blevins' lambda_1; before, the clamped-free 1.8751 for every support set), so a
+    spin of 5 w1(clamped-free) is ordinary for the clamped-clamped pipe and the message
+    quotes that pipe's w1."""
+    body = copy.deepcopy(PAPER_EXAMPLE)
+    p = body["pipe"]
+    scale = math.sqrt(p["E"] * p["I"] / ((p["M1"] + p["M2"]) * p["L"] ** 4))
+    spin = 12.0 * lam1**2 * scale
+    body.update(
+        modes=3,
+        time={"t_end": 0.01, "samples": 11},
+        rotation={"omega0": {"kind": "constant", "value": spin}},
+        flow={"velocity": {"kind": "constant", "value": 0.0}},
+    )
+    body["pipe"]["supports"] = {"x0": x0, "xL": xL}
+    spec = SimulationSpec.model_validate(body)
+    (warning,) = plausibility.warnings(spec, spec.to_simulation())
+    assert warning.startswith(f"rotation.omega0 = {spin:.4g} rad/s is 12x the pipe's first ")
+    assert f"({lam1**2 * scale:.3g} rad/s)" in warning
+    body["rotation"]["omega0"]["value"] = 8.0 * lam1**2 * scale
+    spec = SimulationSpec.model_validate(body)
+    assert plausibility.warnings(spec, spec.to_simulation()) == []
 
 
 def test_a_spin_meant_in_rpm_is_warned_about_in_the_result() -> None:
