@@ -442,7 +442,11 @@ class SimulationSpec(GravityField):
     flow: FlowSpec = Field(default_factory=FlowSpec)
     initial: InitialSpec = Field(default_factory=InitialSpec)
     modes: int = Field(
-        10, ge=1, le=MAX_MODES, description="Number of Galerkin (cantilever) modes [-]."
+        10,
+        ge=1,
+        le=MAX_MODES,
+        description="Number of Galerkin modes n [-]: the beam eigenfunctions of the pipe's own "
+        "supports and springs (the cantilever modes by default).",
     )
     time: TimeSpec = Field(default_factory=TimeSpec)
     method: str = Field(

@@ -168,7 +168,15 @@ VelocityRange = Annotated[
     Field(description="[v_min, v_max] flow velocities [m/s], increasing; v < 0 is reverse flow."),
 ]
 SpinRange = Annotated[Pair, Field(description="[w_min, w_max] spins w0 [rad/s], increasing.")]
-Modes = Annotated[int, Field(ge=1, le=MAX_MODES, description="Galerkin (cantilever) modes n.")]
+Modes = Annotated[
+    int,
+    Field(
+        ge=1,
+        le=MAX_MODES,
+        description="Galerkin modes n: the beam eigenfunctions of the pipe's own supports "
+        "and springs (the cantilever modes by default).",
+    ),
+]
 
 
 class StabilitySpec(_Mounted):
