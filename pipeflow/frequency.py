@@ -521,7 +521,7 @@ def frequency_response(
         :func:`frequency_grid`; at most :data:`MAX_FREQUENCIES`).
     quantity : "displacement" (receptance), "velocity" (mobility i W H) or "acceleration"
         (accelerance -W^2 H), relative to the clamp; units in :data:`UNITS`.
-    modes : Galerkin (cantilever) modes n, 1 .. 40.
+    modes : Galerkin modes n, 1 .. 40 (the beam eigenfunctions of the supports).
     residual : add the residual flexibility of the modes left out: the static deflection
         of the continuous pipe under the load (:mod:`pipeflow.statics`) minus its part in
         the n modes, a frequency-independent displacement added to the modal sum (the
@@ -575,10 +575,16 @@ def frequency_response(
     if not max_rel <= FALLBACK_RTOL:
         method = "direct"
         H[:, ~on_pole] = _direct(op, out, f, W[~on_pole])
+        why = (
+            "the pipe's rigid rotation about its support: a double zero eigenvalue with a "
+            "single eigenvector, which no modal sum represents"
+            if pipe.rotates_rigidly
+            else "coalescing eigenvalues"
+        )
         warnings.append(
             f"the modal sum differed from direct solves by {max_rel:.2g} (relative; eigenvector "
-            f"condition number {op.condition:.2g}: coalescing eigenvalues), so every "
-            "frequency was solved directly"
+            f"condition number {op.condition:.2g}: {why}), so every frequency was solved "
+            "directly"
         )
     growth = float(max_growth_rates(op.xi[None])[0])
     stable = growth <= 0.0

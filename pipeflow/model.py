@@ -182,6 +182,17 @@ class Pipe:
         return math.sqrt(lam4 * self.EI / (self.mass * self.L**4))
 
     @property
+    def rotates_rigidly(self) -> bool:
+        """True when the pipe can rotate as a rigid body about one support: a pinned end, or
+        an elastic one without rotational spring, opposite a free end, with no intermediate
+        support (a zero eigenvalue at every velocity)."""
+        key = self.basis_key
+        if key is None or key[2] or "free" not in (key[0][0], key[1][0]):
+            return False
+        held = key[0] if key[1][0] == "free" else key[1]
+        return held[0] == "pinned" or (held[0] == "elastic" and held[2] == 0.0)
+
+    @property
     def has_static_axial_force(self) -> bool:
         """Tension, pressure (not cancelled) or gravity act at rest."""
         return bool(self.tension or self.gravity or effective_pressure(self))
@@ -326,16 +337,13 @@ def basis_caveats(pipe: Pipe) -> list[str]:
             "for the third mode at 40 modes when J_t/(m L^3) = 0.01, docs/model.md sec. 5); "
             "use many modes"
         )
-    key = pipe.basis_key
-    if key is not None and not key[2] and "free" in (key[0][0], key[1][0]):
-        held = key[0] if key[1][0] == "free" else key[1]
-        if held[0] == "pinned" or (held[0] == "elastic" and held[2] == 0.0):
-            out.append(
-                "pipe.supports: the pipe can rotate as a rigid body (a zero eigenvalue at every "
-                "velocity); where another eigenvalue passes zero the Galerkin model shows a "
-                "narrow divergence window that shrinks with modes (pinned-free, beta = 0.2, "
-                "near u = 2 pi: growth 1.7e-3 at 10 modes, 4e-5 at 16): check with more modes"
-            )
+    if pipe.rotates_rigidly:
+        out.append(
+            "pipe.supports: the pipe can rotate as a rigid body (a zero eigenvalue at every "
+            "velocity); where another eigenvalue passes zero the Galerkin model shows a "
+            "narrow divergence window that shrinks with modes (pinned-free, beta = 0.2, "
+            "near u = 2 pi: growth 1.7e-3 at 10 modes, 4e-5 at 16): check with more modes"
+        )
     return out
 
 

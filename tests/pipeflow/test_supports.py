@@ -437,3 +437,24 @@ def test_material_damping_spares_the_springs() -> None:
     bare = spectrum(pipe(P, P, kelvin_voigt=alpha), 6, 0.0)
     up = bare[bare.imag > 0]
     assert -up.real == pytest.approx(alpha * np.abs(up) ** 2 / 2, rel=1e-9)
+
+
+def test_the_frequency_response_of_a_pinned_free_pipe_names_its_rigid_rotation() -> None:
+    """A pinned-free pipe's state matrix has a double zero eigenvalue with one eigenvector
+    (the rigid rotation about the pin): the modal sum cannot represent it, every frequency
+    is solved directly, and the warning says why in those words (before: "coalescing
+    eigenvalues", the words for flutter onset).  The directly solved receptance is checked
+    at a low frequency against the rigid bar: a tip force F on a hinged bar of mass m L
+    swings it as u(L) = -F / (W^2 m L / 3) (bending negligible at W << w1)."""
+    from pipeflow.frequency import PointForce, frequency_response
+
+    p = pipe(P, F)
+    assert p.rotates_rigidly and not pipe(C, F).rotates_rigidly and not pipe(P, P).rotates_rigidly
+    W = np.array([0.05, 1.0, 20.0])
+    r = frequency_response(
+        p, 0.0, 0.0, load=PointForce(1.0), positions=(1.0,), frequencies=W, modes=8
+    )
+    (why,) = [w for w in r.warnings if w.startswith("the modal sum")]
+    assert "rigid rotation about its support" in why and "coalescing" not in why
+    H = r.H[0, 0]
+    assert H.real == pytest.approx(-1.0 / (W[0] ** 2 * 1.0 / 3.0), rel=1e-4)
