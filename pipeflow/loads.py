@@ -95,6 +95,7 @@ class _LoadRules:
     def check(self, i: int, L: float, t_end: float) -> None:
         """The load's rules on a run of ``t_end`` [s] on a pipe of length ``L`` [m]."""
         self.check_span(i, L)
+        self.check_onset(i, t_end)
         end = self.profile.domain_end()
         if end < t_end:
             raise _out_of_span(
@@ -103,6 +104,24 @@ class _LoadRules:
                 f"the table ends at {end} s, before t_end = {t_end} s (or say what it does "
                 "after its last time: after = 'hold' or 'zero')",
             )
+
+    def check_onset(self, i: int, t_end: float) -> None:
+        """A load that starts after the run ends would change nothing: refused, naming the
+        field of its start (a silent no-op hides a mistyped time)."""
+        onset = self.profile.onset
+        if onset > t_end:
+            field, what = self.onset_field
+            raise _out_of_span(
+                i,
+                field,
+                f"{what} at {onset:g} s comes after the run ends (t_end = {t_end:g} s), so it "
+                "would change nothing",
+            )
+
+    @property
+    def onset_field(self) -> tuple[str, str]:
+        """(the field holding the load's start, how to name it)."""
+        return f"{self.profile_field}.start", "the pulse starts"
 
     def fields(self, L: float) -> dict[str, Any]:
         """The load's own fields in its request JSON (besides kind and the profile)."""
@@ -167,6 +186,11 @@ class PointImpulse(_LoadRules):
         self.check_span(i, L)
         if not (math.isfinite(self.time) and self.time >= 0.0):
             raise _out_of_span(i, "time", f"{self.time} s must be >= 0")
+        self.check_onset(i, t_end)
+
+    @property
+    def onset_field(self) -> tuple[str, str]:
+        return "time", "the blow"
 
     def to_dict(self, L: float) -> dict[str, Any]:
         return {

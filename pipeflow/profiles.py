@@ -87,6 +87,12 @@ class Profile(ABC):
         """Last time [s] at which the profile is defined (``inf`` for analytic ones)."""
         return math.inf
 
+    @property
+    def onset(self) -> float:
+        """The profile is zero before this time [s] (0: it may act from the start; a pulse's
+        start, an impulse's time)."""
+        return 0.0
+
     def terms(self) -> tuple[Term, ...] | None:
         """The profile as a sum of :class:`Term` pieces, or None (no closed form: tables)."""
         return None
@@ -255,6 +261,10 @@ class HalfSine(Profile):
             raise ValueError("a half-sine pulse starts at t >= 0 s")
 
     @property
+    def onset(self) -> float:
+        return self.start
+
+    @property
     def _w(self) -> float:
         return math.pi / self.duration
 
@@ -316,6 +326,10 @@ class Impulse(Profile):
 
     def derivative(self, t: ArrayLike) -> FloatArray:
         return np.zeros_like(_arr(t))
+
+    @property
+    def onset(self) -> float:
+        return self.time
 
     def integral(self, t: ArrayLike) -> FloatArray:
         return np.where(_arr(t) >= self.time, self.impulse, 0.0)

@@ -405,12 +405,35 @@ SHORT_TABLE = {"kind": "table", "t": [0, 0.01], "values": [0, 1]}
             {"kind": "point_force", "position": L, "force": {**SHORT_TABLE, "after": "repeat"}},
             "after",
         ),
+        # a load that starts after the run (t_end = 0.02 s) would change nothing
+        ({"kind": "impulse", "position": L, "impulse": 1e-9, "time": 0.5}, "loads.0.time"),
+        (
+            {
+                "kind": "point_force",
+                "position": L,
+                "force": {"kind": "half_sine", "peak": 1.0, "start": 0.03, "duration": 0.01},
+            },
+            "loads.0.force.start",
+        ),
     ],
 )
 def test_schema_refuses_bad_loads(load: dict[str, Any], field: str) -> None:
     with pytest.raises(ValidationError) as info:
         SimulationSpec.model_validate(_request(loads=[load]))
     assert field in str(info.value)
+
+
+def test_a_load_after_the_run_says_so() -> None:
+    """An impulse at t0 > t_end was accepted and did nothing (a mistyped time, silently
+    ignored); it is refused naming the field and why.  At t0 = t_end it acts (the sample at
+    t0 is after the blow)."""
+    late = {"kind": "impulse", "position": L, "impulse": 1e-9, "time": 0.5}
+    with pytest.raises(ValidationError) as info:
+        SimulationSpec.model_validate(_request(loads=[late]))
+    assert "loads.0.time: the blow at 0.5 s comes after the run ends (t_end = 0.02 s)" in str(
+        info.value
+    )
+    SimulationSpec.model_validate(_request(loads=[{**late, "time": 0.02}]))
 
 
 def test_a_short_table_says_how_to_continue_it() -> None:
