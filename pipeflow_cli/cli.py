@@ -301,16 +301,11 @@ def _spec_pipe(data: Any) -> Any:
     """The library pipe of a spec's ``pipe`` (its supports are drawn on the plots along x),
     or None for a result (which does not carry its request's pipe)."""
     data = _unwrap(data)
-    if _is_result(data) or not isinstance(data, dict) or not isinstance(data.get("pipe"), dict):
+    if _is_result(data):
         return None
-    from pydantic import ValidationError
+    from pipeflow.schema.simulation import pipe_of_request
 
-    from pipeflow.schema.simulation import PipeSpec
-
-    try:  # the run above has validated the spec; a kind with another pipe draws none
-        return PipeSpec.model_validate(data["pipe"]).to_pipe()
-    except ValidationError:
-        return None
+    return pipe_of_request(data)
 
 
 def cmd_plot(args: argparse.Namespace) -> int:

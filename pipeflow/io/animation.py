@@ -16,11 +16,14 @@ from __future__ import annotations
 
 import io
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pipeflow.io.plots import PlotError
+
+if TYPE_CHECKING:
+    from pipeflow.model import Pipe
 
 #: frames of one period, and the most a request may ask
 DEFAULT_FRAMES = 24
@@ -66,9 +69,11 @@ def mode_shape_gif(
     time_index: int = 0,
     frames: int = DEFAULT_FRAMES,
     duration_ms: int = 80,
+    pipe: Pipe | None = None,
 ) -> bytes:
     """A looping GIF of branch ``mode`` at mode-shape time ``time_index`` moving over one
-    period (:func:`phases`), ``frames`` frames of ``duration_ms`` each."""
+    period (:func:`phases`), ``frames`` frames of ``duration_ms`` each; ``pipe`` draws its
+    supports (:mod:`pipeflow.io.support_symbols`), None none."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from PIL import Image
@@ -85,6 +90,10 @@ def mode_shape_gif(
     ax.axhline(0.0, color="0.6", lw=0.8)
     ax.set_xlim(float(x[0]), float(x[-1]))
     ax.set_ylim(-1.05, 1.05)
+    if pipe is not None:
+        from pipeflow.io.support_symbols import draw_supports
+
+        draw_supports(ax, pipe)
     ax.set_xlabel("position along the pipe x [m]")
     ax.set_ylabel("Re(Φ e^(iθ)) [-]")
     ax.set_title(

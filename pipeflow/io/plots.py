@@ -673,7 +673,7 @@ PLOTS: dict[str, PlotKind] = {
 
 
 #: the plots whose x axis is the position along the pipe x [m]: they draw the supports
-ALONG_PIPE = ("mode_shapes", "deflection")
+ALONG_PIPE = ("mode_shapes", "deflection_shape")
 
 
 def available_plots(result: dict[str, Any]) -> list[str]:

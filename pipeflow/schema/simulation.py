@@ -18,6 +18,7 @@ from pydantic import (
     ConfigDict,
     Field,
     GetJsonSchemaHandler,
+    ValidationError,
     field_validator,
     model_validator,
 )
@@ -273,6 +274,20 @@ class PipeSpec(MountingFields):
             pressure=pressure,
             **self.mounting(),
         )
+
+
+def pipe_of_request(body: Any) -> Pipe | None:
+    """The library pipe of a request body's ``pipe`` (a method comparison's
+    ``simulation.pipe``), for drawing its supports on the figures along x [m]; None when the
+    body has no pipe or an invalid one (a figure then draws no supports)."""
+    if isinstance(body, dict) and isinstance(body.get("simulation"), dict):
+        body = body["simulation"]
+    if not isinstance(body, dict) or not isinstance(body.get("pipe"), dict):
+        return None
+    try:
+        return PipeSpec.model_validate(body["pipe"]).to_pipe()
+    except (ValidationError, PipeflowError):
+        return None
 
 
 class RotationSpec(StrictModel):

@@ -49,6 +49,8 @@ from pipeflow.io.formats import (
     to_netcdf,
     to_uff,
 )
+from pipeflow.model import Pipe
+from pipeflow.schema.simulation import pipe_of_request
 from service.deps import StoreDep
 from service.http.negotiation import accepts, media_ranges
 from service.http.problems import ProblemError, responses
@@ -243,7 +245,21 @@ async def table_response(
     return answer.response()
 
 
-def _render(body: bytes, name: str, fmt: str, units: dict[str, str] | None = None) -> bytes:
+def request_pipe(store: Any, key: str) -> Pipe | None:
+    """The pipe of the request stored under ``key`` (the job record's spec), whose supports
+    the figures along x draw; None when no record holds it (a result stored without one
+    draws no supports).  Blocking: call it in a thread."""
+    job = store.get_job(key)
+    return None if job is None else pipe_of_request(job.spec)
+
+
+def _render(
+    body: bytes,
+    name: str,
+    fmt: str,
+    units: dict[str, str] | None = None,
+    pipe: Pipe | None = None,
+) -> bytes:
     result = json.loads(body)
     names = plots.available_plots(result)
     if name not in names:
@@ -254,7 +270,7 @@ def _render(body: bytes, name: str, fmt: str, units: dict[str, str] | None = Non
             errors=[{"field": "name", "location": "path", "message": f"unknown plot {name!r}"}],
         )
     with _draw_lock:
-        return plots.render(result, name, fmt, units=units)
+        return plots.render(result, name, fmt, units=units, pipe=pipe)
 
 
 @router.get(
@@ -298,12 +314,15 @@ async def get_result_plot(
     kinds of figure), eigenvalue paths (argand) and station displacements."""
     units = {"spin": spin_unit, "frequency": frequency_unit}
     shown = "".join(f"-{u.replace('/', '_')}" for u in units.values() if u != "rad/s")
-    headers, body = await stored(store, key, f'"{key}-{name}{shown}.{fmt}"', if_none_match)
+    along = name in plots.ALONG_PIPE  # these draw the supports (a new picture: a new ETag)
+    etag = f'"{key}-{name}{shown}{"-supports" if along else ""}.{fmt}"'
+    headers, body = await stored(store, key, etag, if_none_match)
     if fmt == "svg":  # opened on its own, an SVG is a document: its styles only, no script
         headers["Content-Security-Policy"] = SVG_CSP
     if body is None:
         return Response(status_code=304, headers=headers)
-    image = await asyncio.to_thread(_render, body, name, fmt, units)
+    pipe = await asyncio.to_thread(request_pipe, store, key) if along else None
+    image = await asyncio.to_thread(_render, body, name, fmt, units, pipe)
     return Response(image, media_type=plots.MEDIA_TYPES[fmt], headers=headers)
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import APIRouter, Header, Path, Query, Response
 
@@ -21,8 +21,11 @@ from pipeflow.io.plots import PlotError
 from service.deps import StoreDep
 from service.http.problems import ProblemError, responses
 from service.http.security import REPORT_CSP
-from service.routes.exports import BINARY, _draw_lock, stored
+from service.routes.exports import BINARY, _draw_lock, request_pipe, stored
 from service.schemas import KEY_PATTERN
+
+if TYPE_CHECKING:
+    from pipeflow.model import Pipe
 
 router = APIRouter(prefix="/v1/results", tags=["results"])
 
@@ -104,7 +107,9 @@ async def get_result_report_pdf(
     return await _report(store, key, "pdf", if_none_match)
 
 
-def _animate(body: bytes, mode: int | None, time_index: int, frames: int) -> bytes:
+def _animate(
+    body: bytes, mode: int | None, time_index: int, frames: int, pipe: Pipe | None = None
+) -> bytes:
     result = json.loads(body)
     if not (result.get("mode_shapes") or {}).get("modes"):
         raise ProblemError(
@@ -114,7 +119,7 @@ def _animate(body: bytes, mode: int | None, time_index: int, frames: int) -> byt
         )
     try:
         with _draw_lock:
-            return animation.mode_shape_gif(result, mode, time_index, frames)
+            return animation.mode_shape_gif(result, mode, time_index, frames, pipe=pipe)
     except PlotError as exc:
         raise ProblemError(
             422,
@@ -155,9 +160,10 @@ async def get_mode_shape_animation(
     """The mode shape of branch ``mode`` at mode-shape time ``time_index`` of the stored
     simulation ``key`` moving over one period (a looping GIF; the result must have asked
     ``output.mode_shapes``)."""
-    etag = f'"{key}-modes-{mode}-{time_index}-{frames}.gif"'
+    etag = f'"{key}-modes-{mode}-{time_index}-{frames}-supports.gif"'
     headers, body = await stored(store, key, etag, if_none_match)
     if body is None:
         return Response(status_code=304, headers=headers)
-    data = await asyncio.to_thread(_animate, body, mode, time_index, frames)
+    pipe = await asyncio.to_thread(request_pipe, store, key)
+    data = await asyncio.to_thread(_animate, body, mode, time_index, frames, pipe)
     return Response(data, media_type="image/gif", headers=headers)

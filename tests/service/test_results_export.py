@@ -348,3 +348,69 @@ def test_table_cache_keeps_the_recent_tables_within_its_bound() -> None:
     assert cache.get("k1") is None and cache.get("k2") is None
     cache.put("huge", TableAnswer("0" * 64, "history", "csv", b"x" * 251))  # over the bound
     assert cache.get("huge") is None and len(cache) == 2
+
+
+def _supported_spec() -> dict[str, Any]:
+    """SMALL on two pins with a spring at midspan, asking for mode shapes."""
+    L = SMALL["pipe"]["L"]
+    pipe = dict(
+        SMALL["pipe"],
+        supports={"x0": "pinned", "xL": "pinned"},
+        intermediate_supports=[{"position": L / 2, "translational": 10.0}],
+    )
+    return dict(SMALL, pipe=pipe, output={"mode_shapes": {"times": [0.0], "points": 21}})
+
+
+def _support_ids(svg: str) -> set[str]:
+    return {part.split('"')[0] for part in svg.split('id="support:')[1:]}
+
+
+def test_stored_figures_along_the_pipe_draw_its_supports(tc: Any) -> None:
+    """Issue 31 (Users: "the plots draw the supports"): the service's stored figure of the
+    mode shapes draws the supports of the request that made the result (its job record),
+    the same symbols as the library's figure (pipeflow.io.support_symbols: an SVG group
+    per artist, id "support:<where>:<kind>"); the cantilever draws its clamp only.  Before,
+    a stored result's figures drew none."""
+    doc = tc.post("/v1/simulations", json=_supported_spec()).json()
+    svg = tc.get(f"/v1/results/{doc['key']}/plots/mode_shapes.svg")
+    assert svg.status_code == 200
+    assert _support_ids(svg.text) == {"x0:pinned", "xL:pinned", "point0:elastic"}
+    plain = dict(SMALL, output={"mode_shapes": {"times": [0.0], "points": 21}})
+    doc = tc.post("/v1/simulations", json=plain).json()
+    svg = tc.get(f"/v1/results/{doc['key']}/plots/mode_shapes.svg")
+    assert _support_ids(svg.text) == {"x0:clamped"}
+    # figures not along the pipe draw none
+    svg = tc.get(f"/v1/results/{doc['key']}/plots/tip_displacement.svg")
+    assert _support_ids(svg.text) == set()
+
+
+def test_a_result_without_its_request_draws_no_supports(tc: Any) -> None:
+    """A result stored without a job record (an import, or a record pruned): its figures
+    render as before, with no supports, never a 500."""
+    doc = tc.post("/v1/simulations", json=_supported_spec()).json()
+    body = tc.get(f"/v1/results/{doc['key']}").content
+    store = tc.app.state.store
+    orphan = "f" * len(doc["key"])
+    store.put_result(orphan, "simulation", body)
+    svg = tc.get(f"/v1/results/{orphan}/plots/mode_shapes.svg")
+    assert svg.status_code == 200 and _support_ids(svg.text) == set()
+    gif = tc.get(f"/v1/results/{orphan}/animations/mode_shapes.gif")
+    assert gif.status_code == 200 and gif.content[:6] == b"GIF89a"
+
+
+def test_the_mode_shape_animation_draws_the_supports(tc: Any) -> None:
+    """The viewer's GIF (GET .../animations/mode_shapes.gif) is the library's animation with
+    the request's pipe, frame for frame (same process, same renderer), and differs from the
+    one without supports."""
+    from pipeflow.io.animation import mode_shape_gif
+    from pipeflow.schema.simulation import pipe_of_request
+
+    spec = _supported_spec()
+    doc = tc.post("/v1/simulations", json=spec).json()
+    gif = tc.get(f"/v1/results/{doc['key']}/animations/mode_shapes.gif", params={"frames": 4})
+    assert gif.status_code == 200
+    result = tc.get(f"/v1/results/{doc['key']}").json()
+    pipe = pipe_of_request(spec)
+    assert pipe is not None and pipe.intermediate_supports
+    assert gif.content == mode_shape_gif(result, frames=4, pipe=pipe)
+    assert gif.content != mode_shape_gif(result, frames=4)

@@ -104,3 +104,21 @@ def test_cantilever_adds_only_the_clamp() -> None:
 def test_plots_not_along_the_pipe_draw_no_supports() -> None:
     result = _shapes(PP_SPRING)
     assert _support_artists(figure("tip_displacement", [(None, result)], pipe=PP_SPRING)) == {}
+
+
+def test_the_operating_deflection_shape_draws_the_supports() -> None:
+    """The deflection shape runs along the pipe too (its name was misspelt in ALONG_PIPE,
+    "deflection", so the supports were never drawn on it)."""
+    import dataclasses
+
+    from pipeflow.frequency import PointForce, frequency_response
+
+    damped = dataclasses.replace(PP_SPRING, viscous=0.05)  # finite peaks
+    r = frequency_response(
+        damped, 0.0, 0.0, load=PointForce(0.3), positions=np.linspace(0.25, 2.0, 8),
+        frequencies=np.linspace(0.5, 30.0, 200), modes=6,
+    )  # fmt: skip
+    doc = {"kind": "frequency_response", **documents.frequency_response([r])}  # as stored
+    found = _support_artists(figure("deflection_shape", [(None, doc)], pipe=PP_SPRING))
+    assert set(found) == {"support:x0:pinned", "support:xL:pinned", "support:point0:elastic"}
+    assert _xs(found["support:point0:elastic"]) == {1.0}
