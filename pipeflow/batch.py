@@ -94,6 +94,7 @@ def eligible(sim: Simulation) -> bool:
         and not sim.positions  # a station may pass the divergence bound before the tip
         and sim.flow.is_constant
         and sim.spin.is_constant
+        and sim.pressure is None  # a pressure profile: the single run
         # a held tip (supports, issue 31): simulate watches interior stations, these read
         # the tip only, which is rounding there
         and sim.pipe.basis_key is None
@@ -279,6 +280,7 @@ def time_variant(sim: Simulation) -> bool:
         and not sim.mode_shape_times
         and not sim.positions  # a station may pass the divergence bound before the tip
         and not (sim.flow.is_constant and sim.spin.is_constant)
+        and sim.pressure is None  # a pressure profile: the single run
         # a held tip (supports, issue 31): simulate watches interior stations, these read
         # the tip only, which is rounding there
         and sim.pipe.basis_key is None

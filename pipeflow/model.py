@@ -32,6 +32,7 @@ skew-symmetric (perfectly conditioned eigenvectors).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from collections.abc import Callable
@@ -65,6 +66,7 @@ from pipeflow.supports import (
     basis_key,
     check_mounting,
     effective_pressure,
+    pressure_force_per_pascal,
     spin_axial_force,
     static_axial_force,
 )
@@ -461,11 +463,17 @@ class Coefficients:
     vdot: FloatArray
     w2: FloatArray
     wdot: FloatArray
+    #: p(t) [Pa] of a time-varying internal pressure (None: a constant one, in K_0)
+    p: FloatArray | None = None
 
     def weights(self) -> FloatArray:
-        """Rows (1, v, vdot, v^2, w0^2), shape ``(len(t), 5)``: the weights of
-        :attr:`PipeModel.state_pieces` in S(t) (mixed units, see the fields)."""
-        return np.stack([np.ones_like(self.v), self.v, self.vdot, self.v * self.v, self.w2], axis=1)
+        """Rows (1, v, vdot, v^2, w0^2), shape ``(len(t), 5)``, and p when the pressure
+        varies (``(len(t), 6)``): the weights of :attr:`PipeModel.state_pieces` in S(t)
+        (mixed units, see the fields)."""
+        rows = [np.ones_like(self.v), self.v, self.vdot, self.v * self.v, self.w2]
+        if self.p is not None:
+            rows.append(self.p)
+        return np.stack(rows, axis=1)
 
 
 @dataclass(frozen=True)
@@ -482,18 +490,31 @@ class Integrals:
     v2: FloatArray
     w2: FloatArray
     dw: FloatArray
+    #: int p [Pa s] of a time-varying pressure (None: constant, in K_0)
+    p: FloatArray | None = None
 
 
 @dataclass(frozen=True)
 class Loading:
-    """The time dependence of a run: flow velocity v(t) [m/s] and spin w0(t) [rad/s]."""
+    """The time dependence of a run: flow velocity v(t) [m/s], spin w0(t) [rad/s] and,
+    when it varies, the internal pressure p(t) [Pa] (None: the pipe's constant
+    ``pressure``, in K_0; the model then needs :meth:`PipeModel.with_pressure_piece`)."""
 
     flow: Profile
     spin: Profile
+    pressure: Profile | None = None
 
     @property
     def is_time_invariant(self) -> bool:
-        return self.flow.is_constant and self.spin.is_constant
+        steady = self.pressure is None or self.pressure.is_constant
+        return self.flow.is_constant and self.spin.is_constant and steady
+
+    def shifted(self, when: float) -> Loading:
+        """The loading seen from ``when`` [s] on (t' = t - when)."""
+        from pipeflow.profiles import Shifted
+
+        pressure = None if self.pressure is None else Shifted(self.pressure, when)
+        return Loading(Shifted(self.flow, when), Shifted(self.spin, when), pressure)
 
     def coefficients(self, t: ArrayLike) -> Coefficients:
         t = np.asarray(t, dtype=float)
@@ -503,6 +524,7 @@ class Loading:
             vdot=self.flow.derivative(t),
             w2=w0 * w0,
             wdot=self.spin.derivative(t),
+            p=None if self.pressure is None else self.pressure.value(t),
         )
 
     def integrals(self, t: ArrayLike) -> Integrals:
@@ -515,6 +537,7 @@ class Loading:
             v2=self.flow.integral_square(t),
             w2=self.spin.integral_square(t),
             dw=self.spin.value(t) - self.spin.value(zero)[0],
+            p=None if self.pressure is None else self.pressure.integral(t),
         )
 
 
@@ -566,13 +589,39 @@ class PipeModel:
         return 2 * self.n
 
     # -- state matrices -------------------------------------------------------------
+    #: S_p [1/(s Pa)]: the state piece of a time-varying pressure p(t) (None: constant)
+    S_p: FloatArray | None = field(default=None, repr=False)
+
     @cached_property
     def state_pieces(self) -> FloatArray:
-        """(S_0, S_v, S_vdot, S_v2, S_w2) stacked, shape ``(5, 2n, 2n)``, read-only: S(t) is
+        """(S_0, S_v, S_vdot, S_v2, S_w2) stacked, shape ``(5, 2n, 2n)`` (and S_p, ``(6, 2n,
+        2n)``, with a time-varying pressure), read-only: S(t) is
         ``Coefficients.weights() @ state_pieces`` over the first axis."""
-        A = np.stack([self.S_0, self.S_v, self.S_vdot, self.S_v2, self.S_w2])
+        pieces = [self.S_0, self.S_v, self.S_vdot, self.S_v2, self.S_w2]
+        if self.S_p is not None:
+            pieces.append(self.S_p)
+        A = np.stack(pieces)
         A.setflags(write=False)
         return A
+
+    def with_pressure_piece(self) -> PipeModel:
+        """This model with S_p, the state piece of a unit internal pressure (1 Pa): its
+        compressive force A (1 - 2 nu delta) (:func:`pipeflow.supports.pressure_force_per_pascal`,
+        0 at a free discharging end) as an axial force, -(N w')' with N = -A (1 - 2 nu
+        delta), the same term the constant pressure adds to K_0.  For a run whose pressure
+        varies in time (:class:`Loading` ``pressure``); the pipe's own ``pressure`` must then
+        be 0 (no double count)."""
+        if self.pipe.pressure:
+            raise ValueError("a time-varying pressure replaces the pipe's constant pressure")
+        n, L = self.n, self.pipe.L
+        g = mode_integrals(n, self.quadrature_order, self.pipe.basis_key)
+        K_p = axial_matrix((-pressure_force_per_pascal(self.pipe), 0.0, 0.0), g, L)
+        T = np.concatenate([self.omega_ref, np.ones(n)])
+        S_p = np.zeros((2 * n, 2 * n))
+        S_p[:n, n:] = -np.linalg.solve(self.M, K_p)
+        S_p = S_p * (1.0 / T)[:, None] * T[None, :]
+        S_p.setflags(write=False)
+        return dataclasses.replace(self, S_p=S_p)
 
     def state_matrix(self, c: Coefficients) -> NDArray[np.float64]:
         """Frozen-time balanced state matrices S(t), shape ``(len(t), 2n, 2n)`` [1/s]."""
@@ -600,8 +649,12 @@ class PipeModel:
 
     def integrated_state_matrix(self, g: Integrals) -> FloatArray:
         """P(t) = integral_0^t S, eq. (18), in closed form; shape ``(len(t), 2n, 2n)`` [-]."""
-        weights = np.stack([g.t, g.v, g.dv, g.v2, g.w2], axis=1)
-        return np.tensordot(weights, self.state_pieces, axes=1)
+        rows = [g.t, g.v, g.dv, g.v2, g.w2]
+        if self.S_p is not None:
+            if g.p is None:
+                raise ValueError("this model has a pressure piece: give int p (Integrals.p)")
+            rows.append(g.p)
+        return np.tensordot(np.stack(rows, axis=1), self.state_pieces, axes=1)
 
     # -- conversions between the paper's state (d', d) and the balanced one --------------
     def to_balanced(self, d: FloatArray, ddot: FloatArray) -> FloatArray:

@@ -38,6 +38,7 @@ from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.checkpoint import current_checkpoints
 from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
+from pipeflow.supports import pressure_force_per_pascal
 
 
 class SimulationStatus(enum.StrEnum):
@@ -83,6 +84,10 @@ class Simulation:
     mode_shape_times : times [s] (0..t_end) at which the complex mode shapes of the frozen
         spectrum are returned (:mod:`pipeflow.modeshapes`); empty: none.
     mode_shape_points : stations from x = 0 to L at which each mode shape is evaluated.
+    pressure : internal gauge pressure p(t) [Pa] varying in time (a profile; its force
+        p A (1 - 2 nu delta) enters S(t) as a sixth piece, ``PipeModel.with_pressure_piece``),
+        or None (the default): the pipe's constant ``pressure``.  Give one or the other; a
+        constant profile is the pipe's constant pressure.
     loads : external loads (:mod:`pipeflow.loads`: :class:`~pipeflow.loads.PointForce`,
         :class:`~pipeflow.loads.DistributedForce`, :class:`~pipeflow.loads.BaseAcceleration`;
         at most 16), each with its time history; every method honours them.  Empty (the
@@ -110,6 +115,31 @@ class Simulation:
     mode_shape_times: tuple[float, ...] = ()
     mode_shape_points: int = DEFAULT_SHAPE_POINTS
     loads: tuple[Load, ...] = ()
+    pressure: Profile | None = None
+
+
+def pressure_loading(sim: Simulation) -> tuple[Pipe, Profile | None]:
+    """The pipe and the pressure profile a run uses: a constant profile becomes the pipe's
+    constant ``pressure`` (in K_0, exactly as that field); a profile with no effect (a free,
+    discharging end cancels the pressure) is dropped; a time-varying one is returned for
+    :class:`~pipeflow.model.Loading` (the pipe's pressure is then 0)."""
+    p = sim.pressure
+    if p is None:
+        return sim.pipe, None
+    if p.is_constant:
+        return dataclasses.replace(sim.pipe, pressure=float(p.value(np.zeros(1))[0])), None
+    if pressure_force_per_pascal(sim.pipe) == 0.0:
+        return sim.pipe, None
+    return sim.pipe, p
+
+
+def model_and_loading(sim: Simulation) -> tuple[PipeModel, Loading]:
+    """The Galerkin model and the time dependence of ``sim`` (one rule for every caller)."""
+    pipe, pressure = pressure_loading(sim)
+    model = build_model(pipe, sim.modes, sim.quadrature_order)
+    if pressure is not None:
+        model = model.with_pressure_piece()
+    return model, Loading(sim.flow, sim.spin, pressure)
 
 
 @dataclass
@@ -185,7 +215,21 @@ def validate(sim: Simulation) -> None:
         )
     if sim.eigen_modes < 1:
         raise InvalidInput("eigen_modes must be >= 1", parameter="eigen_modes")
-    for name, prof in (("flow", sim.flow), ("spin", sim.spin)):
+    if sim.pressure is not None:
+        if sim.pipe.pressure:
+            raise InvalidInput(
+                "give the pressure once: the pipe's constant pressure or a profile",
+                parameter="pressure",
+            )
+        if not sim.pipe.flow_area:
+            raise InvalidInput(
+                "a pressure needs pipe.flow_area, the flow cross-section A [m^2]",
+                parameter="flow_area",
+            )
+    profiles = [("flow", sim.flow), ("spin", sim.spin)]
+    if sim.pressure is not None:
+        profiles.append(("pressure", sim.pressure))
+    for name, prof in profiles:
         if prof.domain_end() < sim.t_end:
             raise InvalidInput(
                 f"table ends at {prof.domain_end()} s, before t_end = {sim.t_end} s",
@@ -223,8 +267,7 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     """Run one simulation and derive every reported quantity."""
     validate(sim)
     wall0 = time.perf_counter()
-    model = build_model(sim.pipe, sim.modes, sim.quadrature_order)
-    loading = Loading(sim.flow, sim.spin)
+    model, loading = model_and_loading(sim)
     t = np.linspace(0.0, sim.t_end, sim.samples)
     d0, v0 = model.initial_state(sim.u0, sim.du0, sim.initial_shape)
     z0 = model.to_balanced(d0, v0)

@@ -211,14 +211,23 @@ def check_mounting(pipe: Pipe) -> None:
         )
 
 
-def effective_pressure(pipe: Pipe) -> float:
-    """p A (1 - 2 nu delta) [N], the pressurisation's compressive force; 0 when the pipe
-    discharges freely at x = L (the jet leaves at ambient pressure, and the axial balance of
-    the fluid cancels p A against the wall's tension: Paidoussis vol. 1, sec. 3.2.2)."""
-    if not pipe.pressure or pipe.supports.discharges_freely:
+def pressure_force_per_pascal(pipe: Pipe) -> float:
+    """A (1 - 2 nu delta) [m^2]: the pressurisation's compressive force per pascal of
+    internal pressure; 0 when the pipe discharges freely at x = L (the jet leaves at ambient
+    pressure, and the axial balance of the fluid cancels p A against the wall's tension:
+    Paidoussis vol. 1, sec. 3.2.2)."""
+    if pipe.supports.discharges_freely:
         return 0.0
     delta = 1.0 if pipe.axially_restrained else 0.0
-    return pipe.pressure * pipe.flow_area * (1.0 - 2.0 * pipe.poisson * delta)
+    return pipe.flow_area * (1.0 - 2.0 * pipe.poisson * delta)
+
+
+def effective_pressure(pipe: Pipe) -> float:
+    """p A (1 - 2 nu delta) [N], the pressurisation's compressive force of the pipe's
+    constant pressure (:func:`pressure_force_per_pascal`)."""
+    if not pipe.pressure:
+        return 0.0
+    return pipe.pressure * pressure_force_per_pascal(pipe)
 
 
 def _restrained(pipe: Pipe, a: AxialForce) -> AxialForce:

@@ -73,7 +73,7 @@ from pipeflow.schema.profiles import PolynomialProfile as PolynomialProfile
 from pipeflow.schema.profiles import ProfileSpec as ProfileSpec
 from pipeflow.schema.profiles import TableProfile as TableProfile
 from pipeflow.schema.supports import (
-    FlowPressure,
+    FlowPressureProfile,
     GravityField,
     MountingFields,
     check_pipe,
@@ -128,6 +128,8 @@ SIMULATION_FIELDS: dict[str, str] = {
     "flow": "flow.velocity",
     "spin": "rotation.omega0",
     "omega0": "rotation.omega0",
+    "pressure": "flow.pressure",
+    "flow_area": "pipe.flow_area",
     "u0": "initial.u0",
     "du0": "initial.du0",
     "initial_shape": "initial.shape",
@@ -297,7 +299,7 @@ class RotationSpec(StrictModel):
     hub_radius: HubRadius = 0.0
 
 
-class FlowSpec(FlowPressure):
+class FlowSpec(FlowPressureProfile):
     velocity: ProfileSpec = Field(
         default_factory=ConstantProfile,
         description="Flow velocity v(t) [m/s]; v > 0 flows from the clamped end to the tip.",
@@ -582,10 +584,15 @@ class SimulationSpec(GravityField):
 
     def to_simulation(self) -> Simulation:
         """The library's :class:`~pipeflow.simulation.Simulation` (plain arguments)."""
+        varying = self.flow.pressure_profile
         return Simulation(
             pipe=self.pipe.to_pipe(
-                self.rotation.hub_radius, self.plane, self.gravity_along_x(), self.flow.pressure
+                self.rotation.hub_radius,
+                self.plane,
+                self.gravity_along_x(),
+                self.flow.constant_pressure,
             ),
+            pressure=None if varying is None else varying.to_profile(),
             flow=self.flow.velocity.to_profile(),
             spin=self.rotation.omega0.to_profile(),
             u0=self.initial.u0,

@@ -10,12 +10,20 @@ out is the one it had before they existed.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from pipeflow.errors import InvalidField
 from pipeflow.schema.base import StrictModel
+from pipeflow.schema.profiles import (
+    MAX_TABLE_POINTS,
+    ConstantProfile,
+    HalfSineProfile,
+    HarmonicProfile,
+    PolynomialProfile,
+    TableProfile,
+)
 from pipeflow.supports import MAX_INTERMEDIATE, PointSupport, Support, Supports
 
 #: the largest spring stiffness accepted [N/m or N m/rad]: far stiffer than any support
@@ -206,6 +214,77 @@ class FlowPressure(StrictModel):
         "its force p A (1 - 2 nu delta) compresses the pipe like the flow's M v^2, except at "
         "a free, discharging end x = L, where it cancels (docs/model.md 9).",
     )
+
+
+_PRESSURE_VALUE = Field(
+    0.0, ge=-MAX_PRESSURE, le=MAX_PRESSURE, description="Value, internal gauge pressure [Pa]."
+)
+
+
+class PressureConstant(ConstantProfile):
+    """p(t) = value [Pa] (the same request as the plain number)."""
+
+    value: float = _PRESSURE_VALUE
+
+
+class PressureHarmonic(HarmonicProfile):
+    """p(t) = mean + amplitude sin(frequency t + phase) [Pa]: a pulsating pressure."""
+
+    mean: float = Field(0.0, ge=-MAX_PRESSURE, le=MAX_PRESSURE, description="Mean pressure [Pa].")
+    amplitude: float = Field(0.0, ge=-MAX_PRESSURE, le=MAX_PRESSURE, description="Amplitude [Pa].")
+
+
+class PressureTable(TableProfile):
+    """Tabulated pressures [Pa] interpolated in time."""
+
+    values: list[Annotated[float, Field(ge=-MAX_PRESSURE, le=MAX_PRESSURE)]] = Field(
+        min_length=2, max_length=MAX_TABLE_POINTS, description="Pressures at those times [Pa]."
+    )
+
+
+class PressureHalfSine(HalfSineProfile):
+    """A half-sine pressure pulse [Pa] (a water hammer of finite duration)."""
+
+    peak: float = Field(ge=-MAX_PRESSURE, le=MAX_PRESSURE, description="Peak pressure [Pa].")
+
+
+#: a time profile of the internal pressure: the profiles of every time function, with the
+#: pressure's bounds (|p| <= MAX_PRESSURE) on their values
+PressureProfileSpec = Annotated[
+    PressureConstant | PolynomialProfile | PressureHarmonic | PressureTable | PressureHalfSine,
+    Field(discriminator="kind"),
+]
+
+
+class FlowPressureProfile(StrictModel):
+    """The flow block's internal pressure for a run in time: constant or a profile."""
+
+    pressure: Annotated[float, Field(ge=-MAX_PRESSURE, le=MAX_PRESSURE)] | PressureProfileSpec = (
+        Field(
+            0.0,
+            exclude_if=lambda v: v == 0.0,
+            description="Internal gauge pressure p(t) [Pa] (needs pipe.flow_area): a number "
+            "(constant) or a profile of time like the flow velocity's; its force "
+            "p A (1 - 2 nu delta) compresses the pipe like the flow's M v^2, except at a free, "
+            "discharging end x = L, where it cancels (docs/model.md 9).",
+        )
+    )
+
+    @field_validator("pressure", mode="after")
+    @classmethod
+    def _constant_is_a_number(cls, value: Any) -> Any:
+        # a constant profile is the same request as its number (the same key)
+        return float(value.value) if isinstance(value, PressureConstant) else value
+
+    @property
+    def pressure_profile(self) -> Any:
+        """The pressure's profile model when it varies in time, else None."""
+        return None if isinstance(self.pressure, float | int) else self.pressure
+
+    @property
+    def constant_pressure(self) -> float:
+        """The constant pressure [Pa] (0 when it varies in time: the profile carries it)."""
+        return float(self.pressure) if isinstance(self.pressure, float | int) else 0.0
 
 
 def mounting_canonical(spec: Any) -> dict[str, Any]:

@@ -16,7 +16,6 @@ from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.loads import ExternalForcing
 from pipeflow.model import Coefficients, Loading, PipeModel
-from pipeflow.profiles import Shifted
 from pipeflow.solvers.checkpoint import Checkpointer, Checkpoints, fingerprint
 
 #: hard ceilings that no option may lift (they bound what one request can cost)
@@ -233,9 +232,7 @@ class Solver(ABC):
             if sub_t.size == 1:
                 out.z[k:] += jump
                 continue
-            loading = Loading(
-                Shifted(problem.loading.flow, when), Shifted(problem.loading.spin, when)
-            )
+            loading = problem.loading.shifted(when)
             sub = Problem(problem.model, loading, jump, sub_t, problem.options)
             z = self._solve_impl(sub, stats).z
             if sub.forced:  # the spin-up load: subtract its own response

@@ -62,10 +62,18 @@ window.SchemaForm = (function () {
         // a named choice or an object (an end support: "pinned" ... or {"translational":
         // k}): the form offers the names; the object form goes in the JSON body
         const named = others.filter((o) => Array.isArray(o.enum));
+        // a number or a profile (an internal pressure): the form offers the profiles, whose
+        // constant kind is the number's request (the API gives both one key)
+        const unions = others.filter((o) => isUnion(o));
         if (named.length === 1 && others.length > 1) {
           const own = Object.assign({}, s);
           delete own.anyOf;
           s = Object.assign({}, named[0], own, nullable ? { nullable: true } : {});
+        } else if (unions.length === 1 && others.length > 1) {
+          const own = Object.assign({}, s);
+          delete own.anyOf;
+          if (typeof own.default !== "object") delete own.default;
+          s = Object.assign({}, unions[0], own);
         }
       }
     }

@@ -204,3 +204,33 @@ def test_a_study_varies_tension_and_pressure() -> None:
         exact = math.sqrt(math.pi**2 - case["flow.pressure"] + case["pipe.tension"])
         assert case["critical_kind"] == "divergence"
         assert u == pytest.approx(exact, rel=1e-10)
+
+
+def test_a_pressure_profile_over_http(api: TestClient) -> None:
+    """flow.pressure takes a profile in a simulation (a new key; the constant profile is the
+    number's request), and a profile out of bounds or in a frozen analysis is a 422 naming
+    flow.pressure (tests/pipeflow/test_pressure_profile.py checks the numbers)."""
+    pipe = {**UNIT, "supports": {"x0": "pinned", "xL": "pinned"}, "flow_area": 1.0}
+    body: dict[str, Any] = {
+        "pipe": pipe,
+        "flow": {"velocity": {"kind": "constant", "value": 1.0}, "pressure": 2.0},
+        "modes": 4,
+        "time": {"t_end": 0.5, "samples": 11},
+    }
+    number = api.post("/v1/simulations", json=body).json()
+    body["flow"]["pressure"] = {"kind": "constant", "value": 2.0}
+    assert api.post("/v1/simulations", json=body).json()["key"] == number["key"]
+    body["flow"]["pressure"] = {"kind": "polynomial", "coefficients": [2.0, 4.0]}
+    r = api.post("/v1/simulations", json=body)
+    assert r.status_code == 200, r.text
+    assert r.json()["key"] != number["key"] and r.json()["method_used"] == "magnus"
+    body["flow"]["pressure"] = {"kind": "table", "t": [0.0, 1.0], "values": [0.0, 2e10]}
+    assert any(
+        f.startswith("flow.pressure")
+        for f in _fields(_problem(api.post("/v1/simulations", json=body), 422))
+    )
+    frozen = {**SPOOL, "pipe": pipe, "flow": {"pressure": {"kind": "constant", "value": 1.0}}}
+    assert any(
+        f.startswith("flow.pressure")
+        for f in _fields(_problem(api.post("/v1/stability", json=frozen), 422))
+    )
