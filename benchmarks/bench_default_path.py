@@ -44,7 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_SPIN
 from pipeflow.profiles import Profile
 from pipeflow.simulation import Simulation, cma_exponents, frozen_spectrum, simulate
@@ -71,7 +72,8 @@ from pipeflow.simulation import simulate
 spec = {k: v for k, v in PAPER_EXAMPLE.items() if k != "method"}
 sim = SimulationSpec.model_validate(spec).to_simulation()
 documents.simulation(simulate(sim))  # warm-up
-from pipeflow.model import Loading, build_model
+from pipeflow.model import build_model
+from pipeflow.loading import Loading
 from pipeflow.solvers import SOLVERS, Problem
 import numpy as np
 model = build_model(sim.pipe, sim.modes)

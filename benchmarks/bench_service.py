@@ -58,7 +58,8 @@ import numpy as np
 from scipy import signal
 
 from pipeflow.computations import documents
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
 from pipeflow.simulation import simulate
 from service.launch import serve

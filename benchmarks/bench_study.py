@@ -437,7 +437,7 @@ def time_variant(side: int, modes: int, samples: int, rounds: int) -> dict[str, 
 
 def batch_problem(sim: Any) -> Any:
     """The solver problem of a simulation, as :func:`pipeflow.simulation.simulate` forms it."""
-    from pipeflow.model import Loading
+    from pipeflow.loading import Loading
     from pipeflow.solvers import Problem
 
     model = build_model(sim.pipe, sim.modes)

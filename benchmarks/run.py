@@ -57,7 +57,8 @@ from scipy import signal
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
-from pipeflow.model import Loading, PipeModel, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import PipeModel, build_model
 from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_SPIN
 from pipeflow.profiles import Constant, Harmonic, Polynomial, Profile, polynomial
 from pipeflow.solvers import SOLVERS, Options, Problem

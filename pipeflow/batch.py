@@ -46,7 +46,8 @@ from numpy.typing import NDArray
 
 from pipeflow._types import FloatArray
 from pipeflow.divergence import default_bound
-from pipeflow.model import Loading, PipeModel, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import PipeModel, build_model
 from pipeflow.simulation import Simulation, SimulationStatus, trace_times, validate
 from pipeflow.solvers import Problem, SolverOutput
 from pipeflow.solvers.convolution import uniform_step as _uniform_step

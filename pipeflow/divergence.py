@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeflow._types import FloatArray
-from pipeflow.model import Loading, PipeModel
+from pipeflow.loading import Loading
+from pipeflow.model import PipeModel
 from pipeflow.spectra import max_growth_rates
 
 #: default bound on |u(x, t)| as a fraction of the length L [-]

@@ -56,14 +56,8 @@ from numpy.typing import ArrayLike, NDArray
 from pipeflow import loads
 from pipeflow.basis import MAX_MODES
 from pipeflow.errors import InvalidInput
-from pipeflow.model import (
-    REVERSE_FLOW_CAVEAT,
-    Coefficients,
-    Pipe,
-    PipeModel,
-    basis_caveats,
-    build_model,
-)
+from pipeflow.loading import Coefficients
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.profiles import Constant
 from pipeflow.spectra import max_growth_rates, mode_numbers, rounding_level
 from pipeflow.statics import static_deflection

@@ -29,7 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pipeflow._types import ComplexArray, FloatArray
-from pipeflow.model import Loading, PipeModel
+from pipeflow.loading import Loading
+from pipeflow.model import PipeModel
 from pipeflow.spectra import assign, decompose, match_branches, order_lowest
 
 #: bounds a request may ask for (the cost is one eigen-decomposition per time)

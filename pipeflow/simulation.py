@@ -24,8 +24,9 @@ from pipeflow.diagnostics import add_error_estimate
 from pipeflow.divergence import default_bound, divergence
 from pipeflow.divergence import message as divergence_message
 from pipeflow.errors import InvalidInput
+from pipeflow.loading import Loading
 from pipeflow.loads import Load, load_notes, project_loads, validate_loads
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, basis_caveats, build_model
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
     MAX_SHAPE_POINTS,
@@ -122,7 +123,7 @@ def pressure_loading(sim: Simulation) -> tuple[Pipe, Profile | None]:
     """The pipe and the pressure profile a run uses: a constant profile becomes the pipe's
     constant ``pressure`` (in K_0, exactly as that field); a profile with no effect (a free,
     discharging end cancels the pressure) is dropped; a time-varying one is returned for
-    :class:`~pipeflow.model.Loading` (the pipe's pressure is then 0)."""
+    :class:`~pipeflow.loading.Loading` (the pipe's pressure is then 0)."""
     p = sim.pressure
     if p is None:
         return sim.pipe, None

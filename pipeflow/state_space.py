@@ -39,7 +39,8 @@ from pipeflow.frequency import (
     _generalised_force,
     _operator,
 )
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Coefficients, Pipe, basis_caveats
+from pipeflow.loading import Coefficients
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats
 from pipeflow.spectra import max_growth_rates
 
 FloatArray = NDArray[np.float64]

@@ -14,8 +14,9 @@ from numpy.typing import NDArray
 
 from pipeflow._types import FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.loading import Coefficients, Loading
 from pipeflow.loads import ExternalForcing
-from pipeflow.model import Coefficients, Loading, PipeModel
+from pipeflow.model import PipeModel
 from pipeflow.solvers.checkpoint import Checkpointer, Checkpoints, fingerprint
 
 #: hard ceilings that no option may lift (they bound what one request can cost)

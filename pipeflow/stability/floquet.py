@@ -35,7 +35,8 @@ from pipeflow import parallel
 from pipeflow._types import ComplexArray, FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.linalg import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
-from pipeflow.model import REVERSE_FLOW_CAVEAT, Loading, Pipe, PipeModel, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, build_model
 from pipeflow.profiles import Constant, Harmonic, Profile
 from pipeflow.stability.core import check_modes, check_range, eigenvalues
 

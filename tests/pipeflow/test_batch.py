@@ -29,8 +29,9 @@ from pipeflow.computations import documents
 from pipeflow.computations.registry import COMPUTATIONS, summarize_simulation
 from pipeflow.computations.study_runner import Piece, run_cases
 from pipeflow.errors import BudgetExceeded, InvalidInput
+from pipeflow.loading import Loading
 from pipeflow.loads import PointForce
-from pipeflow.model import Loading, build_model
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Harmonic, polynomial
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec

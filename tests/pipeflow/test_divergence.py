@@ -18,7 +18,8 @@ import scipy.linalg
 from pipeflow.computations import documents
 from pipeflow.divergence import DEFAULT_RANGE, default_bound, divergence
 from pipeflow.errors import InvalidInput
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE, PAPER_PIPE_JSON
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.schema.simulation import SimulationSpec

@@ -53,7 +53,8 @@ from pipeflow.frequency import (
     frequency_responses,
     resonances,
 )
-from pipeflow.model import Coefficients, Pipe, build_model
+from pipeflow.loading import Coefficients
+from pipeflow.model import Pipe, build_model
 from pipeflow.paper import PAPER_PIPE
 from tests.pipeflow.collocation import harmonic_response
 

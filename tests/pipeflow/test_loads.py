@@ -27,6 +27,7 @@ from pipeflow.basis import mode_shapes
 from pipeflow.computations import documents
 from pipeflow.computations.simulation import simulate_spec
 from pipeflow.errors import InvalidInput
+from pipeflow.loading import Loading
 from pipeflow.loads import (
     BASE_ACCELERATION_NOTE,
     MAX_LOADS,
@@ -37,7 +38,7 @@ from pipeflow.loads import (
     load_to_dict,
     project_loads,
 )
-from pipeflow.model import Loading, build_model
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Harmonic, polynomial, table
 from pipeflow.schema.keys import canonical_key

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from pipeflow.basis import cantilever_roots
-from pipeflow.model import Integrals, Pipe, build_model
+from pipeflow.loading import Integrals
+from pipeflow.model import Pipe, build_model
 from pipeflow.paper import PAPER_PIPE
 
 

@@ -11,7 +11,8 @@ from pipeflow.computations import documents
 from pipeflow.errors import InvalidInput
 from pipeflow.io.export import to_csv
 from pipeflow.io.plots import available_plots, render
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import Simulation, simulate

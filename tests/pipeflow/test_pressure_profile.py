@@ -92,7 +92,8 @@ def test_a_constant_profile_is_the_constant_pressure(method: str) -> None:
 def test_the_sixth_piece_is_the_constant_pressure_term() -> None:
     """A ramp sampled at one time is the constant pressure at that value: S(t) with the
     piece equals the model of the pipe at p = p(t) (1e-12 relative)."""
-    from pipeflow.model import Loading, build_model
+    from pipeflow.loading import Loading
+    from pipeflow.model import build_model
 
     model = build_model(SPOOL, 6).with_pressure_piece()
     loading = Loading(profiles.Constant(1.0), profiles.Constant(0.0), RAMP)

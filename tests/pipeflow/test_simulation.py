@@ -12,7 +12,8 @@ import pytest
 from pipeflow.computations import documents
 from pipeflow.errors import PipeflowError
 from pipeflow.io.json import json_safe
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, polynomial, table
 from pipeflow.schema.simulation import SIMULATION_FIELDS, request_fields

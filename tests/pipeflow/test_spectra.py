@@ -61,7 +61,8 @@ def test_least_stable_branch_is_traced_even_when_it_is_no_representative() -> No
 
 
 def _paper_frozen_matrices() -> np.ndarray:
-    from pipeflow.model import Loading, build_model
+    from pipeflow.loading import Loading
+    from pipeflow.model import build_model
     from pipeflow.paper import PAPER_FLOW, PAPER_PIPE, PAPER_SPIN
 
     model = build_model(PAPER_PIPE, 10)

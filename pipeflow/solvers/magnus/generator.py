@@ -17,8 +17,9 @@ from pipeflow.linalg import (
     magnus4_omega,
     magnus6_omega,
 )
+from pipeflow.loading import Loading
 from pipeflow.loads import ExternalForcing
-from pipeflow.model import Loading, PipeModel
+from pipeflow.model import PipeModel
 from pipeflow.solvers.base import Problem, forcing
 
 #: times at which the local errors of the two orders are compared (step doubling)

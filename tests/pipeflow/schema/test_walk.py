@@ -8,7 +8,7 @@ schema -> library).  Two stacks are read, each at the moment the velocity arrive
 - the conversion: where the library's profile object (:class:`pipeflow.profiles.Polynomial`)
   is built from the validated request;
 - the evaluation: where S(t)'s coefficients first read v(t)
-  (:meth:`pipeflow.model.Loading.coefficients`).
+  (:meth:`pipeflow.loading.Loading.coefficients`).
 
 A layer added on the way (or one taken away) changes a stack and fails the test: update
 the chain here and the counts in the issue's closing note together.  The service's part of
@@ -23,7 +23,7 @@ from typing import Any
 
 import pytest
 
-from pipeflow import model as model_module
+from pipeflow import loading as loading_module
 from pipeflow import profiles
 from pipeflow.computations.registry import COMPUTATIONS
 from pipeflow.schema.simulation import PAPER_EXAMPLE, SimulationSpec
@@ -51,7 +51,7 @@ def test_velocity_walk_below_the_service(monkeypatch: pytest.MonkeyPatch) -> Non
     stacks: dict[str, list[traceback.FrameSummary]] = {}
     built_count = [0]
     polynomial_init = profiles.Polynomial.__init__
-    coefficients = model_module.Loading.coefficients
+    coefficients = loading_module.Loading.coefficients
 
     def built(self: Any, *args: Any, **kw: Any) -> None:
         stacks.setdefault("conversion", traceback.extract_stack()[:-1])
@@ -72,7 +72,7 @@ def test_velocity_walk_below_the_service(monkeypatch: pytest.MonkeyPatch) -> Non
         }
     )
     monkeypatch.setattr(profiles.Polynomial, "__init__", built)
-    monkeypatch.setattr(model_module.Loading, "coefficients", evaluated)
+    monkeypatch.setattr(loading_module.Loading, "coefficients", evaluated)
     COMPUTATIONS["simulation"].execute(spec)
 
     # the request becomes library objects in the schema's own conversion:
@@ -88,10 +88,10 @@ def test_velocity_walk_below_the_service(monkeypatch: pytest.MonkeyPatch) -> Non
     assert _files(stacks["evaluation"]) == [
         "pipeflow/computations/registry.py",  # Computation.execute
         "pipeflow/computations/simulation.py",  # run_simulation, simulate_spec
-        # simulate: builds Loading (pipeflow/model.py) and Problem (solvers/base.py), asks
+        # simulate: builds Loading (pipeflow/loading.py) and Problem (solvers/base.py), asks
         # auto (solvers/auto.py, Auto.choose: magnus for a time-variant flow), then runs it
         "pipeflow/simulation.py",
         "pipeflow/solvers/base.py",  # Solver.solve (timing, counters, impulses)
         "pipeflow/solvers/magnus/control.py",  # Magnus._solve_impl, step_control
         "pipeflow/solvers/magnus/generator.py",  # MagnusGenerator.coefficients
-    ]  # -> Loading.coefficients (pipeflow/model.py) -> Polynomial.value: v(t) in S(t)
+    ]  # -> Loading.coefficients (pipeflow/loading.py) -> Polynomial.value: v(t) in S(t)

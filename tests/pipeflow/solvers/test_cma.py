@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_PIPE
 from pipeflow.profiles import Constant, Harmonic, Profile, polynomial
 from pipeflow.simulation import simulate

@@ -17,7 +17,8 @@ from scipy.linalg import expm
 
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.linalg import GAUSS_NODES, expm_stack, magnus4_omega, product_of_steps
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.paper import PAPER_FLOWS, PAPER_PIPE, PAPER_SPIN
 from pipeflow.profiles import Constant, Harmonic, Profile, polynomial
 from pipeflow.simulation import Result, simulate

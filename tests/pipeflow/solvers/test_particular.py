@@ -304,8 +304,8 @@ def test_auto_runs_magnus_where_the_table_quadrature_is_too_long() -> None:
 
     # auto chooses magnus for it (not run here: the long magnus run is a benchmark's job)
     m = build_model(DAMPED, 30)
+    from pipeflow.loading import Loading
     from pipeflow.loads import project_loads
-    from pipeflow.model import Loading
 
     problem = Problem(
         m,

@@ -12,7 +12,8 @@ import pytest
 
 from pipeflow.compare import compare, default_methods
 from pipeflow.diagnostics import add_error_estimate
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.profiles import Constant, polynomial
 from pipeflow.simulation import frozen_spectrum, simulate
 from pipeflow.solvers import SOLVERS, Options, Problem, Solver, SolverOutput, SolverStats

@@ -11,7 +11,8 @@ from scipy.optimize import linear_sum_assignment
 
 from pipeflow.computations import documents
 from pipeflow.errors import InvalidInput
-from pipeflow.model import Loading, build_model
+from pipeflow.loading import Loading
+from pipeflow.model import build_model
 from pipeflow.profiles import Constant, Harmonic, polynomial
 from pipeflow.stability.core import eigenvalues, nondimensional_pipe
 from pipeflow.stability.floquet import floquet, resonance_chart
