@@ -470,6 +470,42 @@ def _residual_flexibility(
     return r
 
 
+def residual_part(
+    op: _Operator,
+    load: Load,
+    x: FloatArray,
+    out: FloatArray,
+    f: FloatArray,
+    v: float,
+    w0: float,
+    stable: bool,
+    residual: bool | None,
+    warnings: list[str],
+) -> FloatArray | None:
+    """The residual flexibility [m per unit load] at ``x`` to add, or None: ``residual``
+    True/False, or None for the default (on without flow, tip inertia or instability, on
+    the clamped-free pipe without axial load, where :mod:`pipeflow.statics` has the static
+    solution); a request it cannot serve says why in ``warnings``.  One rule for the
+    frequency response and the state space."""
+    pipe = op.model.pipe
+    cantilever = pipe.basis_key is None and not pipe.has_static_axial_force
+    if residual is None:
+        residual = v == 0.0 and pipe.tip_inertia == 0.0 and stable and cantilever
+    if residual and not cantilever:
+        warnings.append(
+            "the residual flexibility of the truncated modes is computed for the clamped-free "
+            "pipe without tension, pressure or gravity only, so it is left out here"
+        )
+        return None
+    R = _residual_flexibility(op, load, x, out, f, v, w0) if residual else None
+    if residual and R is None:
+        warnings.append(
+            "the static problem is singular at this operating point (divergence), so the "
+            "residual flexibility of the truncated modes is left out"
+        )
+    return R
+
+
 def _residual_factor(pipe: Pipe, W: FloatArray) -> ComplexArray:
     """1 / (1 + i W alpha) [-]: the modes left out are stiffness-dominated, so Kelvin-Voigt
     damping scales their static response as it scales EI (viscous damping and inertia are
@@ -582,22 +618,7 @@ def frequency_response(
         )
     growth = float(max_growth_rates(op.xi[None])[0])
     stable = growth <= 0.0
-    # the static solution (pipeflow.statics) is the clamped-free pipe's without axial load
-    cantilever = pipe.basis_key is None and not pipe.has_static_axial_force
-    if residual is None:
-        residual = v == 0.0 and pipe.tip_inertia == 0.0 and stable and cantilever
-    if residual and not cantilever:
-        warnings.append(
-            "the residual flexibility of the truncated modes is computed for the clamped-free "
-            "pipe without tension, pressure or gravity only, so it is left out here"
-        )
-        residual = False
-    R = _residual_flexibility(op, load, x, out, f, v, w0) if residual else None
-    if residual and R is None:
-        warnings.append(
-            "the static problem is singular at this operating point (divergence), so the "
-            "residual flexibility of the truncated modes is left out"
-        )
+    R = residual_part(op, load, x, out, f, v, w0, stable, residual, warnings)
     if R is not None:
         H = H + R[:, None] * _residual_factor(pipe, W)[None, :]
     H[:, on_pole] = 0.0

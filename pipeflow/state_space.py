@@ -11,14 +11,21 @@ frequencies without flow or spin [rad/s]), A = S(v, w0) [1/s], one input w (a po
 u(x) [m] (relative to the clamp), its velocity [m/s] or acceleration [m/s^2].
 
     B = (M^-1 f / w, 0)                 [m/(N s) per state, or s]
-    displacement:  C = (0, Phi),                    D = 0
+    displacement:  C = (0, Phi),                    D = 0   (+ the residual, below)
     velocity:      C = (Phi diag(w), 0),            D = 0
     acceleration:  C = Phi diag(w) (A_upper),       D = Phi diag(w) B_upper
 
 (Phi_ij = phi_j(x_i / L)).  C (i W I - A)^-1 B + D is then exactly the modal frequency
-response of :func:`pipeflow.frequency.frequency_response` with ``residual=False`` (the
-realisation has no residual flexibility: its static part would need a feed-through that
-only the displacement output can carry), and the eigenvalues of A are the frozen spectrum.
+response of :func:`pipeflow.frequency.frequency_response` with the same ``residual``
+choice, and the eigenvalues of A are the frozen spectrum (and -1/alpha, below).
+
+Residual flexibility (the static response R of the modes left out, [m per input unit],
+:func:`pipeflow.frequency.residual_part`: the same rule and default as the frequency
+response's) is carried by the displacement output: D = R; with Kelvin-Voigt damping
+alpha [s] the frequency response scales it by 1 / (1 + i W alpha), realised exactly by one
+more state r, r' = (w - r) / alpha (the input lagged by alpha, in the input's unit), with
+C_r = R and D = 0.  A velocity or acceleration output would need R (i W)^k, which no proper
+realisation has: there the residual is left out (a warning when it was asked for).
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from pipeflow.frequency import (
     _check_quantity,
     _generalised_force,
     _operator,
+    residual_part,
 )
 from pipeflow.loading import Coefficients
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats
@@ -55,9 +63,11 @@ class StateSpace:
 
     ``A`` (2n, 2n) [1/s]; ``B`` (2n, 1) [state unit per input unit per s]; ``C`` (p, 2n)
     [output unit per m]; ``D`` (p, 1) [output unit per input unit]; ``states`` the 2n
-    names (``qdot_j/w_j``, ``q_j``, all [m]); ``inputs`` one name with ``input_unit``
-    (N or m/s^2); ``outputs`` one name per position with ``output_unit``; ``velocity``
-    [m/s], ``omega0`` [rad/s] the operating point; ``natural_frequencies`` w_j [rad/s]
+    names (``qdot_j/w_j``, ``q_j``, all [m]; with residual flexibility and Kelvin-Voigt
+    damping one more, ``residual_lag``, in the input's unit: every matrix one larger);
+    ``inputs`` one name with ``input_unit`` (N or m/s^2); ``outputs`` one name per
+    position with ``output_unit``; ``velocity`` [m/s], ``omega0`` [rad/s] the operating
+    point; ``natural_frequencies`` w_j [rad/s]
     (the balancing scales).
     """
 
@@ -88,12 +98,15 @@ def state_space(
     positions: ArrayLike,
     quantity: str = "displacement",
     modes: int = 10,
+    residual: bool | None = None,
 ) -> StateSpace:
     """The realisation (module docstring) of ``pipe`` at v = ``velocity`` [m/s], w0 =
     ``omega0`` [rad/s] with ``modes`` Galerkin modes (1 .. 40), input ``load`` (a
     :class:`~pipeflow.frequency.PointForce` [N] or
     :class:`~pipeflow.frequency.BaseAcceleration` [m/s^2]) and the ``quantity``
-    ("displacement", "velocity", "acceleration") at ``positions`` x [m] in (0, L]."""
+    ("displacement", "velocity", "acceleration") at ``positions`` x [m] in (0, L];
+    ``residual``: the residual flexibility (module docstring; None: the frequency
+    response's default)."""
     v, w0 = _check_operating_point(velocity, omega0)
     n = _check_modes(modes)
     load = _check_load(pipe, load)
@@ -124,6 +137,22 @@ def state_space(
     symbol = {"displacement": "u", "velocity": "du/dt", "acceleration": "d2u/dt2"}[quantity]
     warnings: list[str] = []
     growth = float(max_growth_rates(op.xi[None])[0])
+    if quantity != "displacement":
+        if residual:
+            warnings.append(
+                f"the residual flexibility is left out of a {quantity} output: R (i W)^k has "
+                "no proper state-space realisation (ask displacement outputs for it)"
+            )
+        residual = False
+    R = residual_part(op, load, x, Phi, f, v, w0, growth <= 0.0, residual, warnings)
+    if R is not None and pipe.kelvin_voigt:
+        alpha = pipe.kelvin_voigt
+        A = np.block([[A, np.zeros((2 * n, 1))], [np.zeros((1, 2 * n)), -np.ones((1, 1)) / alpha]])
+        B = np.vstack([B, np.full((1, 1), 1.0 / alpha)])
+        C = np.hstack([C, R[:, None]])
+        states += ("residual_lag",)
+    elif R is not None:
+        D = D + R[:, None]
     if growth > 0:
         warnings.append(
             f"unstable operating point: A has an eigenvalue with Re = {growth:.4g} 1/s > 0 "

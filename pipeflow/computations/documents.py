@@ -610,7 +610,9 @@ def state_space(ss: StateSpace) -> dict[str, Any]:
         "outputs": list(ss.outputs),
         "units": {
             "time": "s",
-            "states": "m",
+            "states": "m"
+            if "residual_lag" not in ss.states
+            else f"m; residual_lag {ss.input_unit}",
             "inputs": ss.input_unit,
             "outputs": ss.output_unit,
             "A": "1/s",

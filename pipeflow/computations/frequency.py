@@ -71,6 +71,7 @@ def run_state_space(spec: StateSpaceSpec, progress: Progress | None = None) -> d
         positions=spec.response.positions,
         quantity=spec.response.quantity,
         modes=spec.modes,
+        residual=spec.residual_flexibility,
     )
     if progress is not None:
         progress(1.0)

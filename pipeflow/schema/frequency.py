@@ -273,6 +273,22 @@ def check_point_and_stations(spec: Any) -> None:
         )
 
 
+#: the residual flexibility option of the frequency response and the state space
+ResidualFlexibility = Annotated[
+    bool | None,
+    Field(
+        description="Add the static response of the modes left out (the static deflection "
+        "of the continuous pipe minus its part in the modes; per unit load, m/N or s^2): "
+        "exact at W = 0 and, without flow, the drive-point receptance to ~1e-8 at 10 modes "
+        "instead of ~5e-4. null (default): applied without flow, without a tip rotary "
+        "inertia and at a stable point, where it is measured better; with flow the error "
+        "is the retained modes' own and it is measured worse above the first resonance. "
+        "true / false force it on / off. A state space carries it on displacement outputs "
+        "only (as the feed-through D, or with Kelvin-Voigt damping one lag state).",
+    ),
+]
+
+
 class FrequencyResponseSpec(_Mounted):
     """Frequency response functions of the pipe at one or several frozen operating points."""
 
@@ -300,16 +316,7 @@ class FrequencyResponseSpec(_Mounted):
     load: LoadSpec
     response: ResponseSpec
     frequencies: FrequencySpec
-    residual_flexibility: bool | None = Field(
-        None,
-        description="Add the static response of the modes left out (the static deflection "
-        "of the continuous pipe minus its part in the modes; per unit load, m/N or s^2): "
-        "exact at W = 0 and, without flow, the drive-point receptance to ~1e-8 at 10 modes "
-        "instead of ~5e-4. null (default): applied without flow, without a tip rotary "
-        "inertia and at a stable point, where it is measured better; with flow the error "
-        "is the retained modes' own and it is measured worse above the first resonance. "
-        "true / false force it on / off.",
-    )
+    residual_flexibility: ResidualFlexibility = None
 
     @model_validator(mode="before")
     @classmethod

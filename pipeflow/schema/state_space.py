@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from pipeflow.schema.frequency import (
     HAMMER_EXAMPLE,
     LoadSpec,
+    ResidualFlexibility,
     ResponseSpec,
     check_point_and_stations,
     refuse_time_variant,
@@ -65,6 +66,7 @@ class StateSpaceSpec(_Mounted):
     modes: Modes = 10
     load: LoadSpec
     response: ResponseSpec
+    residual_flexibility: ResidualFlexibility = None
 
     @model_validator(mode="before")
     @classmethod
@@ -95,6 +97,8 @@ class StateSpaceSpec(_Mounted):
             "load": self.load.model_dump(mode="json"),
             "response": self.response.model_dump(mode="json"),
         }
+        if self.residual_flexibility is not None:  # the default keeps earlier keys
+            out["residual_flexibility"] = self.residual_flexibility
         mounting = mounting_canonical(self)
         if "flow" in mounting:
             out["flow"] |= mounting.pop("flow")
@@ -103,7 +107,10 @@ class StateSpaceSpec(_Mounted):
 
 class StateSpaceUnits(BaseModel):
     time: str = Field(description="Time unit: s.")
-    states: str = Field(description="Unit of every state: m (q'_j / w_j and q_j).")
+    states: str = Field(
+        description="Unit of the modal states: m (q'_j / w_j and q_j); a residual_lag state "
+        "(residual flexibility with Kelvin-Voigt damping) has the input's unit."
+    )
     inputs: str = Field(description="Unit of the input: N (point force) or m/s^2 (clamp).")
     outputs: str = Field(description="Unit of the outputs: m, m/s or m/s^2.")
     A: str = Field(description="Unit of A: 1/s.")
@@ -114,16 +121,21 @@ class StateSpaceUnits(BaseModel):
 
 class StateSpaceResponse(Result):
     """z' = A z + B w, y = C z + D w: the modal model at a frozen operating point.  The
-    transfer function C (i W I - A)^-1 B + D is the frequency response with
-    ``residual_flexibility: false``; the eigenvalues of A [1/s] are the frozen spectrum."""
+    transfer function C (i W I - A)^-1 B + D is the frequency response of the same body
+    (the same ``residual_flexibility``, carried on displacement outputs); the eigenvalues
+    of A [1/s] are the frozen spectrum (with Kelvin-Voigt damping and residual flexibility,
+    and -1/alpha of the lag state)."""
 
     kind: Literal["state_space"] = Field(description="Result kind.")
-    A: list[list[float]] = Field(description="State matrix (2n x 2n) [1/s].")
+    A: list[list[float]] = Field(
+        description="State matrix (2n x 2n, one more with a residual_lag state) [1/s]."
+    )
     B: list[list[float]] = Field(description="Input matrix (2n x 1) [m/(input unit s)].")
     C: list[list[float]] = Field(description="Output matrix (positions x 2n) [output unit/m].")
     D: list[list[float]] = Field(
-        description="Feed-through (positions x 1) [output unit/input unit]; non-zero only for "
-        "acceleration outputs."
+        description="Feed-through (positions x 1) [output unit/input unit]: non-zero for "
+        "acceleration outputs, and for displacement outputs with residual flexibility "
+        "(without Kelvin-Voigt damping)."
     )
     states: list[str] = Field(
         description="State names: qdot_j/w_j (modal velocity over the j-th natural frequency "
