@@ -60,7 +60,7 @@ from pipeflow.loading import Coefficients
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.profiles import Constant
 from pipeflow.spectra import max_growth_rates, mode_numbers, rounding_level
-from pipeflow.statics import static_deflection
+from pipeflow.statics import truncation_residual
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -453,21 +453,11 @@ def _direct(op: _Operator, out: FloatArray, f: FloatArray, W: FloatArray) -> Com
 def _residual_flexibility(
     op: _Operator, load: Load, x: FloatArray, out: FloatArray, f: FloatArray, v: float, w0: float
 ) -> FloatArray | None:
-    """u_static(x) - Phi_out K^-1 f [m per unit load]: the static deflection of the
-    continuous pipe (:func:`pipeflow.statics.static_deflection`) minus its part in the n
-    Galerkin modes, i.e. the static response of the modes left out.  None where either
-    static problem is singular (the operator K has a zero eigenvalue: divergence)."""
+    """u_static(x) - Phi_out K^-1 f [m per unit load]: the static response of the modes left
+    out (:func:`pipeflow.statics.truncation_residual`), None where the static problem is
+    singular (divergence)."""
     a = load.position if isinstance(load, PointForce) else None
-    exact = static_deflection(op.model.pipe, v, w0, x, force_at=a)
-    with np.errstate(all="ignore"):
-        try:
-            modal = out @ np.linalg.solve(op.K, f)
-        except np.linalg.LinAlgError:
-            return None
-    r = np.asarray(exact - modal, dtype=float)
-    if not (np.all(np.isfinite(r)) and np.linalg.cond(op.K) < 1e12):
-        return None
-    return r
+    return truncation_residual(op.model.pipe, v, w0, x, force_at=a, K=op.K, f=f, shapes=out)
 
 
 def residual_part(

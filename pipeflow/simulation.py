@@ -77,6 +77,10 @@ class Simulation:
         "diverged" or "overflow": the traces, the growth diagnostics and the status stop
         where the history does; at most one per output time kept).
     include_modal : also return the modal coordinates d [m] and d' [m/s].
+    mode_acceleration : add to the tip and station displacements the quasi-static response
+        of the modes left out to the loads (:func:`mode_acceleration`; constant flow and
+        spin, the clamped-free pipe without axial load, point forces, impulses or clamp
+        accelerations).
     divergence_bound : the linear model's range, a bound [m] on |u| at the tip and at every
         output station: the run stops at the first output time past it, status "diverged"
         (:mod:`pipeflow.divergence`; None, the default: 0.1 L, or twice the initial
@@ -117,6 +121,7 @@ class Simulation:
     mode_shape_points: int = DEFAULT_SHAPE_POINTS
     loads: tuple[Load, ...] = ()
     pressure: Profile | None = None
+    mode_acceleration: bool = False
 
 
 def pressure_loading(sim: Simulation) -> tuple[Pipe, Profile | None]:
@@ -141,6 +146,48 @@ def model_and_loading(sim: Simulation) -> tuple[PipeModel, Loading]:
     if pressure is not None:
         model = model.with_pressure_piece()
     return model, Loading(sim.flow, sim.spin, pressure)
+
+
+def check_mode_acceleration(sim: Simulation) -> None:
+    """The mode-acceleration method's domain (its static correction is of one operating
+    point of the clamped-free pipe, and of loads whose static response is known)."""
+    why = None
+    steady = sim.pressure is None or sim.pressure.is_constant
+    if not (sim.flow.is_constant and sim.spin.is_constant and steady):
+        why = "needs constant flow, spin and pressure (its static correction is of one point)"
+    elif sim.pipe.basis_key is not None or sim.pipe.has_static_axial_force or sim.pressure:
+        why = "is computed for the clamped-free pipe without tension, pressure or gravity"
+    elif any(load.kind == "distributed_force" for load in sim.loads):
+        why = "takes point forces, impulses and clamp accelerations, not distributed loads"
+    if why is not None:
+        raise InvalidInput(f"mode_acceleration {why}", parameter="mode_acceleration")
+
+
+def mode_acceleration(
+    sim: Simulation, model: PipeModel, xs: FloatArray, t: FloatArray
+) -> FloatArray | None:
+    """The mode-acceleration correction [m] at stations ``xs`` [m], shape (len(xs), len(t)):
+    for each load the static response of the modes left out per unit load
+    (:func:`pipeflow.statics.truncation_residual`) times the load's value at ``t`` (an
+    impulse has none); None where the static problem is singular (divergence)."""
+    from pipeflow.statics import truncation_residual
+
+    v = float(sim.flow.value(np.zeros(1))[0])
+    w0 = float(sim.spin.value(np.zeros(1))[0])
+    K = model.K_0 + v * v * model.K_v2 + w0 * w0 * model.K_w2
+    shapes = model.shapes(xs / sim.pipe.L).T
+    out = np.zeros((xs.size, t.size))
+    for load in sim.loads:
+        if load.kind == "impulse":
+            continue
+        at = getattr(load, "position", None)
+        r = truncation_residual(
+            sim.pipe, v, w0, xs, force_at=at, K=K, f=load.generalized_force(model), shapes=shapes
+        )
+        if r is None:
+            return None
+        out += r[:, None] * load.profile.value(t)[None, :]
+    return out
 
 
 @dataclass
@@ -237,6 +284,8 @@ def validate(sim: Simulation) -> None:
                 parameter=name,
             )
     validate_loads(tuple(sim.loads), sim.pipe.L, sim.t_end)
+    if sim.mode_acceleration:
+        check_mode_acceleration(sim)
     for i, x in enumerate(sim.positions):
         if not 0.0 <= x <= sim.pipe.L:
             raise InvalidInput(f"positions[{i}] = {x} m is outside [0, L]", parameter="positions")
@@ -292,6 +341,15 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     tip = d @ model.tip
     xs = np.asarray(sim.positions, dtype=float) / sim.pipe.L
     displacements = model.displacement(d, xs).T if xs.size else np.zeros((0, t.size))
+    if sim.mode_acceleration and sim.loads:
+        extra = mode_acceleration(sim, model, np.append(xs, 1.0) * sim.pipe.L, t)
+        if extra is None:
+            warnings.append(
+                "the static problem is singular at this operating point (divergence), so "
+                "the mode-acceleration correction is left out"
+            )
+        else:
+            tip, displacements = tip + extra[-1], displacements + extra[:-1]
     # the linear model's range (pipeflow.divergence): the history stops at the first
     # sample past the bound, before any overflow
     bound = sim.divergence_bound

@@ -149,3 +149,33 @@ def static_deflection(
         if np.any(sel):
             out[sel] = BarycentricInterpolator(xi, part)(xo[sel])
     return np.asarray(out * L**3 / EI)
+
+
+def truncation_residual(
+    pipe: Pipe,
+    velocity: float,
+    omega0: float,
+    positions: ArrayLike,
+    *,
+    force_at: float | None,
+    K: FloatArray,
+    f: FloatArray,
+    shapes: FloatArray,
+) -> FloatArray | None:
+    """The static response of the modes a Galerkin model leaves out [m per unit load]: the
+    continuous pipe's :func:`static_deflection` at ``positions`` minus the model's own
+    static part ``shapes @ K^-1 f`` (``K`` the model's stiffness at the operating point
+    [N/m], ``f`` the load's generalised force per unit load, ``shapes`` phi_j at the
+    positions, shape (p, n)).  None where the static problem is singular or ill-posed
+    (divergence: cond(K) >= 1e12).  One definition for the frequency response's residual
+    flexibility and the time history's mode-acceleration correction."""
+    exact = static_deflection(pipe, velocity, omega0, positions, force_at=force_at)
+    with np.errstate(all="ignore"):
+        try:
+            modal = shapes @ np.linalg.solve(K, f)
+        except np.linalg.LinAlgError:
+            return None
+    r = np.asarray(exact - modal, dtype=float)
+    if not (np.all(np.isfinite(r)) and np.linalg.cond(K) < 1e12):
+        return None
+    return r
