@@ -47,7 +47,8 @@ from numpy.typing import ArrayLike
 from pipeflow._types import FloatArray
 from pipeflow.basis import gauss_legendre_unit
 from pipeflow.errors import InvalidInput
-from pipeflow.model import PipeModel, mode_integrals
+from pipeflow.integrals import mode_integrals
+from pipeflow.model import PipeModel
 from pipeflow.profiles import Impulse, Profile
 
 #: at most this many loads per simulation

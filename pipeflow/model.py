@@ -45,17 +45,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from pipeflow._types import FloatArray
 from pipeflow.basis import (
-    MAX_MODES,
     cantilever_roots,
-    default_quadrature_order,
-    gauss_legendre_unit,
-    mode_shapes,
     paper_scale,
-    tip_slopes,
-    tip_values,
 )
 from pipeflow.beam_modes import support_basis
 from pipeflow.errors import InvalidInput
+from pipeflow.integrals import basis_shapes, mode_integrals
 from pipeflow.loading import Coefficients, Integrals
 from pipeflow.supports import (
     CANTILEVER,
@@ -349,107 +344,8 @@ def basis_caveats(pipe: Pipe) -> list[str]:
     return out
 
 
-@dataclass(frozen=True)
-class ModeIntegrals:
-    """Non-dimensional Galerkin integrals on xi in [0, 1] for ``n`` normalised modes.
-
-    Entry (i, j) of each matrix is the integral over [0, 1] of the named product, with
-    primes meaning d/dxi: ``gram = phi_i phi_j``, ``b = phi_i phi_j'``, ``c = phi_i phi_j''``,
-    ``xb = xi phi_i phi_j'``, ``tc = (1 - xi^2) phi_i phi_j''``, ``k4 = phi_i phi_j''''``;
-    ``d = phi_i' phi_j'``, ``xd = xi phi_i' phi_j'``; ``xf = xi phi_i`` and ``f = phi_i`` are
-    vectors, and so are the end values ``tip = phi_i(1)`` and ``tip_slope = phi_i'(1)``.
-    ``flex = phi_i'' phi_j''`` is the beam's own strain energy: ``k4`` less the springs'
-    (None when no spring holds the pipe: it then equals ``k4``).
-    """
-
-    n: int
-    quadrature_order: int
-    gram: FloatArray
-    b: FloatArray
-    c: FloatArray
-    xb: FloatArray
-    tc: FloatArray
-    k4: FloatArray
-    xf: FloatArray
-    d: FloatArray
-    xd: FloatArray
-    f: FloatArray
-    tip: FloatArray
-    x2d: FloatArray
-    tip_slope: FloatArray
-    flex: FloatArray | None = None
-
-
-@lru_cache(maxsize=64)
-def mode_integrals(
-    n: int, quadrature_order: int | None = None, supports: BasisKey | None = None
-) -> ModeIntegrals:
-    """Gauss-Legendre evaluation of the Galerkin integrals (cached per ``(n, order)``) on the
-    cantilever modes, or with ``supports`` (:attr:`Pipe.basis_key`) on the basis of
-    :func:`pipeflow.beam_modes.support_basis` (``k4`` is then its diagonal bending matrix,
-    the springs included)."""
-    if not 1 <= n <= MAX_MODES:
-        raise ValueError(f"modes must be between 1 and {MAX_MODES}, got {n}")
-    if supports is None:
-        q = default_quadrature_order(n) if quadrature_order is None else int(quadrature_order)
-    else:
-        basis = support_basis(n, *supports)
-        top = max(m.lam for m in basis.modes)
-        q = int(max(48, np.ceil(top + 40))) if quadrature_order is None else int(quadrature_order)
-    if q < 2 * n:
-        raise ValueError(f"quadrature order {q} is too low for {n} modes (need >= {2 * n})")
-    xi, w = gauss_legendre_unit(q)
-    if supports is None:
-        p0, p1, p2, p4 = (mode_shapes(n, xi, k) for k in (0, 1, 2, 4))
-        k4 = (p0 * w) @ p4.T
-        tip, slope = tip_values(n), tip_slopes(n)
-    else:
-        p0, p1, p2 = (basis.shapes(xi, k) for k in (0, 1, 2))
-        k4 = np.diag(basis.lam4)
-        tip, slope = basis.shapes(np.ones(1), 0)[:, 0], basis.shapes(np.ones(1), 1)[:, 0]
-    pw = p0 * w
-
-    def ro(a: FloatArray) -> FloatArray:
-        a = np.asarray(a)
-        a.setflags(write=False)
-        return a
-
-    return ModeIntegrals(
-        n=n,
-        quadrature_order=q,
-        gram=ro(pw @ p0.T),
-        b=ro(pw @ p1.T),
-        c=ro(pw @ p2.T),
-        xb=ro((pw * xi) @ p1.T),
-        tc=ro((pw * (1.0 - xi**2)) @ p2.T),
-        k4=ro(k4),
-        xf=ro(pw @ xi),
-        d=ro((p1 * w) @ p1.T),
-        xd=ro((p1 * (w * xi)) @ p1.T),
-        f=ro(pw.sum(axis=1)),
-        tip=ro(tip),
-        tip_slope=ro(slope),
-        x2d=ro((p1 * (w * xi * xi)) @ p1.T),
-        flex=ro((p2 * w) @ p2.T) if supports is not None and _has_springs(supports) else None,
-    )
-
-
-def _has_springs(supports: BasisKey) -> bool:
-    """Whether an elastic end or a point spring holds the pipe (its bending matrix then
-    carries spring energy the beam's material damping does not act on)."""
-    x0, xL, points = supports
-    return x0[0] == "elastic" or xL[0] == "elastic" or any(not math.isinf(k) for _, k in points)
-
-
-def basis_shapes(
-    n: int, xi: FloatArray, derivative: int = 0, supports: BasisKey | None = None
-) -> FloatArray:
-    """d^k phi_j / dxi^k [-] of the model's basis (cantilever modes, or the supports' basis),
-    shape ``(n, len(xi))``."""
-    xi = np.atleast_1d(np.asarray(xi, dtype=float))
-    if supports is None:
-        return mode_shapes(n, xi, derivative)
-    return support_basis(n, *supports).shapes(xi, derivative)
+#: evaluations of the supports' basis a model keeps (:meth:`PipeModel.shapes`)
+SHAPE_MEMO = 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -578,9 +474,28 @@ class PipeModel:
 
     def shapes(self, xi: ArrayLike, derivative: int = 0) -> FloatArray:
         """The basis functions' ``derivative``-th derivatives d^k phi_j / dxi^k [-] at
-        ``xi = x/L``, shape ``(n, len(xi))`` (cantilever modes or the supports' basis)."""
+        ``xi = x/L``, shape ``(n, len(xi))`` (cantilever modes or the supports' basis).
+        The supports' basis (a sum of end-support eigenfunctions, costlier than the
+        cantilever's closed form) keeps the last :data:`SHAPE_MEMO` evaluations per model,
+        read-only: a simulation's stations and watch points repeat from run to run."""
         xi = np.atleast_1d(np.asarray(xi, dtype=float))
-        return basis_shapes(self.n, xi, derivative, self.pipe.basis_key)
+        key = self.pipe.basis_key
+        if key is None:
+            return basis_shapes(self.n, xi, derivative, None)
+        memo = self._shape_memo
+        tag = (derivative, xi.tobytes())
+        found = memo.get(tag)
+        if found is None:
+            found = basis_shapes(self.n, xi, derivative, key)
+            found.setflags(write=False)
+            if len(memo) >= SHAPE_MEMO:
+                memo.pop(next(iter(memo)))
+            memo[tag] = found
+        return found
+
+    @cached_property
+    def _shape_memo(self) -> dict[tuple[int, bytes], FloatArray]:
+        return {}
 
     def displacement(self, d: FloatArray, xi: ArrayLike) -> FloatArray:
         """u(x, t) [m] at non-dimensional positions ``xi = x/L`` from modal coordinates."""
@@ -597,6 +512,12 @@ class PipeModel:
         # rest (a negative omega^2: divergence) reports 0 for those modes
         w2 = scipy.linalg.eigh(self.K_0, self.M, eigvals_only=True)
         return np.sqrt(np.clip(np.sort(w2), 0.0, None))
+
+    @cached_property
+    def first_shape_peak(self) -> float:
+        """max |phi_1(xi)| [-] over 1001 points of [0, 1] (with supports: the 'paper' initial
+        shape's scale; once per model, which build_model caches)."""
+        return float(np.max(np.abs(self.shapes(np.linspace(0.0, 1.0, 1001))[0])))
 
     def initial_state(
         self, u0: float, du0: float, shape: str = "paper"
@@ -616,7 +537,7 @@ class PipeModel:
         if shape not in ("paper", "tip"):
             raise ValueError(f"unknown initial shape {shape!r} (use 'paper' or 'tip')")
         if self.pipe.basis_key is not None and shape == "paper":
-            scale = 1.0 / float(np.max(np.abs(self.shapes(np.linspace(0.0, 1.0, 1001))[0])))
+            scale = 1.0 / self.first_shape_peak
         elif self.pipe.basis_key is not None and abs(float(self.tip[0])) < 1e-9:
             raise InvalidInput(
                 "the initial shape 'tip' needs a moving tip; with the supports "

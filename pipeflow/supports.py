@@ -31,7 +31,8 @@ import numpy as np
 from pipeflow._types import FloatArray
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pipeflow.model import ModeIntegrals, Pipe
+    from pipeflow.integrals import ModeIntegrals
+    from pipeflow.model import Pipe
 
 KINDS = ("clamped", "pinned", "sliding", "free", "elastic")
 #: the most intermediate supports a pipe may have

@@ -221,6 +221,31 @@ class _Control:
         )
         return _Check(idx, Zc, d1, idx2, coarser)
 
+    def recheck(
+        self, plan: StepPlan, Zaug: FloatArray
+    ) -> Generator[MagnusRun, tuple[FloatArray, int], None]:
+        """A refinement :meth:`versus_previous` could not accept: before refining again,
+        compare with a fresh run of twice the step at this level (half its cost), divided
+        by 2^REFINED_FLOOR_RATE - 1 (the same floor rate).  The attempt before may lie
+        outside the asymptotic regime (h |xi_max| >> pi), where the difference from it
+        over-states this attempt's error many times: a pinned-pinned pipe under
+        accelerating flow, 10 modes, refined from 2,000 to 30,000 steps, was estimated at
+        4.8e-8 (and refined again to 80,000) for a true error near 1e-12."""
+        t = self.t
+        idx, coarse = plan.coarse(t)
+        check_budget(plan.steps + coarse.steps, self.budget, np.diff(t), plan.substeps,
+                     self.tolerance)  # fmt: skip
+        Zc, used = yield MagnusRun(self.gen, t[idx], coarse)
+        self.exps += used
+        d1 = relative_difference(Zc, Zaug[idx], self.size)
+        fresh = d1 / (2.0**REFINED_FLOOR_RATE - 1.0)
+        if fresh < self.estimate:
+            self.estimate = fresh
+            self.method = (
+                "difference from a run with twice the step (after a refinement), over "
+                f"2^{REFINED_FLOOR_RATE:.2f} - 1"
+            )
+
     def done(self) -> bool:
         """Whether the attempts end here: a user step, the tolerance met, or no more
         attempts (or a non-finite estimate: a warning)."""
@@ -345,6 +370,9 @@ def step_control(problem: Problem, stats: SolverStats) -> StepControl:
         check = None
         if run.previous is not None:
             run.versus_previous(plan, Zaug)
+            rounding = plan.steps * ROUNDING_PER_STEP
+            if run.step is None and run.estimate + rounding > run.tolerance:
+                yield from run.recheck(plan, Zaug)
         else:
             check = yield from run.richardson(plan, Zaug)
         # the rounding of the sequential propagation (one unit roundoff per step, a
