@@ -34,6 +34,7 @@ import time
 from collections.abc import Callable, Generator, Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from enum import StrEnum
 from typing import Any, TypeVar
 
 import httpx
@@ -49,6 +50,21 @@ from pipeflow.schema.results import SimulationResponse
 FloatArray = NDArray[np.float64]
 Progress = Callable[[float], None]
 T = TypeVar("T")
+
+
+class JobStatus(StrEnum):
+    """A job's ``status`` in the service's job document (the service's own states; a test
+    keeps the two lists one)."""
+
+    QUEUED = "queued"
+    RUNNING = "running"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+
+
+#: the states in which a job has ended without a result
+ENDED_WITHOUT_RESULT = (JobStatus.FAILED, JobStatus.CANCELLED)
 
 
 class ServiceError(PipeflowError):
@@ -378,11 +394,11 @@ class _Operations:
             if progress is not None:
                 progress(float(job.get("progress", 0.0)))
             status = job["status"]
-            if status == "succeeded":
+            if status == JobStatus.SUCCEEDED:
                 if progress is not None:
                     progress(1.0)
                 return (yield from _Operations.result_raw(key))
-            if status in ("failed", "cancelled"):
+            if status in ENDED_WITHOUT_RESULT:
                 raise JobFailed(409, job.get("error") or {"title": f"job {status}"})
             if deadline is not None and time.monotonic() > deadline:
                 raise TimeoutError(f"job {key} still {status} after {timeout} s")

@@ -147,3 +147,12 @@ def test_an_impulse_through_the_client(sdk_client: Client) -> None:
     with pytest.raises(ServiceError) as info:
         sdk_client.simulate(bad)
     assert "loads.0.position" in str(info.value)
+
+
+def test_the_clients_job_states_are_the_services() -> None:
+    """The client names the job states it acts on (no bare strings); they are the service's
+    (service.engine.lifecycle.JobState), value for value."""
+    from pipeflow_client.client import JobStatus
+    from service.engine.lifecycle import JobState
+
+    assert [s.value for s in JobStatus] == [s.value for s in JobState]
