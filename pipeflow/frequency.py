@@ -60,7 +60,7 @@ from pipeflow.loading import Coefficients
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.profiles import Constant
 from pipeflow.spectra import max_growth_rates, mode_numbers, rounding_level
-from pipeflow.statics import truncation_residual
+from pipeflow.statics import statics_cover, truncation_residual
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -473,18 +473,19 @@ def residual_part(
     warnings: list[str],
 ) -> FloatArray | None:
     """The residual flexibility [m per unit load] at ``x`` to add, or None: ``residual``
-    True/False, or None for the default (on without flow, tip inertia or instability, on
-    the clamped-free pipe without axial load, where :mod:`pipeflow.statics` has the static
-    solution); a request it cannot serve says why in ``warnings``.  One rule for the
-    frequency response and the state space."""
+    True/False, or None for the default (on without flow, tip inertia or instability, where
+    :mod:`pipeflow.statics` has the static solution,
+    :func:`~pipeflow.statics.statics_cover`); a request it cannot serve says why in
+    ``warnings``.  One rule for the frequency response and the state space."""
     pipe = op.model.pipe
-    cantilever = pipe.basis_key is None and not pipe.has_static_axial_force
+    covered = statics_cover(pipe)
     if residual is None:
-        residual = v == 0.0 and pipe.tip_inertia == 0.0 and stable and cantilever
-    if residual and not cantilever:
+        residual = v == 0.0 and pipe.tip_inertia == 0.0 and stable and covered
+    if residual and not covered:
         warnings.append(
-            "the residual flexibility of the truncated modes is computed for the clamped-free "
-            "pipe without tension, pressure or gravity only, so it is left out here"
+            "the residual flexibility of the truncated modes needs the static solution of "
+            "the continuous pipe, computed for end supports only (no intermediate supports, "
+            "no rigid rotation), so it is left out here"
         )
         return None
     R = _residual_flexibility(op, load, x, out, f, v, w0) if residual else None

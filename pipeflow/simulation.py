@@ -39,6 +39,7 @@ from pipeflow.profiles import Constant, Profile
 from pipeflow.solvers import SOLVERS, Options, Problem
 from pipeflow.solvers.checkpoint import current_checkpoints
 from pipeflow.spectra import Traces, max_growth_rates, select, spectrum
+from pipeflow.statics import statics_cover
 from pipeflow.supports import pressure_force_per_pascal
 
 
@@ -79,8 +80,7 @@ class Simulation:
     include_modal : also return the modal coordinates d [m] and d' [m/s].
     mode_acceleration : add to the tip and station displacements the quasi-static response
         of the modes left out to the loads (:func:`mode_acceleration`; constant flow and
-        spin, the clamped-free pipe without axial load, point forces, impulses or clamp
-        accelerations).
+        spin, end supports only, point forces, impulses or clamp accelerations).
     divergence_bound : the linear model's range, a bound [m] on |u| at the tip and at every
         output station: the run stops at the first output time past it, status "diverged"
         (:mod:`pipeflow.divergence`; None, the default: 0.1 L, or twice the initial
@@ -155,8 +155,11 @@ def check_mode_acceleration(sim: Simulation) -> None:
     steady = sim.pressure is None or sim.pressure.is_constant
     if not (sim.flow.is_constant and sim.spin.is_constant and steady):
         why = "needs constant flow, spin and pressure (its static correction is of one point)"
-    elif sim.pipe.basis_key is not None or sim.pipe.has_static_axial_force or sim.pressure:
-        why = "is computed for the clamped-free pipe without tension, pressure or gravity"
+    elif not statics_cover(sim.pipe):
+        why = (
+            "needs the static solution, computed for end supports only (no intermediate "
+            "supports, no rigid rotation)"
+        )
     elif any(load.kind == "distributed_force" for load in sim.loads):
         why = "takes point forces, impulses and clamp accelerations, not distributed loads"
     if why is not None:
@@ -172,6 +175,7 @@ def mode_acceleration(
     impulse has none); None where the static problem is singular (divergence)."""
     from pipeflow.statics import truncation_residual
 
+    pipe = pressure_loading(sim)[0]  # a constant pressure profile is the pipe's pressure
     v = float(sim.flow.value(np.zeros(1))[0])
     w0 = float(sim.spin.value(np.zeros(1))[0])
     K = model.K_0 + v * v * model.K_v2 + w0 * w0 * model.K_w2
@@ -182,7 +186,7 @@ def mode_acceleration(
             continue
         at = getattr(load, "position", None)
         r = truncation_residual(
-            sim.pipe, v, w0, xs, force_at=at, K=K, f=load.generalized_force(model), shapes=shapes
+            pipe, v, w0, xs, force_at=at, K=K, f=load.generalized_force(model), shapes=shapes
         )
         if r is None:
             return None

@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BarycentricInterpolator
 
 from pipeflow.model import Pipe
+from pipeflow.supports import spin_axial_force, static_axial_force
 
 FloatArray = NDArray[np.float64]
 
@@ -54,6 +55,13 @@ def _integration(N: int) -> tuple[FloatArray, FloatArray]:
     return t, np.asarray(Q)
 
 
+def statics_cover(pipe: Pipe) -> bool:
+    """Whether :func:`static_deflection` solves ``pipe``: end supports and springs of any
+    kind, axial loads, tip mass; not intermediate supports, nor a pipe free to rotate as a
+    rigid body (its static problem is singular)."""
+    return not pipe.intermediate_supports and not pipe.rotates_rigidly
+
+
 def static_deflection(
     pipe: Pipe,
     velocity: float,
@@ -66,26 +74,38 @@ def static_deflection(
     """Static deflection u(x) [m per unit load] at ``positions`` x [m] in [0, L].
 
     ``force_at`` a [m] in (0, L]: a unit transverse force [N] there (u in m/N);
-    ``None``: a unit clamp acceleration [m/s^2] (u relative to the clamp, in s^2).
+    ``None``: a unit acceleration [m/s^2] of the supports (u relative to them, in s^2).
     ``velocity`` v [m/s] and ``omega0`` w0 [rad/s] set the frozen operating point.
-    Non-finite values where the static problem is singular (divergence).
+    Any end supports and springs, with the axial force of tension, pressure and gravity
+    (:func:`pipeflow.supports.static_axial_force`) and of the spin
+    (:func:`pipeflow.supports.spin_axial_force`); not intermediate supports (a
+    ``ValueError``).  Non-finite values where the static problem is singular (divergence,
+    a rigid rotation).
     """
-    L, m, M1, M2, EI = pipe.L, pipe.mass, pipe.M1, pipe.M2, pipe.EI
-    R, mt = pipe.hub_radius, pipe.tip_mass
+    if pipe.intermediate_supports:
+        raise ValueError("the static solution takes end supports only (no intermediate ones)")
+    L, m, M2, EI = pipe.L, pipe.mass, pipe.M2, pipe.EI
+    mt = pipe.tip_mass
     s = 1.0 if pipe.in_plane else 0.0
     w2 = float(omega0) ** 2
     v2 = float(velocity) ** 2
+    x0_end, xL_end = pipe.supports.x0, pipe.supports.xL
     at_tip = force_at is not None and force_at >= L
+    if at_tip and xL_end.fixes_deflection:
+        # a force on a support that holds the deflection is its reaction: no deflection
+        return np.zeros(np.atleast_1d(np.asarray(positions, dtype=float)).size)
     split = 0.5 if (force_at is None or at_tip) else float(force_at) / L
     t, Q0 = _integration(N)
     n = N + 1
+    # N(xi) [N], tension positive, at rest plus the spin's: each a0 + a1 xi + a2 xi^2
+    a_rest, a_spin = static_axial_force(pipe), spin_axial_force(pipe)
+    a = [a_rest[k] + w2 * a_spin[k] for k in range(3)]
     # In xi = x / L with u = (L^3 / EI) w, the field equation times L^4 / EI over L^3 / EI:
-    #   w4 + (M2 v^2 - T) L^2 / EI w2 - T' L^3 / EI w1 - s m w0^2 L^4 / EI w = q L
-    # (wr the r-th derivative, T' = dT/dx); the tip shear
-    #   w3 - T(L) L^2 / EI w1 + s m_t w0^2 L^3 / EI w = -F_L.
-    # On each subdomain [x0, x1] the unknowns are g = w4 at its points and c_r = wr(x0),
-    # r = 0..3: wr = sum_k c_k d^(k-r) / (k-r)! + Q^(4-r) g, d = xi - x0.  The field
-    # equation holds at every point; the 8 end and interface conditions fix the constants.
+    #   w4 + (M2 v^2 - N) L^2 / EI w2 - N' L^3 / EI w1 - s m w0^2 L^4 / EI w = q L
+    # (wr the r-th derivative, N' = dN/dx).  On each subdomain [x0, x1] the unknowns are
+    # g = w4 at its points and c_r = wr(x0), r = 0..3: wr = sum_k c_k d^(k-r) / (k-r)! +
+    # Q^(4-r) g, d = xi - x0.  The field equation holds at every point; the 8 end and
+    # interface conditions fix the constants.
 
     def domain(x0: float, x1: float) -> tuple[FloatArray, list[FloatArray]]:
         """xi, and per derivative r = 0..4 the map from (g, c_0..c_3) to wr at xi."""
@@ -108,35 +128,50 @@ def static_deflection(
     A = np.zeros((2 * size, 2 * size))
     rhs = np.zeros(2 * size)
     for k, (xi, maps) in enumerate(((x1, m1), (x2, m2))):
-        x = xi * L
-        T = M1 * w2 * (R * (L - x) + 0.5 * (L * L - x * x)) + mt * w2 * (R + L)
-        dT = -M1 * w2 * (R + x)
+        Nx = a[0] + a[1] * xi + a[2] * xi * xi
+        dN = (a[1] + 2.0 * a[2] * xi) / L
         rows = slice(k * n, (k + 1) * n)
         cols = slice(k * size, (k + 1) * size)
         A[rows, cols] = (
             maps[4]
-            + ((M2 * v2 - T) * L * L / EI)[:, None] * maps[2]
-            - (dT * L**3 / EI)[:, None] * maps[1]
+            + ((M2 * v2 - Nx) * L * L / EI)[:, None] * maps[2]
+            - (dN * L**3 / EI)[:, None] * maps[1]
             - s * m * w2 * L**4 / EI * maps[0]
         )
         if force_at is None:
             rhs[rows] = -m * L
     first, last = slice(0, size), slice(size, 2 * size)
     row = 2 * n
-    A[row, first] = m1[0][0]  # w(0) = 0
-    A[row + 1, first] = m1[1][0]  # w'(0) = 0
     for r in range(3):  # w, w', w'' continuous at the split
-        A[row + 2 + r, first], A[row + 2 + r, last] = m1[r][N], -m2[r][0]
-    A[row + 5, first], A[row + 5, last] = -m1[3][N], m2[3][0]  # shear jump [w''']
+        A[row + r, first], A[row + r, last] = m1[r][N], -m2[r][0]
+    A[row + 3, first], A[row + 3, last] = -m1[3][N], m2[3][0]  # the shear jump
     if force_at is not None and not at_tip:
-        rhs[row + 5] = 1.0
-    TL = mt * w2 * (R + L)
-    A[row + 6, last] = m2[2][N]  # moment-free tip
-    A[row + 7, last] = m2[3][N] - TL * L * L / EI * m2[1][N] + s * mt * w2 * L**3 / EI * m2[0][N]
-    if at_tip:
-        rhs[row + 7] = -1.0
-    elif force_at is None:
-        rhs[row + 7] = mt  # F_L = -m_t A, A = 1
+        rhs[row + 3] = 1.0
+    # each end's two conditions (docs/model.md 9), with its springs and the axial force
+    ends = (
+        (x0_end, m1, 0, -1.0, a[0], first, row + 4),
+        (xL_end, m2, N, 1.0, a[0] + a[1] + a[2], last, row + 6),
+    )
+    for end, maps, j, sign, N_end, cols, at in ends:
+        kind, Kt, Kr = end.nondimensional(EI, L)
+        w, w1, w2_, w3 = (maps[r][j] for r in range(4))
+        shear = w3 - N_end * L * L / EI * w1
+        if kind == "clamped":
+            conds = (w, w1)
+        elif kind == "pinned":
+            conds = (w, w2_)
+        elif kind == "sliding":
+            conds = (w1, shear)
+        else:
+            # free or elastic: EI u'' = -sign k_r u', EI u''' - N u' = sign k_t u at x = 0
+            # (sign -1) and x = L (sign +1), where a tip mass adds s m_t w0^2 u
+            pull = s * mt * w2 * L**3 / EI if sign > 0 else 0.0
+            conds = (w2_ + sign * Kr * w1, shear - sign * Kt * w + pull * w)
+        if sign > 0 and at_tip:  # the tip's shear condition carries the force F_L = 1
+            rhs[at + 1] = -1.0
+        elif sign > 0 and force_at is None and kind in ("free", "elastic"):
+            rhs[at + 1] = mt  # F_L = -m_t A, A = 1
+        A[at, cols], A[at + 1, cols] = conds
     with np.errstate(all="ignore"):
         try:
             z = np.linalg.solve(A, rhs)

@@ -11,6 +11,7 @@ are lambda^2 and flow numbers are velocities times sqrt(M2) (tau = t).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -458,3 +459,35 @@ def test_the_frequency_response_of_a_pinned_free_pipe_names_its_rigid_rotation()
     assert "rigid rotation about its support" in why and "coalescing" not in why
     H = r.H[0, 0]
     assert H.real == pytest.approx(-1.0 / (W[0] ** 2 * 1.0 / 3.0), rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    ("x0", "xL", "plain_min", "corrected_max"),
+    [(P, P, 3e-6, 3e-7), (C, C, 1e-5, 1e-6)],  # measured 7e-6 -> 6.1e-8, 2.8e-5 -> 1.8e-7
+)
+def test_residual_flexibility_of_supported_pipes(
+    x0: Support, xL: Support, plain_min: float, corrected_max: float
+) -> None:
+    """The static solution now takes any end supports (pipeflow.statics), so supported
+    pipes get the FRF's residual flexibility by default (no flow): at 10 modes the
+    receptance between x = 0.3 and 0.7 (Kelvin-Voigt 1e-3, W up to 150 rad/s, past the
+    second resonance) approaches the converged 40-mode answer ~100x closer, and at W = 0 it
+    is the continuous pipe's static deflection (Roark, checked in test_statics.py) to
+    rounding (1e-12)."""
+    from pipeflow.frequency import PointForce, frequency_response
+    from pipeflow.statics import static_deflection
+
+    p = pipe(x0, xL, kelvin_voigt=1e-3)
+    W = np.linspace(0.0, 150.0, 301)
+    kw: dict[str, Any] = dict(load=PointForce(0.3), positions=[0.3, 0.7], frequencies=W)
+    ref = frequency_response(p, 0.0, 0.0, modes=40, **kw).H
+    plain = frequency_response(p, 0.0, 0.0, modes=10, residual=False, **kw)
+    corrected = frequency_response(p, 0.0, 0.0, modes=10, **kw)
+    assert corrected.residual and not plain.residual
+
+    def err(H: np.ndarray) -> float:
+        return float(np.max(np.abs(H - ref)) / np.max(np.abs(ref)))
+
+    assert err(plain.H) > plain_min and err(corrected.H) < corrected_max
+    static = static_deflection(p, 0.0, 0.0, [0.3, 0.7], force_at=0.3)
+    assert np.allclose(corrected.H[:, 0].real, static, rtol=1e-12, atol=0.0)
