@@ -484,8 +484,8 @@ def residual_part(
     if residual and not covered:
         warnings.append(
             "the residual flexibility of the truncated modes needs the static solution of "
-            "the continuous pipe, computed for end supports only (no intermediate supports, "
-            "no rigid rotation), so it is left out here"
+            "the continuous pipe, which a pipe free to rotate as a rigid body does not have, "
+            "so it is left out here"
         )
         return None
     R = _residual_flexibility(op, load, x, out, f, v, w0) if residual else None

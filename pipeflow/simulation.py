@@ -156,10 +156,7 @@ def check_mode_acceleration(sim: Simulation) -> None:
     if not (sim.flow.is_constant and sim.spin.is_constant and steady):
         why = "needs constant flow, spin and pressure (its static correction is of one point)"
     elif not statics_cover(sim.pipe):
-        why = (
-            "needs the static solution, computed for end supports only (no intermediate "
-            "supports, no rigid rotation)"
-        )
+        why = "needs the static solution, which a pipe free to rotate as a rigid body does not have"
     elif any(load.kind == "distributed_force" for load in sim.loads):
         why = "takes point forces, impulses and clamp accelerations, not distributed loads"
     if why is not None:

@@ -56,10 +56,29 @@ def _integration(N: int) -> tuple[FloatArray, FloatArray]:
 
 
 def statics_cover(pipe: Pipe) -> bool:
-    """Whether :func:`static_deflection` solves ``pipe``: end supports and springs of any
-    kind, axial loads, tip mass; not intermediate supports, nor a pipe free to rotate as a
-    rigid body (its static problem is singular)."""
-    return not pipe.intermediate_supports and not pipe.rotates_rigidly
+    """Whether :func:`static_deflection` solves ``pipe``: every support set but a pipe free
+    to rotate as a rigid body (its static problem is singular)."""
+    return not pipe.rotates_rigidly
+
+
+def _domain(
+    x0: float, x1: float, t: FloatArray, Q0: FloatArray
+) -> tuple[FloatArray, list[FloatArray]]:
+    """xi on [x0, x1], and per derivative r = 0..4 the map from (g, c_0..c_3) to wr at xi
+    (wr = sum_k c_k d^(k-r) / (k-r)! + Q^(4-r) g, d = xi - x0)."""
+    n = t.size
+    h = 0.5 * (x1 - x0)
+    xi = x0 + h * (t + 1.0)
+    Q = h * Q0
+    d = xi - x0
+    maps = []
+    for r in range(5):
+        Mr = np.zeros((n, n + 4))
+        Mr[:, :n] = np.linalg.matrix_power(Q, 4 - r)
+        for k in range(r, 4):
+            Mr[:, n + k] = d ** (k - r) / math.factorial(k - r)
+        maps.append(Mr)
+    return xi, maps
 
 
 def static_deflection(
@@ -76,63 +95,49 @@ def static_deflection(
     ``force_at`` a [m] in (0, L]: a unit transverse force [N] there (u in m/N);
     ``None``: a unit acceleration [m/s^2] of the supports (u relative to them, in s^2).
     ``velocity`` v [m/s] and ``omega0`` w0 [rad/s] set the frozen operating point.
-    Any end supports and springs, with the axial force of tension, pressure and gravity
-    (:func:`pipeflow.supports.static_axial_force`) and of the spin
-    (:func:`pipeflow.supports.spin_axial_force`); not intermediate supports (a
-    ``ValueError``).  Non-finite values where the static problem is singular (divergence,
-    a rigid rotation).
+    Any end supports and springs, intermediate pins and springs (a spring as stiff as
+    :data:`pipeflow.supports.RIGID_POINT_SPRING` is a pin, as in the model), the axial force
+    of tension, pressure and gravity (:func:`pipeflow.supports.static_axial_force`) and of
+    the spin (:func:`pipeflow.supports.spin_axial_force`), a tip mass.  Non-finite values
+    where the static problem is singular (divergence, a rigid rotation).
     """
-    if pipe.intermediate_supports:
-        raise ValueError("the static solution takes end supports only (no intermediate ones)")
     L, m, M2, EI = pipe.L, pipe.mass, pipe.M2, pipe.EI
     mt = pipe.tip_mass
     s = 1.0 if pipe.in_plane else 0.0
     w2 = float(omega0) ** 2
     v2 = float(velocity) ** 2
     x0_end, xL_end = pipe.supports.x0, pipe.supports.xL
+    xo = np.atleast_1d(np.asarray(positions, dtype=float)) / L
     at_tip = force_at is not None and force_at >= L
     if at_tip and xL_end.fixes_deflection:
         # a force on a support that holds the deflection is its reaction: no deflection
-        return np.zeros(np.atleast_1d(np.asarray(positions, dtype=float)).size)
-    split = 0.5 if (force_at is None or at_tip) else float(force_at) / L
+        return np.zeros(xo.size)
+    key = pipe.basis_key
+    springs = dict(key[2]) if key is not None else {}  # xi -> K = k L^3 / EI (inf: a pin)
+    a_load = None if (force_at is None or at_tip) else float(force_at) / L
+    breaks = sorted(set(springs) | ({a_load} if a_load is not None else set()))
+    edges = [0.0, *breaks, 1.0]
     t, Q0 = _integration(N)
     n = N + 1
+    size = n + 4
+    K = len(edges) - 1  # subdomains
     # N(xi) [N], tension positive, at rest plus the spin's: each a0 + a1 xi + a2 xi^2
     a_rest, a_spin = static_axial_force(pipe), spin_axial_force(pipe)
     a = [a_rest[k] + w2 * a_spin[k] for k in range(3)]
     # In xi = x / L with u = (L^3 / EI) w, the field equation times L^4 / EI over L^3 / EI:
     #   w4 + (M2 v^2 - N) L^2 / EI w2 - N' L^3 / EI w1 - s m w0^2 L^4 / EI w = q L
-    # (wr the r-th derivative, N' = dN/dx).  On each subdomain [x0, x1] the unknowns are
-    # g = w4 at its points and c_r = wr(x0), r = 0..3: wr = sum_k c_k d^(k-r) / (k-r)! +
-    # Q^(4-r) g, d = xi - x0.  The field equation holds at every point; the 8 end and
-    # interface conditions fix the constants.
-
-    def domain(x0: float, x1: float) -> tuple[FloatArray, list[FloatArray]]:
-        """xi, and per derivative r = 0..4 the map from (g, c_0..c_3) to wr at xi."""
-        h = 0.5 * (x1 - x0)
-        xi = x0 + h * (t + 1.0)
-        Q = h * Q0
-        d = xi - x0
-        maps = []
-        for r in range(5):
-            Mr = np.zeros((n, n + 4))
-            Mr[:, :n] = np.linalg.matrix_power(Q, 4 - r)
-            for k in range(r, 4):
-                Mr[:, n + k] = d ** (k - r) / math.factorial(k - r)
-            maps.append(Mr)
-        return xi, maps
-
-    x1, m1 = domain(0.0, split)
-    x2, m2 = domain(split, 1.0)
-    size = n + 4
-    A = np.zeros((2 * size, 2 * size))
-    rhs = np.zeros(2 * size)
-    for k, (xi, maps) in enumerate(((x1, m1), (x2, m2))):
+    # (wr the r-th derivative, N' = dN/dx).  On each subdomain the unknowns are g = w4 at its
+    # points and c_r = wr at its left end (:func:`_domain`).  The field equation holds at
+    # every point; the ends give 2 conditions each and every interface 4.
+    A = np.zeros((K * size, K * size))
+    rhs = np.zeros(K * size)
+    doms = [_domain(edges[k], edges[k + 1], t, Q0) for k in range(K)]
+    cols = [slice(k * size, (k + 1) * size) for k in range(K)]
+    for k, (xi, maps) in enumerate(doms):
         Nx = a[0] + a[1] * xi + a[2] * xi * xi
         dN = (a[1] + 2.0 * a[2] * xi) / L
         rows = slice(k * n, (k + 1) * n)
-        cols = slice(k * size, (k + 1) * size)
-        A[rows, cols] = (
+        A[rows, cols[k]] = (
             maps[4]
             + ((M2 * v2 - Nx) * L * L / EI)[:, None] * maps[2]
             - (dN * L**3 / EI)[:, None] * maps[1]
@@ -140,19 +145,29 @@ def static_deflection(
         )
         if force_at is None:
             rhs[rows] = -m * L
-    first, last = slice(0, size), slice(size, 2 * size)
-    row = 2 * n
-    for r in range(3):  # w, w', w'' continuous at the split
-        A[row + r, first], A[row + r, last] = m1[r][N], -m2[r][0]
-    A[row + 3, first], A[row + 3, last] = -m1[3][N], m2[3][0]  # the shear jump
-    if force_at is not None and not at_tip:
-        rhs[row + 3] = 1.0
+    row = K * n
+    for k, b in enumerate(breaks):  # the interface between subdomains k and k + 1
+        left, right = doms[k][1], doms[k + 1][1]
+        lc, rc = cols[k], cols[k + 1]
+        stiffness = springs.get(b, 0.0)
+        if math.isinf(stiffness):  # a pin: w = 0 on both sides, slope and moment go on
+            A[row, lc], A[row + 1, rc] = left[0][N], right[0][0]
+            for r, at in ((1, row + 2), (2, row + 3)):
+                A[at, lc], A[at, rc] = left[r][N], -right[r][0]
+        else:  # w, w', w'' go on; the shear jumps by the force less the spring's pull
+            for r in range(3):
+                A[row + r, lc], A[row + r, rc] = left[r][N], -right[r][0]
+            A[row + 3, lc] = -left[3][N] + stiffness * left[0][N]
+            A[row + 3, rc] = right[3][0]
+            if b == a_load:
+                rhs[row + 3] = 1.0
+        row += 4
     # each end's two conditions (docs/model.md 9), with its springs and the axial force
     ends = (
-        (x0_end, m1, 0, -1.0, a[0], first, row + 4),
-        (xL_end, m2, N, 1.0, a[0] + a[1] + a[2], last, row + 6),
+        (x0_end, doms[0][1], 0, -1.0, a[0], cols[0], row),
+        (xL_end, doms[-1][1], N, 1.0, a[0] + a[1] + a[2], cols[-1], row + 2),
     )
-    for end, maps, j, sign, N_end, cols, at in ends:
+    for end, maps, j, sign, N_end, c, at in ends:
         kind, Kt, Kr = end.nondimensional(EI, L)
         w, w1, w2_, w3 = (maps[r][j] for r in range(4))
         shear = w3 - N_end * L * L / EI * w1
@@ -171,18 +186,18 @@ def static_deflection(
             rhs[at + 1] = -1.0
         elif sign > 0 and force_at is None and kind in ("free", "elastic"):
             rhs[at + 1] = mt  # F_L = -m_t A, A = 1
-        A[at, cols], A[at + 1, cols] = conds
+        A[at, c], A[at + 1, c] = conds
     with np.errstate(all="ignore"):
         try:
             z = np.linalg.solve(A, rhs)
         except np.linalg.LinAlgError:
-            z = np.full(2 * size, np.nan)
-    xo = np.atleast_1d(np.asarray(positions, dtype=float)) / L
+            z = np.full(K * size, np.nan)
     out = np.empty(xo.size)
-    left = xo <= split
-    for sel, xi, part in ((left, x1, m1[0] @ z[first]), (~left, x2, m2[0] @ z[last])):
+    where = np.clip(np.searchsorted(np.asarray(edges), xo, side="right") - 1, 0, K - 1)
+    for k, (xi, maps) in enumerate(doms):
+        sel = where == k
         if np.any(sel):
-            out[sel] = BarycentricInterpolator(xi, part)(xo[sel])
+            out[sel] = BarycentricInterpolator(xi, maps[0] @ z[cols[k]])(xo[sel])
     return np.asarray(out * L**3 / EI)
 
 

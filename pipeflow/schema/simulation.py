@@ -429,8 +429,8 @@ class OutputSpec(StrictModel):
         "load's value at t; m). It helps loads slow against the first mode left out (a "
         "harmonic force at 50 rad/s on the paper's pipe: 1.5e-5 -> 2.4e-8 of the 40-mode "
         "answer at 10 modes); a step's transient in those modes it cannot give. For "
-        "constant flow and spin, end supports only (no intermediate supports, no rigid "
-        "rotation), and point forces, impulses or clamp accelerations.",
+        "constant flow and spin, any supports but a pipe free to rotate (pinned-free), and "
+        "point forces, impulses or clamp accelerations.",
     )
 
     def mode_shape_arguments(self) -> dict[str, Any]:
