@@ -269,6 +269,17 @@ def _pointer(parts: list[Any]) -> str:
     return "#/" + "/".join(escaped) if escaped else "#"
 
 
+#: pydantic's labels of a union's members in an error's location (no field has them)
+_UNION_LABELS = frozenset({"float", "int", "str", "bool", "list", "dict", "none"})
+
+
+def _union_member(part: Any) -> bool:
+    """Whether a location part is pydantic's label of a union member (``constrained-float``,
+    ``tagged-union[...]``, ``function-wrap[...]``, ``float``...): field names have neither
+    ``-`` nor ``[``."""
+    return isinstance(part, str) and ("[" in part or "-" in part or part in _UNION_LABELS)
+
+
 def _walk(body: Any, loc: tuple[Any, ...]) -> list[Any]:
     """Follow ``loc`` through the submitted body, dropping the union tags pydantic inserts."""
     path: list[Any] = []
@@ -280,6 +291,10 @@ def _walk(body: Any, loc: tuple[Any, ...]) -> list[Any]:
         elif isinstance(node, dict) and part in (node.get("kind"), node.get("distribution")):
             # discriminated-union tag, e.g. ('velocity', 'polynomial', 'coefficients'), or a
             # study's ('samples', 'parameters', 'pipe.E', 'lognormal', 'sigma')
+            continue
+        elif node is not None and _union_member(part):
+            # the member of a plain union pydantic tried, e.g. ('flow', 'pressure',
+            # 'constrained-float') or 'tagged-union[...]': no field of the body
             continue
         elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
             node = node[part]
@@ -306,7 +321,12 @@ def _named_field(body: Any, base: list[Any], err: dict[str, Any]) -> list[Any]:
     parts = [str(p) for p in loc]
     node = body
     for part in base:
-        node = node[part] if isinstance(node, dict | list) else None
+        if isinstance(node, dict):
+            node = node.get(part)
+        elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            node = node[part]
+        else:
+            node = None
     if base and parts[0] == str(base[-1]):
         # a field validator naming its own field: ("methods", ...) raised on ``methods``
         return base + parts[1:]

@@ -234,3 +234,16 @@ def test_a_pressure_profile_over_http(api: TestClient) -> None:
         f.startswith("flow.pressure")
         for f in _fields(_problem(api.post("/v1/stability", json=frozen), 422))
     )
+
+
+def test_a_bad_member_of_a_pressure_profile_names_its_field(api: TestClient) -> None:
+    """A number-or-profile field's error locations carry pydantic's union labels
+    ('constrained-float', 'tagged-union[...]'), which are no fields of the body: mapping them
+    raised a KeyError, a 500 (schemathesis found it); now a 422 naming the members."""
+    body = {
+        "pipe": {**UNIT, "flow_area": 1.0},
+        "flow": {"pressure": {"kind": "half_sine", "peak": 0.0, "duration": {"unit": "0"}}},
+        "time": {"t_end": 0.1, "samples": 11},
+    }
+    fields = _fields(_problem(api.post("/v1/simulations", json=body), 422))
+    assert "flow.pressure.duration" in fields and "flow.pressure" in fields
