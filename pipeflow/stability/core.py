@@ -114,6 +114,7 @@ def sign_changes(
     sigma: Callable[[float, int], float],
     start: int = 0,
     rtol: float = 1e-10,
+    spectrum: Callable[[float], ComplexArray] | None = None,
 ) -> list[tuple[float, int, bool]]:
     """Where a real part ``s`` sampled on ``p`` crosses the stability threshold.
 
@@ -125,6 +126,10 @@ def sign_changes(
     S-shaped parts of u_cr(beta) look on a coarse grid) is found by bounded optimisation
     where the extremum lies within a few sample steps of zero.
 
+    ``spectrum(x)``, the whole spectrum whose largest real part ``s`` is (optional), lets a
+    divergence of a conservative pipe be located on a quantity that crosses zero linearly
+    (:func:`collision_root`) instead of sigma's square-root onset.
+
     Returns ``(x, k, loss)`` per crossing: position, interval index, and whether the
     quantity becomes unstable there with increasing p.
     """
@@ -132,6 +137,10 @@ def sign_changes(
     out: list[tuple[float, int, bool]] = []
 
     def root(a: float, b: float, k: int) -> float:
+        if spectrum is not None:
+            x = collision_root(spectrum, a, b, float(tol[k]), rtol)
+            if x is not None:
+                return x
         fa, fb = sigma(a, k), sigma(b, k)
         shift = 0.0
         if fa * fb > 0:  # one end sits in the rounding band (v = 0): use the band's edge
@@ -176,6 +185,51 @@ def sign_changes(
                 if (sigma(lo, k) - tol[k]) * (sigma(hi, k) - tol[k]) < 0:
                     out.append((root(lo, hi, k), k, loss))
     return sorted(out)
+
+
+def collision_root(
+    spectrum: Callable[[float], ComplexArray], a: float, b: float, tol: float, rtol: float
+) -> float | None:
+    """Where a conservative pipe diverges between ``a`` and ``b`` (one end stable, every
+    eigenvalue on the imaginary axis to ``tol`` [1/s]; the other diverging, its leading
+    eigenvalue real), or None when the crossing is not of that kind.
+
+    There a pair +-i omega meets at 0 and leaves along the real axis as +-sigma: sigma grows
+    like the square root of the distance past the point, flat on the stable side, which
+    Brent's method can only bisect (~45 eigenvalue problems to 1e-10); lambda^2, -omega^2
+    of the slowest eigenvalue on the axis and +sigma^2 past the point, crosses zero
+    linearly, and the same search takes ~8.  ``rtol``: relative tolerance of the point."""
+
+    def square(x: float) -> float | None:
+        xi = np.asarray(spectrum(x))
+        radius = float(np.max(np.abs(xi)))
+        lead = xi[int(np.argmax(xi.real))]
+        if lead.real > tol:  # diverging (a real eigenvalue) or fluttering (None)
+            return float(lead.real) ** 2 if abs(lead.imag) <= 1e-7 * radius else None
+        if np.any(xi.real < -tol):
+            return None  # damped: sigma itself crosses zero linearly
+        return -(float(np.min(np.abs(xi))) ** 2)
+
+    fa = square(a)
+    fb = None if fa is None else square(b)
+    if fa is None or fb is None or fa * fb >= 0:
+        return None
+    scale = max(abs(a), abs(b))
+
+    def f(x: float) -> float:
+        value = square(x)
+        if value is None:  # left the pattern inside the interval: sigma's own search
+            raise _NotACollision
+        return value
+
+    try:
+        return float(brentq(f, a, b, xtol=1e-14 * scale + 1e-300, rtol=rtol))
+    except _NotACollision:
+        return None
+
+
+class _NotACollision(Exception):
+    """:func:`collision_root` met a spectrum that is not a conservative divergence."""
 
 
 def mechanisms(xi: ComplexArray, tol: float, radius: float) -> list[str]:

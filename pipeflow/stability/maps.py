@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from pipeflow import parallel
-from pipeflow._types import FloatArray, Progress
+from pipeflow._types import ComplexArray, FloatArray, Progress
 from pipeflow.errors import BudgetExceeded, InvalidInput
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, build_model
 from pipeflow.spectra import rounding_level
@@ -89,8 +89,12 @@ def _line(
         return float(eigenvalues(model, x, w0)[0].real.max())
 
     out = []
-    for x, _, loss in sign_changes(v, g, tol, growth, start, rtol):
-        kind, omega = crossing_kind(lambda y: eigenvalues(model, y, w0)[0], x, loss)
+
+    def spectrum(x: float) -> ComplexArray:
+        return np.asarray(eigenvalues(model, x, w0)[0])
+
+    for x, _, loss in sign_changes(v, g, tol, growth, start, rtol, spectrum):
+        kind, omega = crossing_kind(spectrum, x, loss)
         out.append(
             BoundaryCrossing(
                 velocity=x, direction="loss" if loss else "gain", kind=kind, frequency=omega

@@ -178,7 +178,7 @@ def pipe_stability(
     how = mechanisms(br.xi[0], float(tol[0]), radius)
     out = []
     g = br.xi.real.max(axis=1)
-    for x, _, loss in sign_changes(br.p, g, tol, growth, 0, CROSSING_RTOL):
+    for x, _, loss in sign_changes(br.p, g, tol, growth, 0, CROSSING_RTOL, spectrum):
         kind, omega = crossing_kind(spectrum, x, loss)
         out.append(BoundaryCrossing(x, "loss" if loss else "gain", kind, omega))  # type: ignore[arg-type]
     intervals = stable_intervals(
