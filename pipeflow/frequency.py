@@ -380,12 +380,11 @@ def _resonances(xi: ComplexArray, damped: bool) -> list[Resonance]:
     numbers = mode_numbers(xi, damped)
     level = float(rounding_level(xi))
     out = []
-    for i in np.flatnonzero(xi.imag > tol):
-        mag = float(abs(xi[i]))
-        zeta = -float(xi[i].real) / mag
-        if abs(float(xi[i].real)) <= level:
-            zeta = 0.0
-        out.append(Resonance(complex(xi[i]), float(xi[i].imag), mag, zeta, int(numbers[i])))
+    for i in np.flatnonzero(xi.imag > tol).tolist():
+        x = complex(xi[i])
+        mag = abs(x)
+        zeta = 0.0 if abs(x.real) <= level else -x.real / mag
+        out.append(Resonance(x, x.imag, mag, zeta, int(numbers[i])))
     return sorted(out, key=lambda r: (r.mode, r.frequency))
 
 
@@ -579,8 +578,12 @@ def frequency_response(
     for pole in op.xi[np.abs(op.xi.real) <= level]:
         on_pole |= np.abs(W - pole.imag) <= max(level, 1e-12 * abs(pole))
     res = _resonances(op.xi, pipe.damped)
-    checks = _check_points(np.sort(W[~on_pole]), sorted(res, key=lambda r: r.frequency))
-    inside = [r for r in res if W.min() <= r.frequency <= W.max()]
+    pole_free = W[~on_pole]
+    if pole_free.size > 1 and np.any(pole_free[1:] < pole_free[:-1]):
+        pole_free.sort()  # (a grid in increasing order, the usual, is not sorted again)
+    checks = _check_points(pole_free, sorted(res, key=lambda r: r.frequency))
+    w_lo, w_hi = float(W.min()), float(W.max())
+    inside = [r for r in res if w_lo <= r.frequency <= w_hi]
     Wp = np.array([r.frequency for r in inside if r.damping_ratio != 0.0])
     # one modal sum for the answer, the check frequencies and the peaks
     H_all = _modal_sum(op, out, b, np.concatenate([W, checks, Wp]))
