@@ -19,7 +19,7 @@ with ``a = (1 - s) e^lambda / 2`` and ``b = (1 + s) / 2`` computed without overf
 
 from __future__ import annotations
 
-from functools import cache
+from functools import cache, lru_cache
 
 import numpy as np
 from scipy.optimize import brentq
@@ -124,10 +124,14 @@ def paper_scale(n: int) -> FloatArray:
     return out
 
 
+@lru_cache(maxsize=256)
 def gauss_legendre_unit(order: int) -> tuple[FloatArray, FloatArray]:
-    """Gauss-Legendre nodes and weights on [0, 1]."""
+    """Gauss-Legendre nodes and weights on [0, 1] (cached: read-only arrays)."""
     x, w = np.polynomial.legendre.leggauss(order)
-    return 0.5 * (x + 1.0), 0.5 * w
+    nodes, weights = 0.5 * (x + 1.0), 0.5 * w
+    nodes.setflags(write=False)
+    weights.setflags(write=False)
+    return nodes, weights
 
 
 def default_quadrature_order(n: int) -> int:

@@ -28,16 +28,20 @@ method to rounding; rigid-body modes (lambda = 0) are the null space of B(0).  A
 with K_t = k_t L^3/EI or K_r = k_r L/EI below :data:`SPRING_FLOOR` is no spring (its
 frequency would be below 1e-3 of the beam's first).
 
-Intermediate supports: a spring k at xi_s adds K phi(xi_s) phi(xi_s)^T to the bending
-matrix, a pin constrains phi(xi_s) = 0.  The basis is then the Ritz eigenvectors, in the
-span of the first ``n + p + 8`` end-support eigenfunctions (p pins) restricted to the pins'
-null space, of the bending matrix with the point springs: orthonormal, satisfying every pin
-exactly, diagonal bending.  Convergence is algebraic (the pins' shear jump), measured in
-``docs/model.md`` 9.
+Intermediate supports (:func:`span_basis`): the eigenfunctions of the beam on its spans,
+the same fundamental solutions in each span's own coordinate, B(lambda) of size 4S x 4S
+(S spans: the ends, and at each support w' and w'' continuous, w = 0 on both sides of a
+pin, or w continuous and the shear jump -K w at a spring), then a Rayleigh-Ritz step on
+the computed functions (orthonormal to rounding in clusters of nearly equal eigenvalues).
+Exact at u = 0 with any number of modes, like the end supports.  Its roots are checked
+against the Ritz basis of the first ``n + p + 8`` end-support eigenfunctions restricted to
+the pins' null space, with the point springs (an upper bound); that basis, whose
+convergence is algebraic (the supports' shear jump), is the fallback.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -87,22 +91,29 @@ def _krylov(lam: FloatArray | float, xi: FloatArray | float, k: int) -> FloatArr
     return np.array(f)
 
 
-def _exponential(lam: FloatArray | float, xi: FloatArray | float, k: int) -> FloatArray:
-    """d^k/dxi^k of (e^(lam (xi-1)), e^(-lam xi), cos(lam xi), sin(lam xi)) for broadcast
-    ``lam`` and ``xi``: shape (4,) + their shape."""
+def _exponential(
+    lam: FloatArray | float, xi: FloatArray | float, k: int, length: float = 1.0
+) -> FloatArray:
+    """d^k/dxi^k of (e^(lam (xi-length)), e^(-lam xi), cos(lam xi), sin(lam xi)) for
+    broadcast ``lam`` and ``xi`` in [0, ``length``]: shape (4,) + their shape."""
     la, x = np.broadcast_arrays(np.asarray(lam, dtype=float), np.asarray(xi, dtype=float))
     z = la * x
     ph = k * np.pi / 2
     lk = la**k
     return np.array(
-        [lk * np.exp(z - la), (-la) ** k * np.exp(-z), lk * np.cos(z + ph), lk * np.sin(z + ph)]
+        [
+            lk * np.exp(z - la * length),
+            (-la) ** k * np.exp(-z),
+            lk * np.cos(z + ph),
+            lk * np.sin(z + ph),
+        ]
     )
 
 
 def _fundamental(
-    lam: FloatArray | float, xi: FloatArray | float, k: int, krylov: bool
+    lam: FloatArray | float, xi: FloatArray | float, k: int, krylov: bool, length: float = 1.0
 ) -> FloatArray:
-    return _krylov(lam, xi, k) if krylov else _exponential(lam, xi, k)
+    return _krylov(lam, xi, k) if krylov else _exponential(lam, xi, k, length)
 
 
 def _end_rows(spec: EndSpec, lam: FloatArray, at: float, krylov: bool) -> FloatArray:
@@ -253,6 +264,11 @@ class SupportBasis:
                 out[:, np.isin(xi, stations)] = 0.0
         return out
 
+    def quadrature(self, order: int) -> tuple[FloatArray, FloatArray]:
+        """Nodes and weights on [0, 1] for the Galerkin integrals: Gauss-Legendre of
+        ``order`` points."""
+        return gauss_legendre_unit(order)
+
 
 def _held(
     x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...]
@@ -264,10 +280,252 @@ def _held(
     return ((0, tuple(value)), (1, tuple(slope)))
 
 
+# -- intermediate supports: the eigenfunctions of the beam on its spans ---------------------
+#: below this lambda x span length a span's functions take the Krylov-Duncan form
+_SPAN_SWITCH = 4.0
+#: the scan of det B(lambda) for the spans' eigenvalues: its step, and finer steps tried
+#: when the roots found miss one (two roots inside one step: no sign change)
+_SCAN_STEP = 0.02
+_FINER_SCANS = (0.002,)
+#: relative slack of the Ritz bound lambda_k (exact) <= lambda_k (Ritz) the roots are checked by
+_RITZ_SLACK = 1e-8
+
+
+@dataclass(frozen=True)
+class _SpanMode:
+    """An eigenfunction of the beam on spans ``edges`` (0 = e_0 < ... < e_S = 1): on span s,
+    ``sum_i coef[s][i] f_i(xi - e_s)`` in the span's own form of the fundamental solutions."""
+
+    lam: float
+    edges: tuple[float, ...]
+    coef: tuple[tuple[float, ...], ...]
+
+    def values(self, xi: FloatArray, k: int) -> FloatArray:
+        xi = np.atleast_1d(np.asarray(xi, dtype=float))
+        out = np.zeros(xi.shape)
+        last = len(self.edges) - 2
+        for s, (a, b) in enumerate(itertools.pairwise(self.edges)):
+            inside = (xi >= a) & ((xi < b) if s < last else (xi <= b))
+            if inside.any():
+                length = b - a
+                f = _fundamental(self.lam, xi[inside] - a, k, self.lam * length < _SPAN_SWITCH,
+                                 length)  # fmt: skip
+                out[inside] = np.asarray(self.coef[s]) @ f
+        return out
+
+
+def _span_derivatives(lam: FloatArray, z: float, length: float, krylov: bool) -> list[FloatArray]:
+    """d^k/dxi^k, k = 0..3, of one span's fundamental solutions at its local ``z``: four
+    arrays (G, 4) for the G values of ``lam``."""
+    if not krylov:
+        return [np.asarray(_exponential(lam, z, k, length).T) for k in range(4)]
+    f = list(_krylov(lam, z, 0))  # d/dxi maps (f1, f2, f3, f4) -> (lam^4 f4, f1, f2, f3)
+    out = [np.stack(f, axis=-1)]
+    for _ in range(3):
+        f = [lam**4 * f[3], f[0], f[1], f[2]]
+        out.append(np.stack(f, axis=-1))
+    return out
+
+
+def _end_pair(spec: EndSpec, d: list[FloatArray], sign: float) -> tuple[FloatArray, FloatArray]:
+    """The two end conditions of ``spec`` on derivatives ``d`` (``sign`` +1 at x = L, -1 at
+    x = 0): see :func:`_end_rows`."""
+    kind, kt, kr = spec
+    return {
+        "clamped": (d[0], d[1]),
+        "pinned": (d[0], d[2]),
+        "sliding": (d[1], d[3]),
+        "free": (d[2], d[3]),
+        "elastic": (d[2] + sign * kr * d[1], d[3] - sign * kt * d[0]),
+    }[kind]
+
+
+def _span_matrix(
+    x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...], lam: FloatArray,
+    krylov: tuple[bool, ...],
+) -> FloatArray:  # fmt: skip
+    """B(lam) of the spans between ``points``, shape (G, 4 S, 4 S), rows of unit norm: two end
+    conditions at each end; at a pin w = 0 on both sides, at a spring K w continuous and
+    the shear jump w'''(+) - w'''(-) = -K w; w' and w'' continuous at both.  ``krylov``: the
+    form of each span's functions."""
+    lam = np.atleast_1d(np.asarray(lam, dtype=float))
+    edges = (0.0, *(xs for xs, _ in points), 1.0)
+    lengths = np.diff(edges)
+    S = len(lengths)
+    B = np.zeros((lam.size, 4 * S, 4 * S))
+    start = _span_derivatives(lam, 0.0, lengths[0], krylov[0])
+    B[:, 0], B[:, 1] = (np.pad(r, ((0, 0), (0, 4 * S - 4))) for r in _end_pair(x0, start, -1.0))
+    for p, (_, K) in enumerate(points):
+        left = _span_derivatives(lam, lengths[p], lengths[p], krylov[p])
+        right = _span_derivatives(lam, 0.0, lengths[p + 1], krylov[p + 1])
+        cl, cr, r = slice(4 * p, 4 * p + 4), slice(4 * p + 4, 4 * p + 8), 2 + 4 * p
+        if math.isinf(K):
+            B[:, r, cl], B[:, r + 1, cr] = left[0], right[0]
+        else:
+            B[:, r, cl], B[:, r, cr] = left[0], -right[0]
+            B[:, r + 1, cl], B[:, r + 1, cr] = K * left[0] - left[3], right[3]
+        for j, k in ((2, 1), (3, 2)):
+            B[:, r + j, cl], B[:, r + j, cr] = left[k], -right[k]
+    end = _span_derivatives(lam, lengths[-1], lengths[-1], krylov[-1])
+    for j, row in enumerate(_end_pair(xL, end, 1.0)):
+        B[:, 4 * S - 2 + j, 4 * S - 4 :] = row
+    return np.asarray(B / np.sqrt(np.einsum("gij,gij->gi", B, B))[..., None])
+
+
+def _span_forms(lam: float, lengths: FloatArray) -> tuple[bool, ...]:
+    return tuple(bool(lam * length < _SPAN_SWITCH) for length in lengths)
+
+
+def _span_roots(
+    x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...], count: int, step: float
+) -> list[float]:
+    """The first ``count`` positive roots of the spans' det B(lambda), ascending: scanned
+    on a grid (geometric below 1, then ``step``) cut where a span changes form (the two
+    forms' determinants differ by a factor that may change sign), refined by Brent."""
+    lengths = np.diff((0.0, *(xs for xs, _ in points), 1.0))
+    switches = sorted({_SPAN_SWITCH / float(length) for length in lengths})
+    found: list[float] = []
+    lo, grid = 1e-4, np.geomspace(1e-4, 1.0, 200)
+    while len(found) < count:
+        hi = float(grid[-1])
+        cuts = [lo, *(w for w in switches if lo < w < hi), hi]
+        for a, b in itertools.pairwise(cuts):
+            piece = np.concatenate([[a], grid[(grid > a) & (grid < b)], [b]])
+            mid = 0.5 * (a + b)
+            forms = _span_forms(mid, lengths)
+
+            def det(x: FloatArray, forms: tuple[bool, ...] = forms) -> FloatArray:
+                return np.asarray(np.linalg.det(_span_matrix(x0, xL, points, x, forms)))
+
+            vals = det(piece)
+            for u, v, fu, fv in zip(piece[:-1], piece[1:], vals[:-1], vals[1:], strict=True):
+                if fu == 0.0:
+                    found.append(float(u))
+                elif fu * fv < 0:
+                    root = brentq(lambda x: float(det(np.array([x]))[0]), u, v, xtol=1e-15,
+                                  rtol=4 * np.finfo(float).eps)  # fmt: skip
+                    found.append(float(root))
+        lo = hi
+        grid = np.arange(hi, hi + np.pi * (count - len(found) + 2), step)
+    return sorted(found)[:count]
+
+
+def _span_quadrature(edges: tuple[float, ...], order: int) -> tuple[FloatArray, FloatArray]:
+    """Gauss-Legendre on each span (its functions are analytic there; the third derivative
+    jumps at a support): about ``order`` points per unit length, at least 24 a span."""
+    xs, ws = [], []
+    for a, b in itertools.pairwise(edges):
+        x, w = gauss_legendre_unit(8 * math.ceil(max(24, order * (b - a) + 16) / 8))
+        xs.append(a + (b - a) * x)
+        ws.append((b - a) * w)
+    return np.concatenate(xs), np.concatenate(ws)
+
+
+def _span_normalised(mode: _SpanMode) -> _SpanMode:
+    """Scale to integral phi^2 = 1, sign: the largest sample positive."""
+    xi, w = _span_quadrature(mode.edges, 32 * math.ceil((mode.lam + 60) / 32))  # (shared)
+    v = mode.values(xi, 0)
+    norm = math.sqrt(float(w @ (v * v)))
+    grid = mode.values(np.linspace(0.0, 1.0, 401), 0)
+    sign = 1.0 if grid[np.argmax(np.abs(grid))] > 0 else -1.0
+    coef = tuple(tuple(float(c) * sign / norm for c in span) for span in mode.coef)
+    return _SpanMode(mode.lam, mode.edges, coef)
+
+
+@dataclass(frozen=True, eq=False)
+class SpanBasis:
+    """``n`` orthonormal eigenfunctions of the beam with its end and intermediate supports
+    (:class:`SupportBasis`' interface); ``lam4`` the diagonal of the bending matrix with the
+    springs [-]."""
+
+    n: int
+    modes: tuple[_SpanMode, ...]
+    #: (n, n): the basis functions in terms of ``modes`` (a rotation within clusters of
+    #: nearly equal eigenvalues, whose computed eigenfunctions are orthogonal only to
+    #: eps / gap; the identity to rounding elsewhere)
+    coef: FloatArray
+    lam4: FloatArray
+    held: tuple[tuple[int, tuple[float, ...]], ...] = ()
+
+    def shapes(self, xi: FloatArray, derivative: int = 0) -> FloatArray:
+        """d^k phi_j / dxi^k at ``xi`` [-], shape ``(n, len(xi))``; exactly 0 where a
+        support holds that derivative."""
+        xi = np.atleast_1d(np.asarray(xi, dtype=float))
+        under = np.array([m.values(xi, derivative) for m in self.modes]).reshape(-1, xi.size)
+        out = np.asarray(self.coef @ under)
+        for k, stations in self.held:
+            if k == derivative:
+                out[:, np.isin(xi, stations)] = 0.0
+        return out
+
+    def quadrature(self, order: int) -> tuple[FloatArray, FloatArray]:
+        """Nodes and weights on [0, 1] for the Galerkin integrals: Gauss-Legendre on each
+        span (spectral; across a support the third derivative jumps)."""
+        return _span_quadrature(self.modes[0].edges, order)
+
+
+def _span_modes(
+    x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...], n: int, step: float
+) -> tuple[_SpanMode, ...]:
+    """The first ``n`` normalised eigenfunctions on the spans (rigid-body modes first)."""
+    edges = (0.0, *(xs for xs, _ in points), 1.0)
+    lengths = np.diff(edges)
+    S = lengths.size
+    B0 = _span_matrix(x0, xL, points, np.zeros(1), (True,) * S)[0]
+    _, sv, vt = np.linalg.svd(B0)
+    rigid = int(np.sum(sv <= 1e-12 * sv[0]))
+    modes: list[_SpanMode] = []
+    if rigid:
+        raw = [_SpanMode(0.0, edges, tuple(map(tuple, v.reshape(S, 4)))) for v in vt[-rigid:]]
+        xi, w = _span_quadrature(edges, 16)
+        vals = np.array([m.values(xi, 0) for m in raw])
+        c = np.linalg.cholesky((vals * w) @ vals.T)
+        coefs = np.linalg.solve(c, vt[-rigid:])  # orthonormal rigid-body modes
+        modes += [
+            _span_normalised(_SpanMode(0.0, edges, tuple(map(tuple, v.reshape(S, 4)))))
+            for v in coefs
+        ]
+    if n > len(modes):
+        for lam in _span_roots(x0, xL, points, n - len(modes), step):
+            B = _span_matrix(x0, xL, points, np.array([lam]), _span_forms(lam, lengths))[0]
+            v = _null_vector(B).reshape(S, 4)
+            modes.append(_span_normalised(_SpanMode(lam, edges, tuple(map(tuple, v)))))
+    return tuple(modes[:n])
+
+
+def span_basis(
+    n: int, x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...], ritz: FloatArray
+) -> SpanBasis | None:
+    """The exact basis of the spans, or None when its roots cannot be confirmed: each
+    lambda_k^4 must lie at or below the Ritz value ``ritz[k]`` (an upper bound of the
+    exact one), within :data:`_RITZ_SLACK`; a root missed by the scan (two inside one
+    step) fails that, and finer scans are tried."""
+    for step in (_SCAN_STEP, *_FINER_SCANS):
+        modes = _span_modes(x0, xL, points, n, step)
+        if len(modes) < n:
+            continue
+        # Rayleigh-Ritz on the computed eigenfunctions: orthonormal and diagonal to
+        # rounding (the bending energy with the springs' k phi(x_s)^2)
+        raw = SpanBasis(n, modes, np.eye(n), np.zeros(n))
+        xi, w = raw.quadrature(int(modes[-1].lam) + 60)
+        p0, p2 = raw.shapes(xi, 0), raw.shapes(xi, 2)
+        K = (p2 * w) @ p2.T
+        for xs, k in points:
+            if not math.isinf(k):
+                phi = raw.shapes(np.array([xs]))[:, 0]
+                K += k * np.outer(phi, phi)
+        mu, Y = scipy.linalg.eigh(K, (p0 * w) @ p0.T)
+        if np.all(mu <= ritz[:n] * (1 + _RITZ_SLACK) + 1e-9):
+            lam4 = np.maximum(mu, 0.0)  # (a rigid-body mode's rounding)
+            lam4.setflags(write=False)
+            return SpanBasis(n, modes, np.ascontiguousarray(Y.T), lam4, _held(x0, xL, points))
+    return None
+
+
 @lru_cache(maxsize=32)
 def support_basis(
     n: int, x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...] = ()
-) -> SupportBasis:
+) -> SupportBasis | SpanBasis:
     """The Galerkin basis of ``n`` functions for the supports (see the module docstring)."""
     if not points:
         modes, lam4 = end_support_modes(x0, xL, n)
@@ -286,6 +544,9 @@ def support_basis(
         A = under.shapes(np.array([p[0] for p in pins]), 0).T  # (p, count)
         Z = scipy.linalg.null_space(A)
     mu, Y = np.linalg.eigh(Z.T @ K @ Z)
+    exact = span_basis(n, x0, xL, points, mu)
+    if exact is not None:
+        return exact
     coef = (Z @ Y[:, :n]).T
     lam4_n = np.asarray(mu[:n], dtype=float)
     lam4_n.setflags(write=False)

@@ -73,7 +73,7 @@ def mode_integrals(
         q = int(max(48, np.ceil(top + 40))) if quadrature_order is None else int(quadrature_order)
     if q < 2 * n:
         raise ValueError(f"quadrature order {q} is too low for {n} modes (need >= {2 * n})")
-    xi, w = gauss_legendre_unit(q)
+    xi, w = gauss_legendre_unit(q) if supports is None else basis.quadrature(q)
     if supports is None:
         p0, p1, p2, p4 = (mode_shapes(n, xi, k) for k in (0, 1, 2, 4))
         k4 = (p0 * w) @ p4.T
