@@ -343,12 +343,13 @@ def test_midspan_spring_against_its_characteristic_equation() -> None:
 
 def test_the_basis_of_many_unequal_spans() -> None:
     """Seven pins (one 0.01 L span among them) and a stiff spring on a clamped-free pipe,
-    40 functions: orthonormal and with the diagonal bending matrix (springs included) to
-    1e-12, zero at every pin, w' and w'' continuous across every support (the third
-    derivative jumps: the shear the support takes), and each lambda_j^4 at or below the
-    value of the Ritz basis (an upper bound: Rayleigh-Ritz).  Also when the scan of
-    det B(lambda) misses roots (its step made 2 on purpose): the finer scan finds them;
-    where that too is made coarse, the Ritz basis is the answer."""
+    40 functions: orthonormal to 1e-12 and with the diagonal bending matrix (springs
+    included) to 5e-10 of its largest entry, zero at every pin, w' and w'' continuous
+    across every support (the third derivative jumps: the shear the support takes), and
+    each lambda_j^4 at or below the value of the Ritz basis (an upper bound:
+    Rayleigh-Ritz).  Also when the scan of det B(lambda) misses roots (its step made 2 on
+    purpose): the finer scan finds them; where that too is made coarse, the Ritz basis is
+    the answer."""
     from pipeflow import beam_modes
 
     pins = (0.1, 0.23, 0.4, 0.41, 0.6, 0.77, 0.9)
@@ -361,7 +362,9 @@ def test_the_basis_of_many_unequal_spans() -> None:
     spring = b.shapes(np.array([0.95]))[:, 0]
     bending = (p2 * w) @ p2.T + 1e3 * np.outer(spring, spring)
     assert np.max(np.abs((p0 * w) @ p0.T - np.eye(40))) < 1e-12
-    assert np.max(np.abs(bending - np.diag(b.lam4))) < 1e-12 * b.lam4.max()
+    # diagonal to the accuracy of the computed functions' interface conditions (~1e-9
+    # where B(lambda) is nearly singular, the 0.01 L span): measured 7e-11 of the largest
+    assert np.max(np.abs(bending - np.diag(b.lam4))) < 5e-10 * b.lam4.max()
     assert np.max(np.abs(b.shapes(np.array(pins)))) == 0.0
     for x in (*pins, 0.95):
         for k in (1, 2):
@@ -371,9 +374,7 @@ def test_the_basis_of_many_unequal_spans() -> None:
     beam_modes.support_basis.cache_clear()
     try:
         beam_modes._SCAN_STEP = 2.0
-        # the same roots; the Rayleigh-Ritz values on them agree to their rounding (8e-11
-        # at this 0.01 L span: the eigenvector of a nearly singular B is good to ~1e-9)
-        assert np.allclose(support_basis(40, C_, F_, points).lam4, b.lam4, rtol=1e-9)
+        assert np.allclose(support_basis(40, C_, F_, points).lam4, b.lam4, rtol=1e-13)
         beam_modes.support_basis.cache_clear()
         beam_modes._FINER_SCANS = (2.0,)
         ritz = support_basis(40, C_, F_, points)
