@@ -81,3 +81,60 @@ def lowest(lam: np.ndarray, k: int) -> np.ndarray:
     """The ``k`` eigenvalues of smallest modulus with omega >= 0 (one of each pair)."""
     keep = lam[lam.imag >= -1e-9]
     return np.asarray(keep[np.argsort(np.abs(keep))][:k])
+
+
+def eigenvalues_spans(
+    x0: End, xL: End, xs: float, K: float, u: float, beta: float, N: int = 32
+) -> np.ndarray:
+    """As :func:`eigenvalues` (no axial force) with an intermediate support at ``xs``: a pin
+    (``K`` = inf: eta = 0 on both sides) or a spring K = k L^3 / EI (eta continuous, the
+    shear jump eta'''(xs+) - eta'''(xs-) = -K eta); eta' and eta'' continuous.  Two
+    Chebyshev subdomains [0, xs] and [xs, 1] of N + 1 points each, the interface conditions
+    in the rows of the points nearest it (as the end conditions)."""
+    _, D = cheb(N)
+    n = N + 1
+    spans = ((0.0, xs), (xs, 1.0))
+    Ds = []
+    for a, b in spans:
+        D1 = -2.0 / (b - a) * D  # x = a + (b - a) (1 - t) / 2: x[0] = a, x[N] = b
+        Ds.append((np.eye(n), D1, D1 @ D1, D1 @ D1 @ D1, D1 @ D1 @ D1 @ D1))
+    m = 2 * n
+    A2, A1, A0 = np.eye(m), np.zeros((m, m)), np.zeros((m, m))
+    for s, (_, D1, D2, _, D4) in enumerate(Ds):
+        block = slice(s * n, (s + 1) * n)
+        A1[block, block] = 2.0 * u * math.sqrt(beta) * D1
+        A0[block, block] = D4 + u * u * D2
+    rows = [0, 1, N - 1, N, n, n + 1, n + N - 1, n + N]
+    for A in (A2, A1, A0):
+        A[rows] = 0.0
+
+    def row(s: int, k: int, j: int) -> np.ndarray:
+        out = np.zeros(m)
+        out[s * n : (s + 1) * n] = Ds[s][k][j]
+        return out
+
+    def end(spec: End, s: int, j: int, sign: float) -> list[np.ndarray]:
+        kind, kt, kr = spec
+        return {
+            "clamped": [row(s, 0, j), row(s, 1, j)],
+            "pinned": [row(s, 0, j), row(s, 2, j)],
+            "sliding": [row(s, 1, j), row(s, 3, j)],
+            "free": [row(s, 2, j), row(s, 3, j)],
+            "elastic": [row(s, 2, j) + sign * kr * row(s, 1, j),
+                        row(s, 3, j) - sign * kt * row(s, 0, j)],
+        }[kind]  # fmt: skip
+
+    A0[0], A0[1] = end(x0, 0, 0, -1.0)
+    A0[n + N - 1], A0[n + N] = end(xL, 1, N, 1.0)
+    if math.isinf(K):
+        first, second = row(0, 0, N), row(1, 0, 0)
+    else:
+        first = row(0, 0, N) - row(1, 0, 0)
+        second = row(1, 3, 0) - row(0, 3, N) + K * row(0, 0, N)
+    A0[N - 1], A0[N] = first, row(0, 1, N) - row(1, 1, 0)
+    A0[n], A0[n + 1] = second, row(0, 2, N) - row(1, 2, 0)
+    Z = np.zeros((m, m))
+    A = np.block([[Z, np.eye(m)], [-A0, -A1]])
+    B = np.block([[np.eye(m), Z], [Z, A2]])
+    lam = scipy.linalg.eig(A, B, right=False)
+    return np.asarray(lam[np.isfinite(lam) & (np.abs(lam) < 1e8)])

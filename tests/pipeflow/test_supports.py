@@ -240,6 +240,32 @@ def test_flow_against_collocation(x0: Support, xL: Support, tol: float) -> None:
     assert np.max(relative_errors(spectrum(pipe(x0, xL, 0.3), 40, 2.0), ref)) < tol
 
 
+@pytest.mark.parametrize(
+    ("xs", "K", "tol10", "tol40"),
+    [
+        (0.5, math.inf, 2e-5, 6e-8),  # measured 6.1e-6, 1.7e-8
+        (0.37, math.inf, 3e-5, 3e-8),  # 1.1e-5, 8.4e-9
+        (0.5, 100.0, 8e-6, 2e-7),  # 2.4e-6, 5.6e-8 (the collocation's own error)
+        (0.3, 1e3, 8e-6, 1e-7),  # 2.8e-6, 3.2e-8
+    ],
+)
+def test_intermediate_supports_with_flow_against_collocation(
+    xs: float, K: float, tol10: float, tol40: float
+) -> None:
+    """u = 2, beta = 0.3, pinned-pinned with a pin or a spring K = k L^3 / EI at xs: the
+    lowest three eigenvalues against a two-subdomain Chebyshev collocation of the strong
+    form (tests/pipeflow/collocation_supports.py, eigenvalues_spans: 32 points a span, its
+    own error ~1e-9 with a pin, ~5e-8 with a spring: 24 against 32 points).  Measured with
+    the spans' eigenfunctions at 10 / 40 modes in the comments; the Ritz basis before:
+    2.1e-4 / 1.3e-5, 4.4e-4 / 2.5e-5, 2.2e-5 / 1.2e-6, 1.6e-4 / 8.9e-6.  Tolerances about
+    three times the measured."""
+    ref = cs.lowest(cs.eigenvalues_spans(("pinned", 0, 0), ("pinned", 0, 0), xs, K, 2.0, 0.3), 3)
+    point = PointSupport(xs, pinned=True) if math.isinf(K) else PointSupport(xs, translational=K)
+    for n, tol in ((10, tol10), (40, tol40)):
+        galerkin = spectrum(pipe(P, P, 0.3, intermediate_supports=(point,)), n, 2.0)
+        assert np.max(relative_errors(galerkin, ref)) < tol, (n, xs, K)
+
+
 @pytest.mark.parametrize("gx", [10.0, -5.0])
 def test_gravity_against_collocation(gx: float) -> None:
     """Hanging (g_x = +10) and standing (-5) cantilever at u = 4, beta = 0.3 against the
