@@ -46,6 +46,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -117,13 +118,11 @@ def _fundamental(
     return _krylov(lam, xi, k) if krylov else _exponential(lam, xi, k, length)
 
 
-def _end_rows(spec: EndSpec, lam: FloatArray, at: float, krylov: bool) -> FloatArray:
-    """The two rows of B(lam) for the end at xi = ``at`` (0 or 1), each of unit norm:
-    shape (G, 2, 4) for the G values of ``lam``."""
+def _end_pair(spec: EndSpec, d: list[FloatArray], sign: float) -> tuple[FloatArray, FloatArray]:
+    """The two end conditions of ``spec`` on the derivatives ``d`` (k = 0..3) of the
+    fundamental solutions at the end; ``sign`` +1 at x = L, -1 at x = 0."""
     kind, kt, kr = spec
-    d = [np.asarray(_fundamental(lam, at, k, krylov).T) for k in range(4)]  # each (G, 4)
-    sign = 1.0 if at == 1.0 else -1.0
-    rows = {
+    return {
         "clamped": (d[0], d[1]),
         "pinned": (d[0], d[2]),
         "sliding": (d[1], d[3]),
@@ -131,7 +130,13 @@ def _end_rows(spec: EndSpec, lam: FloatArray, at: float, krylov: bool) -> FloatA
         # x = L: w'' = -K_r w', w''' = K_t w; x = 0: w'' = K_r w', w''' = -K_t w
         "elastic": (d[2] + sign * kr * d[1], d[3] - sign * kt * d[0]),
     }[kind]
-    out = np.stack(rows, axis=1)
+
+
+def _end_rows(spec: EndSpec, lam: FloatArray, at: float, krylov: bool) -> FloatArray:
+    """The two rows of B(lam) for the end at xi = ``at`` (0 or 1), each of unit norm:
+    shape (G, 2, 4) for the G values of ``lam``."""
+    d = [np.asarray(_fundamental(lam, at, k, krylov).T) for k in range(4)]  # each (G, 4)
+    out = np.stack(_end_pair(spec, d, 1.0 if at == 1.0 else -1.0), axis=1)
     return np.asarray(out / np.linalg.norm(out, axis=2, keepdims=True))
 
 
@@ -234,23 +239,39 @@ def end_support_modes(x0: EndSpec, xL: EndSpec, count: int) -> tuple[tuple[_Mode
 
 
 @dataclass(frozen=True, eq=False)
-class SupportBasis:
-    """``n`` orthonormal basis functions on [0, 1]: ``coef`` (n, N) times the end-support
-    eigenfunctions ``modes``; ``lam4`` the diagonal of the bending matrix (with the springs)
-    [-], i.e. (omega_j / sqrt(EI / (m L^4)))^2 of the bare beam with its supports."""
+class _Basis:
+    """``n`` orthonormal basis functions on [0, 1]: ``coef`` (n, N) times eigenfunctions
+    ``modes``; ``lam4`` the diagonal of the bending matrix (with the springs) [-], i.e.
+    (omega_j / sqrt(EI / (m L^4)))^2 of the bare beam with its supports."""
 
     n: int
-    modes: tuple[_Mode, ...]
+    modes: tuple[Any, ...]
     coef: FloatArray
     lam4: FloatArray
     #: ``{derivative: stations}`` the supports hold at zero: w at a clamped or pinned end
     #: and at a pin, w' at a clamped or sliding end (exactly 0 there, not rounding's 1e-15)
     held: tuple[tuple[int, tuple[float, ...]], ...] = ()
 
+    def _under(self, xi: FloatArray, derivative: int) -> FloatArray:
+        raise NotImplementedError
+
     def shapes(self, xi: FloatArray, derivative: int = 0) -> FloatArray:
         """d^k phi_j / dxi^k at ``xi`` [-], shape ``(n, len(xi))``; exactly 0 where a
         support holds that derivative (:attr:`held`)."""
         xi = np.atleast_1d(np.asarray(xi, dtype=float))
+        out = np.asarray(self.coef @ self._under(xi, derivative))
+        for k, stations in self.held:
+            if k == derivative:
+                out[:, np.isin(xi, stations)] = 0.0
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class SupportBasis(_Basis):
+    """The end supports' eigenfunctions ``modes`` (:func:`end_support_modes`), or the Ritz
+    basis of intermediate supports in their span (``coef`` then mixes them)."""
+
+    def _under(self, xi: FloatArray, derivative: int) -> FloatArray:
         lam = np.array([m.lam for m in self.modes])
         coef = np.array([m.coef for m in self.modes])  # (N, 4)
         under = np.empty((lam.size, xi.size))
@@ -259,11 +280,7 @@ class SupportBasis:
             if rows.any():
                 f = _fundamental(lam[rows, None], xi[None, :], derivative, krylov)  # (4, r, P)
                 under[rows] = np.einsum("ri,irp->rp", coef[rows], f)
-        out = np.asarray(self.coef @ under)
-        for k, stations in self.held:
-            if k == derivative:
-                out[:, np.isin(xi, stations)] = 0.0
-        return out
+        return under
 
     def quadrature(self, order: int) -> tuple[FloatArray, FloatArray]:
         """Nodes and weights on [0, 1] for the Galerkin integrals: Gauss-Legendre of
@@ -326,19 +343,6 @@ def _span_derivatives(lam: FloatArray, z: float, length: float, krylov: bool) ->
         f = [lam**4 * f[3], f[0], f[1], f[2]]
         out.append(np.stack(f, axis=-1))
     return out
-
-
-def _end_pair(spec: EndSpec, d: list[FloatArray], sign: float) -> tuple[FloatArray, FloatArray]:
-    """The two end conditions of ``spec`` on derivatives ``d`` (``sign`` +1 at x = L, -1 at
-    x = 0): see :func:`_end_rows`."""
-    kind, kt, kr = spec
-    return {
-        "clamped": (d[0], d[1]),
-        "pinned": (d[0], d[2]),
-        "sliding": (d[1], d[3]),
-        "free": (d[2], d[3]),
-        "elastic": (d[2] + sign * kr * d[1], d[3] - sign * kt * d[0]),
-    }[kind]
 
 
 def _span_matrix(
@@ -468,30 +472,14 @@ def _span_normalised(mode: _SpanMode) -> _SpanMode:
 
 
 @dataclass(frozen=True, eq=False)
-class SpanBasis:
-    """``n`` orthonormal eigenfunctions of the beam with its end and intermediate supports
-    (:class:`SupportBasis`' interface); ``lam4`` the diagonal of the bending matrix with the
-    springs [-]."""
+class SpanBasis(_Basis):
+    """The eigenfunctions of the beam with its end and intermediate supports ``modes``
+    (:class:`_SpanMode`); ``coef`` (n, n) is a rotation within clusters of nearly equal
+    eigenvalues, whose computed eigenfunctions are orthogonal only to eps / gap (the
+    identity to rounding elsewhere)."""
 
-    n: int
-    modes: tuple[_SpanMode, ...]
-    #: (n, n): the basis functions in terms of ``modes`` (a rotation within clusters of
-    #: nearly equal eigenvalues, whose computed eigenfunctions are orthogonal only to
-    #: eps / gap; the identity to rounding elsewhere)
-    coef: FloatArray
-    lam4: FloatArray
-    held: tuple[tuple[int, tuple[float, ...]], ...] = ()
-
-    def shapes(self, xi: FloatArray, derivative: int = 0) -> FloatArray:
-        """d^k phi_j / dxi^k at ``xi`` [-], shape ``(n, len(xi))``; exactly 0 where a
-        support holds that derivative."""
-        xi = np.atleast_1d(np.asarray(xi, dtype=float))
-        under = np.array([m.values(xi, derivative) for m in self.modes]).reshape(-1, xi.size)
-        out = np.asarray(self.coef @ under)
-        for k, stations in self.held:
-            if k == derivative:
-                out[:, np.isin(xi, stations)] = 0.0
-        return out
+    def _under(self, xi: FloatArray, derivative: int) -> FloatArray:
+        return np.array([m.values(xi, derivative) for m in self.modes]).reshape(-1, xi.size)
 
     def quadrature(self, order: int) -> tuple[FloatArray, FloatArray]:
         """Nodes and weights on [0, 1] for the Galerkin integrals: Gauss-Legendre on each
