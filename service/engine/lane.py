@@ -53,6 +53,34 @@ def run_in_lane(allowance_s: float | None, *args: Any) -> Outcome:
         return run_job(*args)
 
 
+class _ClaimChannel:
+    """How the lane's thread hands the record it wrote (its :class:`Claim`, or the
+    :class:`StorageError` that refused it) to the event loop: at once through ``future``,
+    or, ``quiet`` (a look-up flight), kept in ``quiet`` until the run has ended."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, quiet: bool) -> None:
+        self.loop = loop
+        self.future: asyncio.Future[Claim] = loop.create_future()
+        self.quiet: list[Claim | StorageError] | None = [] if quiet else None
+
+    def settle(self, result: Claim | StorageError) -> None:
+        """In the loop: the future's result (or exception), once."""
+        if self.future.done():
+            return
+        if isinstance(result, StorageError):
+            self.future.set_exception(result)
+        else:
+            self.future.set_result(result)
+
+    def on_claim(self, result: Claim | StorageError) -> None:
+        """In the lane's thread (:class:`Accept`'s callback)."""
+        if self.quiet is not None:
+            self.quiet.append(result)
+            return
+        with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
+            self.loop.call_soon_threadsafe(self.settle, result)
+
+
 class FastLane:
     """The lane's threads and what it counts: ``runs`` (computations it ran, tests and
     diagnostics), ``handoffs`` (of those, stopped by their allowance and sent to a
@@ -157,35 +185,13 @@ class FastLane:
         ``(None, None)`` when the lane does not take it or did not start.  Raises the
         :class:`StorageError` that refused the write."""
         taken, allowance = self.takes(flight.job, None)
-        loop = asyncio.get_running_loop()
         if not taken:  # (a look-up flight: the lane was taken meanwhile)
             return None, await flights.look_up(self.store, flight)
-        claimed: asyncio.Future[Claim] = loop.create_future()
-
-        def settle(result: Claim | StorageError) -> None:
-            if claimed.done():
-                return
-            if isinstance(result, StorageError):
-                claimed.set_exception(result)
-            else:
-                claimed.set_result(result)
-
-        # a look-up flight's request waits for the answer only (look_up_or_run): its
-        # claim is read once the run has ended, not sent to the loop mid-run (a wake-up of
-        # the event loop, contending for the GIL with the computation)
-        quiet: list[Claim | StorageError] | None = [] if flight.look_up else None
-
-        def on_claim(result: Claim | StorageError) -> None:  # in the lane's thread
-            if quiet is not None:
-                quiet.append(result)
-                return
-            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
-                loop.call_soon_threadsafe(settle, result)
-
+        claim = _ClaimChannel(asyncio.get_running_loop(), quiet=flight.look_up)
         accept = Accept(
             flight.job.canonical,
             force,
-            on_claim,
+            claim.on_claim,
             principal=flight.principal,
             cost=flight.cost,
             dispatcher=self.replica,
@@ -196,22 +202,35 @@ class FastLane:
             waiter = asyncio.ensure_future(result_of(run))
         except RuntimeError:  # the lane is shut down (the replica is stopping)
             return None, await flights.look_up(self.store, flight)
-        if quiet is None:
-            pending: set[asyncio.Future[Any]] = {claimed, waiter}
-            await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
-        else:
-            # until the run ends, or the monitor flags its record once written (the lane's
-            # watchdog failed an overrun: answered now, its thread abandoned)
-            while not waiter.done() and not quiet:
-                await flights.wait(flight, waiter, self.settings.stale_after_s / 4)
-            if not waiter.done():
-                flight.changed.set()  # the flag is the driving loop's to act on
-        if quiet:
-            settle(quiet[0])
-        if not claimed.done():  # the lane's run ended before writing anything
-            claimed.cancel()
+        await self._until_claimed(flight, claim, waiter)
+        if not claim.future.done():  # the lane's run ended before writing anything
+            claim.future.cancel()
             return None, await flights.look_up(self.store, flight)
-        claim = claimed.result()  # raises the StorageError
+        return await self._answer(claim.future.result(), waiter)  # (raises the StorageError)
+
+    async def _until_claimed(
+        self, flight: Flight, claim: _ClaimChannel, waiter: asyncio.Future[Outcome]
+    ) -> None:
+        """Until the record is written (the claim sent to the loop) or the run ends; a
+        look-up flight's request waits for the run only: its claim is read once the run
+        has ended, not sent mid-run (a wake-up of the event loop, contending for the GIL
+        with the computation), or once the monitor flags its record (the lane's watchdog
+        failed an overrun: answered now, its thread abandoned)."""
+        if claim.quiet is None:
+            pending: set[asyncio.Future[Any]] = {claim.future, waiter}
+            await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
+            return
+        while not waiter.done() and not claim.quiet:
+            await flights.wait(flight, waiter, self.settings.stale_after_s / 4)
+        if not waiter.done():
+            flight.changed.set()  # the flag is the driving loop's to act on
+        if claim.quiet:
+            claim.settle(claim.quiet[0])
+
+    async def _answer(
+        self, claim: Claim, waiter: asyncio.Future[Outcome]
+    ) -> tuple[Job | None, asyncio.Future[Outcome] | None]:
+        """:meth:`first`'s answer from the lane's claim of the new record."""
         match claim.outcome:
             case ClaimOutcome.HIT:  # found stored: nothing written, nothing computed
                 self.runs -= 1
