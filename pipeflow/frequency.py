@@ -52,6 +52,7 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import lapack
 
 from pipeflow import loads
 from pipeflow.basis import MAX_MODES
@@ -196,7 +197,8 @@ class Diagnostics:
     ``check_frequencies`` [rad/s]: where it was made (spread over the range, one near the
     first peak); ``max_relative_difference`` [-]: the largest ||H_modal - H_direct|| /
     ||H_direct|| over them (norms over the positions); ``eigenvector_condition`` [-] the
-    1-norm condition number of V (unit columns); ``method``: ``"modal"``, or ``"direct"``
+    1-norm condition number of V (unit columns), LAPACK's estimate (``zgecon``: exact or
+    within a small factor); ``method``: ``"modal"``, or ``"direct"``
     when the modal sum disagreed by more than :data:`FALLBACK_RTOL` and every frequency
     was solved directly.
     """
@@ -333,8 +335,14 @@ class _Operator:
     K: FloatArray
     xi: ComplexArray
     V_low: ComplexArray  # displacement rows of the right eigenvectors, (n, 2n)
-    W_left: ComplexArray  # V^-1, (2n, 2n)
+    V_lu: tuple[ComplexArray, NDArray[np.int32]]  # LU factors of V (LAPACK getrf)
     condition: float
+
+    def modal(self, b: ComplexArray) -> ComplexArray:
+        """V^-1 b: the modal coordinates of the state-space input ``b``."""
+        lu, piv = self.V_lu
+        out, _ = lapack.zgetrs(lu, piv, b)
+        return np.asarray(out)
 
 
 def _operator(pipe: Pipe, v: float, w0: float, modes: int) -> _Operator:
@@ -343,13 +351,15 @@ def _operator(pipe: Pipe, v: float, w0: float, modes: int) -> _Operator:
     A = model.state_matrix(c)[0]
     xi, V = np.linalg.eig(A)
     V = V / np.linalg.norm(V, axis=0, keepdims=True)
-    with np.errstate(all="ignore"):
-        W_left = np.linalg.solve(V, np.eye(V.shape[0], dtype=complex))
-        cond = float(np.linalg.norm(V, 1) * np.linalg.norm(W_left, 1))
+    # LU of V, and LAPACK's estimate of its 1-norm condition number (Hager-Higham: exact
+    # or within a small factor, without forming V^-1)
+    lu, piv, info = lapack.zgetrf(V)
+    rcond = lapack.zgecon(lu, float(np.linalg.norm(V, 1)), norm="1")[0] if info == 0 else 0.0
+    cond = 1.0 / rcond if rcond > 0 else math.inf
     n = modes
     C = model.C_0 + v * model.C_v
     K = model.K_0 + v * v * model.K_v2 + w0 * w0 * model.K_w2
-    return _Operator(model, model.M, C, K, xi, V[n:], W_left, cond)
+    return _Operator(model, model.M, C, K, xi, V[n:], (lu, piv), cond)
 
 
 def _generalised_force(model: PipeModel, load: Load, shape: FloatArray | None = None) -> FloatArray:
@@ -379,12 +389,16 @@ def _resonances(xi: ComplexArray, damped: bool) -> list[Resonance]:
     tol = 1e-9 * float(np.max(np.abs(xi)))
     numbers = mode_numbers(xi, damped)
     level = float(rounding_level(xi))
-    out = []
-    for i in np.flatnonzero(xi.imag > tol).tolist():
-        x = complex(xi[i])
-        mag = abs(x)
-        zeta = 0.0 if abs(x.real) <= level else -x.real / mag
-        out.append(Resonance(x, x.imag, mag, zeta, int(numbers[i])))
+    idx = np.flatnonzero(xi.imag > tol)
+    poles = xi[idx]
+    mags = np.abs(poles)
+    zetas = np.where(np.abs(poles.real) <= level, 0.0, -poles.real / mags)
+    out = [
+        Resonance(x, x.imag, mag, zeta, mode)
+        for x, mag, zeta, mode in zip(
+            poles.tolist(), mags.tolist(), zetas.tolist(), numbers[idx].tolist(), strict=True
+        )
+    ]
     return sorted(out, key=lambda r: (r.mode, r.frequency))
 
 
@@ -432,7 +446,7 @@ def frequency_grid(
 # -- responses --------------------------------------------------------------------------
 def _modal_sum(op: _Operator, out: FloatArray, b: ComplexArray, W: FloatArray) -> ComplexArray:
     """Phi_out V_low diag(1/(iW - xi)) V^-1 b for all W: (p x 2n) @ (2n x nW)."""
-    left = (out @ op.V_low) * (op.W_left @ b)[None, :]
+    left = (out @ op.V_low) * op.modal(b)[None, :]
     poles = 1j * W[None, :] - op.xi[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):  # W on an undamped pole
         # in place: a fresh array from ``1.0 / poles`` made the product that follows 4x
@@ -639,13 +653,13 @@ def frequency_response(
     if R is not None:
         hp = hp + R[:, None] * _residual_factor(pipe, Wp)[None, :]
     hp = np.abs(hp * _quantity_factor(quantity, Wp)[None, :])
-    peaks, k = [], 0
-    for r in inside:
-        if r.damping_ratio == 0.0:
-            mag = tuple(math.inf for _ in x)
-        else:
-            mag, k = tuple(float(m) for m in hp[:, k]), k + 1
-        peaks.append(Peak(r.frequency, r.natural_frequency, r.damping_ratio, r.mode, mag))
+    columns = iter(hp.T.tolist())
+    undamped = tuple(math.inf for _ in x)
+    peaks = [
+        Peak(r.frequency, r.natural_frequency, r.damping_ratio, r.mode,
+             undamped if r.damping_ratio == 0.0 else tuple(next(columns)))
+        for r in inside
+    ]  # fmt: skip
 
     unit = UNITS[quantity][load.unit_index]
     for arr in (W, x, H, op.xi):

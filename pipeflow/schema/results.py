@@ -478,8 +478,8 @@ class FrfDiagnostics(BaseModel):
         description="Largest ||H_modal - H_direct|| / ||H_direct|| over them [-]."
     )
     eigenvector_condition: float | None = Field(
-        description="1-norm condition number of the eigenvectors [-] (large: coalescing "
-        "eigenvalues)."
+        description="1-norm condition number of the eigenvectors [-], LAPACK's estimate "
+        "(large: coalescing eigenvalues)."
     )
     method: Literal["modal", "direct"] = Field(
         description="modal: the modal sum; direct: it disagreed by more than 1e-6, so every "
