@@ -449,7 +449,7 @@ def _bracketed_roots(
     return [float(v) for v in x]
 
 
-def _span_quadrature(edges: tuple[float, ...], order: int) -> tuple[FloatArray, FloatArray]:
+def span_quadrature(edges: tuple[float, ...], order: int) -> tuple[FloatArray, FloatArray]:
     """Gauss-Legendre on each span (its functions are analytic there; the third derivative
     jumps at a support): about ``order`` points per unit length, at least 24 a span."""
     xs, ws = [], []
@@ -462,7 +462,7 @@ def _span_quadrature(edges: tuple[float, ...], order: int) -> tuple[FloatArray, 
 
 def _span_normalised(mode: _SpanMode) -> _SpanMode:
     """Scale to integral phi^2 = 1, sign: the largest sample positive."""
-    xi, w = _span_quadrature(mode.edges, 32 * math.ceil((mode.lam + 60) / 32))  # (shared)
+    xi, w = span_quadrature(mode.edges, 32 * math.ceil((mode.lam + 60) / 32))  # (shared)
     v = mode.values(xi, 0)
     norm = math.sqrt(float(w @ (v * v)))
     grid = mode.values(np.linspace(0.0, 1.0, 401), 0)
@@ -484,7 +484,7 @@ class SpanBasis(_Basis):
     def quadrature(self, order: int) -> tuple[FloatArray, FloatArray]:
         """Nodes and weights on [0, 1] for the Galerkin integrals: Gauss-Legendre on each
         span (spectral; across a support the third derivative jumps)."""
-        return _span_quadrature(self.modes[0].edges, order)
+        return span_quadrature(self.modes[0].edges, order)
 
 
 def _span_modes(
@@ -500,7 +500,7 @@ def _span_modes(
     modes: list[_SpanMode] = []
     if rigid:
         raw = [_SpanMode(0.0, edges, tuple(map(tuple, v.reshape(S, 4)))) for v in vt[-rigid:]]
-        xi, w = _span_quadrature(edges, 16)
+        xi, w = span_quadrature(edges, 16)
         vals = np.array([m.values(xi, 0) for m in raw])
         c = np.linalg.cholesky((vals * w) @ vals.T)
         coefs = np.linalg.solve(c, vt[-rigid:])  # orthonormal rigid-body modes

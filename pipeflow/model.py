@@ -50,7 +50,7 @@ from pipeflow.basis import (
 )
 from pipeflow.beam_modes import support_basis
 from pipeflow.errors import InvalidInput
-from pipeflow.integrals import basis_shapes, mode_integrals
+from pipeflow.integrals import ModeIntegrals, basis_shapes, mode_integrals
 from pipeflow.loading import Coefficients, Integrals
 from pipeflow.supports import (
     CANTILEVER,
@@ -597,16 +597,36 @@ def _check_mass_conditioning(M: FloatArray, tip_mass_part: float, tip_inertia_pa
     )
 
 
-@lru_cache(maxsize=64)
-def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> PipeModel:
-    """Assemble the Galerkin model for ``n`` modes (cached per pipe, n and order).
+@dataclass(frozen=True)
+class SecondOrder:
+    """The model's second-order matrices on a set of basis functions (:func:`second_order`):
+    M [kg], C_0 [kg/s], C_v [kg/m], K_0 and K_bend [N/m], K_vdot [kg/m], K_v2 [kg/m^2],
+    K_w2 [kg], the spin-acceleration force F_wdot [kg m], and the functions' end values
+    ``tip`` [-] and slopes ``slope`` [1/m]."""
+
+    M: FloatArray
+    C_0: FloatArray
+    C_v: FloatArray
+    K_0: FloatArray
+    K_bend: FloatArray
+    K_vdot: FloatArray
+    K_v2: FloatArray
+    K_w2: FloatArray
+    F_wdot: FloatArray
+    tip: FloatArray
+    slope: FloatArray
+
+
+def second_order(pipe: Pipe, g: ModeIntegrals) -> SecondOrder:
+    """The second-order matrices of ``pipe`` from the Galerkin integrals ``g`` of its basis
+    (or of any functions on it: :mod:`pipeflow.enrichment`).
 
     The terms beyond the paper (damping, tip body, hub radius, out-of-plane) are derived in
     ``docs/model.md``; each is added only when its field is non-zero, so the paper's model
     gives the same arrays, bit for bit, as before they existed.
     """
+    n = g.n
     key = pipe.basis_key
-    g = mode_integrals(n, quadrature_order, key)
     L, m, M1, M2, EI = pipe.L, pipe.mass, pipe.M1, pipe.M2, pipe.EI
     R, mt, Jt = pipe.hub_radius, pipe.tip_mass, pipe.tip_inertia
     # dimensional integrals: dx = L dxi, d/dx = (1/L) d/dxi
@@ -661,7 +681,23 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
     if pipe.viscous:
         C_0 = C_0 + pipe.viscous * gram
 
-    _check_mass_conditioning(M, mt * float(tip @ tip), Jt * float(slope @ slope))
+    return SecondOrder(M, C_0, C_v, K_0, K_bend, K_vdot, K_v2, K_w2, F_wdot, tip, slope)
+
+
+@lru_cache(maxsize=64)
+def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> PipeModel:
+    """Assemble the Galerkin model for ``n`` modes (cached per pipe, n and order):
+    :func:`second_order` on the basis' integrals, then the balanced state-space form."""
+    key = pipe.basis_key
+    g = mode_integrals(n, quadrature_order, key)
+    L, m, EI = pipe.L, pipe.mass, pipe.EI
+    so = second_order(pipe, g)
+    M, K_bend = so.M, so.K_bend
+    tip_body = (
+        pipe.tip_mass * float(so.tip @ so.tip),
+        pipe.tip_inertia * float(so.slope @ so.slope),
+    )
+    _check_mass_conditioning(M, *tip_body)
     # M is diagonal up to rounding without a tip body (n <= 40): one solve for every block
     Minv = np.linalg.solve(M, np.eye(n))
     omega_ref = np.sqrt(np.diag(K_bend) / np.diag(M))
@@ -681,17 +717,19 @@ def build_model(pipe: Pipe, n: int, quadrature_order: int | None = None) -> Pipe
 
     zero = np.zeros((n, n))
     damped = bool(pipe.kelvin_voigt or pipe.viscous)
-    S_0 = balanced(-Minv @ C_0 if damped else zero, -Minv @ K_0, True)
-    S_v = balanced(-Minv @ C_v, zero, False)
-    S_vdot = balanced(zero, -Minv @ K_vdot, False)
-    S_v2 = balanced(zero, -Minv @ K_v2, False)
-    S_w2 = balanced(zero, -Minv @ K_w2, False)
-    f_wdot = np.concatenate([(Minv @ F_wdot) / omega_ref, np.zeros(n)])
-    arrays = [M, C_0, C_v, K_0, K_bend, K_vdot, K_v2, K_w2, F_wdot, omega_ref]
+    S_0 = balanced(-Minv @ so.C_0 if damped else zero, -Minv @ so.K_0, True)
+    S_v = balanced(-Minv @ so.C_v, zero, False)
+    S_vdot = balanced(zero, -Minv @ so.K_vdot, False)
+    S_v2 = balanced(zero, -Minv @ so.K_v2, False)
+    S_w2 = balanced(zero, -Minv @ so.K_w2, False)
+    f_wdot = np.concatenate([(Minv @ so.F_wdot) / omega_ref, np.zeros(n)])
+    arrays = [M, so.C_0, so.C_v, so.K_0, K_bend, so.K_vdot, so.K_v2, so.K_w2, so.F_wdot]
+    arrays.append(omega_ref)
     arrays += [S_0, S_v, S_vdot, S_v2, S_w2, f_wdot]
     for a in arrays:
         a.setflags(write=False)
     return PipeModel(
-        pipe, n, g.quadrature_order, M, C_0, C_v, K_0, K_vdot, K_v2, K_w2, F_wdot, omega_ref,
-        S_0, S_v, S_vdot, S_v2, S_w2, f_wdot, tip, None if K_bend is K_0 else K_bend,
+        pipe, n, g.quadrature_order, M, so.C_0, so.C_v, so.K_0, so.K_vdot, so.K_v2, so.K_w2,
+        so.F_wdot, omega_ref, S_0, S_v, S_vdot, S_v2, S_w2, f_wdot, so.tip,
+        None if K_bend is so.K_0 else K_bend,
     )  # fmt: skip

@@ -29,11 +29,12 @@ static correction of the modes the Galerkin sum leaves out).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from functools import lru_cache
 
 import numpy as np
 from numpy.polynomial import chebyshev as C
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import BarycentricInterpolator
 
 from pipeflow.model import Pipe
 from pipeflow.supports import spin_axial_force, static_axial_force
@@ -44,15 +45,35 @@ FloatArray = NDArray[np.float64]
 COLLOCATION_POINTS = 24
 
 
+@lru_cache(maxsize=8)
 def _integration(N: int) -> tuple[FloatArray, FloatArray]:
     """Chebyshev points t_j = -cos(pi j / N) on [-1, 1] (from -1 to 1) and the matrix Q
     with (Q g)_j = integral from -1 to t_j of the interpolant of g at the points (through
     the Chebyshev coefficients; cumulative integration is well conditioned, unlike powers
     of the differentiation matrix)."""
-    t = -np.cos(np.pi * np.arange(N + 1) / N)
+    t: FloatArray = -np.cos(np.pi * np.arange(N + 1) / N)
     coef = np.linalg.solve(C.chebvander(t, N), np.eye(N + 1))  # values -> coefficients
-    Q = C.chebval(t, C.chebint(coef, lbnd=-1.0)).T
-    return t, np.asarray(Q)
+    Q: FloatArray = np.asarray(C.chebval(t, C.chebint(coef, lbnd=-1.0)).T, dtype=float)
+    t.setflags(write=False)
+    Q.setflags(write=False)
+    return t, Q
+
+
+def _interpolation(t: FloatArray, to: FloatArray) -> FloatArray:
+    """The matrix taking values at the Chebyshev points ``t`` (-cos(pi j / N)) to the
+    interpolant's values at ``to`` (both on [-1, 1]): the barycentric formula with the
+    points' own weights (-1)^j, halved at the ends (Berrut & Trefethen, SIAM Rev. 46, 2004)."""
+    w = (-1.0) ** np.arange(t.size)
+    w[0] *= 0.5
+    w[-1] *= 0.5
+    diff = to[:, None] - t[None, :]
+    exact = diff == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = w[None, :] / diff
+        P = terms / terms.sum(axis=1, keepdims=True)
+    hit = exact.any(axis=1)
+    P[hit] = exact[hit].astype(float)
+    return np.asarray(P)
 
 
 def statics_cover(pipe: Pipe) -> bool:
@@ -81,6 +102,35 @@ def _domain(
     return xi, maps
 
 
+class StaticSolution:
+    """A solved static problem (:func:`static_solution`): the deflection and its
+    derivatives anywhere on [0, L] by the subdomains' Chebyshev interpolants."""
+
+    def __init__(
+        self, L: float, EI: float, edges: list[float], nodes: FloatArray, values: list[FloatArray]
+    ) -> None:
+        self.L, self.EI = L, EI
+        self._edges = np.asarray(edges)
+        self._t = nodes
+        #: per subdomain, (5, points): w^(r) at its points, xi = x / L, w = u EI / L^3
+        self._values = values
+
+    def at(self, positions: ArrayLike, derivative: int = 0) -> FloatArray:
+        """d^r u / dx^r at ``positions`` x [m] in [0, L], r = 0..3 [m^(1-r) per unit load]
+        (non-finite where the static problem is singular)."""
+        xo = np.atleast_1d(np.asarray(positions, dtype=float)) / self.L
+        K = len(self._values)
+        where = np.clip(np.searchsorted(self._edges, xo, side="right") - 1, 0, K - 1)
+        out = np.empty(xo.size)
+        for k in range(K):
+            sel = where == k
+            if np.any(sel):
+                x0, x1 = self._edges[k], self._edges[k + 1]
+                to = 2.0 * (xo[sel] - x0) / (x1 - x0) - 1.0
+                out[sel] = _interpolation(self._t, to) @ self._values[k][derivative]
+        return np.asarray(out * self.L ** (3 - derivative) / self.EI)
+
+
 def static_deflection(
     pipe: Pipe,
     velocity: float,
@@ -90,10 +140,25 @@ def static_deflection(
     force_at: float | None,
     N: int = COLLOCATION_POINTS,
 ) -> FloatArray:
-    """Static deflection u(x) [m per unit load] at ``positions`` x [m] in [0, L].
+    """Static deflection u(x) [m per unit load] at ``positions`` x [m] in [0, L]
+    (:func:`static_solution`)."""
+    return static_solution(pipe, velocity, omega0, force_at=force_at, N=N).at(positions)
+
+
+def static_solution(
+    pipe: Pipe,
+    velocity: float,
+    omega0: float,
+    *,
+    force_at: float | None,
+    N: int = COLLOCATION_POINTS,
+    density: Callable[[FloatArray], FloatArray] | None = None,
+) -> StaticSolution:
+    """The static deflection of ``pipe`` per unit load (:class:`StaticSolution`).
 
     ``force_at`` a [m] in (0, L]: a unit transverse force [N] there (u in m/N);
-    ``None``: a unit acceleration [m/s^2] of the supports (u relative to them, in s^2).
+    ``None``: a unit acceleration [m/s^2] of the supports (u relative to them, in s^2), or
+    with ``density`` the distributed load q(x) [N/m per unit load] it gives at x [m].
     ``velocity`` v [m/s] and ``omega0`` w0 [rad/s] set the frozen operating point.
     Any end supports and springs, intermediate pins and springs (a spring as stiff as
     :data:`pipeflow.supports.RIGID_POINT_SPRING` is a pin, as in the model), the axial force
@@ -107,17 +172,16 @@ def static_deflection(
     w2 = float(omega0) ** 2
     v2 = float(velocity) ** 2
     x0_end, xL_end = pipe.supports.x0, pipe.supports.xL
-    xo = np.atleast_1d(np.asarray(positions, dtype=float)) / L
     at_tip = force_at is not None and force_at >= L
+    t, Q0 = _integration(N)
     if at_tip and xL_end.fixes_deflection:
         # a force on a support that holds the deflection is its reaction: no deflection
-        return np.zeros(xo.size)
+        return StaticSolution(L, EI, [0.0, 1.0], t, [np.zeros((5, t.size))])
     key = pipe.basis_key
     springs = dict(key[2]) if key is not None else {}  # xi -> K = k L^3 / EI (inf: a pin)
     a_load = None if (force_at is None or at_tip) else float(force_at) / L
     breaks = sorted(set(springs) | ({a_load} if a_load is not None else set()))
     edges = [0.0, *breaks, 1.0]
-    t, Q0 = _integration(N)
     n = N + 1
     size = n + 4
     K = len(edges) - 1  # subdomains
@@ -143,7 +207,9 @@ def static_deflection(
             - (dN * L**3 / EI)[:, None] * maps[1]
             - s * m * w2 * L**4 / EI * maps[0]
         )
-        if force_at is None:
+        if density is not None:
+            rhs[rows] = density(xi * L) * L
+        elif force_at is None:
             rhs[rows] = -m * L
     row = K * n
     for k, b in enumerate(breaks):  # the interface between subdomains k and k + 1
@@ -184,7 +250,7 @@ def static_deflection(
             conds = (w2_ + sign * Kr * w1, shear - sign * Kt * w + pull * w)
         if sign > 0 and at_tip:  # the tip's shear condition carries the force F_L = 1
             rhs[at + 1] = -1.0
-        elif sign > 0 and force_at is None and kind in ("free", "elastic"):
+        elif sign > 0 and force_at is None and density is None and kind in ("free", "elastic"):
             rhs[at + 1] = mt  # F_L = -m_t A, A = 1
         A[at, c], A[at + 1, c] = conds
     with np.errstate(all="ignore"):
@@ -192,13 +258,10 @@ def static_deflection(
             z = np.linalg.solve(A, rhs)
         except np.linalg.LinAlgError:
             z = np.full(K * size, np.nan)
-    out = np.empty(xo.size)
-    where = np.clip(np.searchsorted(np.asarray(edges), xo, side="right") - 1, 0, K - 1)
-    for k, (xi, maps) in enumerate(doms):
-        sel = where == k
-        if np.any(sel):
-            out[sel] = BarycentricInterpolator(xi, maps[0] @ z[cols[k]])(xo[sel])
-    return np.asarray(out * L**3 / EI)
+    values = [
+        np.array([maps[r] @ z[cols[k]] for r in range(5)]) for k, (_, maps) in enumerate(doms)
+    ]
+    return StaticSolution(L, EI, edges, t, values)
 
 
 def truncation_residual(
