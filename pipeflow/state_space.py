@@ -44,9 +44,9 @@ from pipeflow.frequency import (
     _check_positions,
     _check_quantity,
     _generalised_force,
-    _operator,
     residual_part,
 )
+from pipeflow.frequency_operator import operator_at
 from pipeflow.loading import Coefficients
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, basis_caveats
 from pipeflow.spectra import max_growth_rates
@@ -112,7 +112,7 @@ def state_space(
     load = _check_load(pipe, load)
     x = _check_positions(pipe, positions)
     quantity = _check_quantity(quantity)
-    op = _operator(pipe, v, w0, n)
+    op = operator_at(pipe, v, w0, n)
     model = op.model
     c = Coefficients(np.array([v]), np.zeros(1), np.array([w0 * w0]), np.zeros(1))
     A = np.asarray(model.state_matrix(c)[0], dtype=float)

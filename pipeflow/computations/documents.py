@@ -564,6 +564,7 @@ def frequency_point(fr: FrequencyResponse) -> dict[str, Any]:
             "eigenvector_condition": d.eigenvector_condition,
             "method": d.method,
             "residual_flexibility": fr.residual,
+            "load_vectors": fr.load_vectors,
         },
         "warnings": list(fr.warnings),
     }

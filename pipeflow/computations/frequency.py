@@ -47,6 +47,7 @@ def frequency_responses(
                 quantity=spec.response.quantity,
                 modes=spec.modes,
                 residual=spec.residual_flexibility,
+                load_vectors=spec.load_vectors,
             )
         )
         if progress is not None:

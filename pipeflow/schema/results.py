@@ -490,6 +490,12 @@ class FrfDiagnostics(BaseModel):
         description="True when the static response of the truncated modes (residual "
         "flexibility, m/N or s^2 per unit load) is included in H.",
     )
+    load_vectors: int = Field(
+        0,
+        description="Load-dependent Ritz vectors added to the modes [-] (the request's "
+        "load_vectors, less any that the modes already contain); the eigenvalues are then "
+        "the modes', the vectors' own left out.",
+    )
 
 
 class FrfOperatingPoint(BaseModel):

@@ -171,6 +171,29 @@ def test_residual_flexibility_switch(api: TestClient) -> None:
     assert tip0 == pytest.approx(exact, rel=1e-12)
 
 
+def test_load_vectors_over_http(api: TestClient) -> None:
+    """``load_vectors`` reaches the library (the same H as its call, to the document's
+    rounding), is reported in the diagnostics, and is part of the key; left out (0) the
+    request keeps the key it had before the field."""
+    values = [0.0, 100.0, 900.0]
+    base = _body()
+    base["frequencies"] = {"values": values}
+    plain = api.post("/v1/frequency-responses", json=base)
+    enriched = api.post("/v1/frequency-responses", json={**base, "load_vectors": 2})
+    zero = api.post("/v1/frequency-responses", json={**base, "load_vectors": 0})
+    assert plain.status_code == enriched.status_code == zero.status_code == 200, enriched.text
+    assert zero.json()["key"] == plain.json()["key"] != enriched.json()["key"]
+    (point,) = enriched.json()["operating_points"]
+    assert point["diagnostics"]["load_vectors"] == 2
+    assert plain.json()["operating_points"][0]["diagnostics"]["load_vectors"] == 0
+    v, w0 = HAMMER["flow"]["velocity"]["value"], HAMMER["rotation"]["omega0"]["value"]
+    ref = frequency_response(
+        PAPER_PIPE, v, w0, load=PointForce(L), positions=[L], frequencies=values, modes=6,
+        load_vectors=2,
+    )  # fmt: skip
+    _same(point["responses"][0]["real"], ref.H[0].real)
+
+
 def test_explicit_values_are_answered_at_exactly_those_frequencies(api: TestClient) -> None:
     values = [2000.0, 50.0, 244.0, 0.0]
     doc = api.post("/v1/frequency-responses", json=_body(frequencies={"values": values})).json()
@@ -288,6 +311,8 @@ def test_unstable_point_is_answered_with_stable_false_and_a_warning(api: TestCli
             "frequencies.count",
         ),
         ({"modes": 41}, "modes"),
+        ({"load_vectors": 4}, "load_vectors"),
+        ({"load_vectors": 1, "residual_flexibility": True}, "load_vectors"),
     ],
 )
 def test_bad_input_is_a_422_naming_the_field(
