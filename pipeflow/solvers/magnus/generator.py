@@ -62,16 +62,17 @@ class MagnusGenerator:
         N = model.size
         self.size = N + (1 if self.forced else 0)
         pieces = model.state_pieces
-        if self.jordan:
-            self.basis = pieces.reshape(pieces.shape[0], -1)
-            return
-        extra = 1 if self.spin_forced else 0
-        basis = np.zeros((len(pieces) + extra, self.size, self.size))
-        basis[: len(pieces), :N, :N] = pieces
-        if self.spin_forced:
-            basis[len(pieces), :N, N] = model.f_wdot / scale
+        if self.jordan:  # the state alone: the forcing is the generator's border
+            basis = np.asarray(pieces)
+        else:
+            extra = 1 if self.spin_forced else 0
+            basis = np.zeros((len(pieces) + extra, self.size, self.size))
+            basis[: len(pieces), :N, :N] = pieces
+            if self.spin_forced:
+                basis[len(pieces), :N, N] = model.f_wdot / scale
         self.basis = basis.reshape(basis.shape[0], -1)
-        # order 4 without loads: A = sum_i c_i B_i makes the commutator bilinear,
+        # order 4 (with loads: the homogeneous block): A = sum_i c_i B_i makes the
+        # commutator bilinear,
         # [A_2, A_1] = sum_{i<j} (c2_i c1_j - c2_j c1_i) [B_i, B_j], so Omega4 of many steps
         # is one product of their (P + P(P-1)/2) coefficients with the pieces and the
         # pieces' commutators (no A at the nodes, no batched 20 x 20 products)
@@ -144,19 +145,23 @@ class MagnusGenerator:
         (:func:`forced_omega`), of size N + FORCING_NODES[order]."""
         k = starts.size
         n = self.model.size if self.jordan else self.size
-        if order == 4 and not self.jordan:
+        if order == 4:
+            if weights is None and (coefficients is None or self.jordan):
+                weights = self.node_weights(starts, h, order)
             if coefficients is None:
-                if weights is None:
-                    weights = self.node_weights(starts, h, order)
+                assert weights is not None
                 coefficients = self.omega4_coefficients(h, weights)
-            return np.asarray(coefficients @ self._omega4_basis).reshape(k, n, n)
+            omega = np.asarray(coefficients @ self._omega4_basis).reshape(k, n, n)
+            if not self.jordan:
+                return omega
+            assert weights is not None
+            variation = ((weights[1] - weights[0]) @ self.basis).reshape(k, n, n)  # A_2 - A_1
+            return forced_omega4(self, omega, variation, starts, h)
         if weights is None:
             weights = self.node_weights(starts, h, order)
         A = (weights.reshape(-1, weights.shape[-1]) @ self.basis).reshape(-1, n, n)
         if self.jordan:
             return forced_omega(self, A, starts, h, order)
-        if order == 4:
-            return magnus4_omega(A[:k], A[k:], h)
         return np.asarray(magnus6_omega(A[:k], A[k : 2 * k], A[2 * k :], h))
 
     def propagators(self, omega: FloatArray) -> FloatArray:
@@ -215,6 +220,39 @@ FORCING_NODES = {4: 4, 6: 6}
 FORCING_BASIS = {q: _forcing_basis(q) for q in FORCING_NODES.values()}
 
 
+def _bordered(
+    gen: MagnusGenerator, starts: FloatArray, h: FloatArray, order: int
+) -> tuple[FloatArray, FloatArray]:
+    """The bordered generators' frame (k, N + q, N + q) with the shift J in place, and the
+    forcing polynomial's coefficients C (k, N, q) of each step (:func:`forced_omega`)."""
+    k, N = starts.size, gen.model.size
+    q = FORCING_NODES[order]
+    tau, Vinv = FORCING_BASIS[q]
+    F = gen.forcing(np.concatenate([starts + g * h for g in tau])).reshape(q, k, N)
+    C = (Vinv @ F.reshape(q, k * N)).reshape(q, k, N).transpose(1, 2, 0)  # (k, N, q)
+    out = np.zeros((k, N + q, N + q))
+    out[:, N + 1 :, N : N + q - 1] = np.eye(q - 1)  # J: w_j' = w_{j-1}
+    return out, C
+
+
+def forced_omega4(
+    gen: MagnusGenerator,
+    omega: FloatArray,
+    variation: FloatArray,
+    starts: FloatArray,
+    h: FloatArray,
+) -> FloatArray:
+    """:func:`forced_omega` at order 4 from the homogeneous generator ``omega`` (k, N, N)
+    and A's variation over the step A_2 - A_1 (``variation``): [[Omega, Y], [0, J]] with
+    Y = h C + sqrt(3)/12 h^2 (A_2 - A_1) C."""
+    out, C = _bordered(gen, starts, h, 4)
+    N = gen.model.size
+    hh = np.asarray(h, dtype=float)[:, None, None]
+    out[:, :N, :N] = omega
+    out[:, :N, N:] = hh * C + (COMMUTATOR_FACTOR * hh * hh) * (variation @ C)
+    return out
+
+
 def forced_omega(
     gen: MagnusGenerator, A: FloatArray, starts: FloatArray, h: FloatArray, order: int
 ) -> FloatArray:
@@ -234,19 +272,12 @@ def forced_omega(
     exp((1 - tau) Omega) p(tau)).  ``A`` are the state matrices at the Magnus nodes
     (stacked node-major), ``h`` the step lengths; the state's constant c is in C.
     """
-    k, N = starts.size, gen.model.size
-    q = FORCING_NODES[order]
-    tau, Vinv = FORCING_BASIS[q]
-    F = gen.forcing(np.concatenate([starts + g * h for g in tau])).reshape(q, k, N)
-    C = (Vinv @ F.reshape(q, k * N)).reshape(q, k, N).transpose(1, 2, 0)  # (k, N, q)
-    hh = np.asarray(h, dtype=float)[:, None, None]
-    out = np.zeros((k, N + q, N + q))
-    out[:, N + 1 :, N : N + q - 1] = np.eye(q - 1)  # J: w_j' = w_{j-1}
+    k = starts.size
     if order == 4:
-        A1, A2 = A[:k], A[k:]
-        out[:, :N, :N] = magnus4_omega(A1, A2, h)
-        out[:, :N, N:] = hh * C + (COMMUTATOR_FACTOR * hh * hh) * ((A2 - A1) @ C)
-        return out
+        return forced_omega4(gen, magnus4_omega(A[:k], A[k:], h), A[k:] - A[:k], starts, h)
+    out, C = _bordered(gen, starts, h, order)
+    N = gen.model.size
+    hh = np.asarray(h, dtype=float)[:, None, None]
     # order 6: the generic three-node generator of the bordered matrices (tau units)
     Ab = np.repeat(out[None], 3, axis=0)
     Ab[:, :, :N, :N] = hh[None] * A.reshape(3, k, N, N)
