@@ -549,7 +549,7 @@ def frequency_response(
         tip force at 10 modes from 7e-3 to 1e-5 at the first resonances (v = 10 m/s,
         w0 = 100 rad/s on the paper's pipe).  It takes the place of ``residual`` (True is
         refused with it); it costs two static solves and an eigen-decomposition two sizes
-        up (about 1 ms at 10 modes).  Where the static problem has no solution (a rigid
+        up (about 1.3 ms at 10 modes).  Where the static problem has no solution (a rigid
         rotation, divergence) the modes alone answer, with a warning.
 
     Returns a :class:`FrequencyResponse`, H of shape (positions, frequencies).
