@@ -10,7 +10,8 @@ load-dependent Ritz vectors; Dickens, Nakagawa & Wittbrodt, *Comput. Struct.* 62
 modal truncation augmentation) with
 
     psi_1 = K^-1 f                (the continuous pipe's static deflection under the load),
-    psi_(k+1) = K^-1 (m psi_k)    (its response to the inertia of the previous vector),
+    psi_(k+1) = K^-1 (M psi_k)    (its response to the inertia of the previous vector:
+                                   m psi_k along the pipe, m_t psi_k(L) on a tip mass),
 
 each the exact static solution of the continuous problem
 (:func:`pipeflow.statics.static_deflection`: flow, spin, supports, springs, axial loads),
@@ -56,8 +57,19 @@ def load_vectors(
         return None
     out = [first]
     for _ in range(count - 1):
-        inertia = _Inertia(pipe.mass, out[-1])
-        out.append(static_solution(pipe, velocity, omega0, force_at=None, density=inertia))
+        before = out[-1]
+        # the inertia of the previous vector: the pipe's, and the tip mass's at L
+        tip = pipe.tip_mass * float(before.at(np.array([pipe.L]))[0])
+        out.append(
+            static_solution(
+                pipe,
+                velocity,
+                omega0,
+                force_at=None,
+                density=_Inertia(pipe.mass, before),
+                tip_force=tip,
+            )
+        )
     return out
 
 

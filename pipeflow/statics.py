@@ -153,12 +153,14 @@ def static_solution(
     force_at: float | None,
     N: int = COLLOCATION_POINTS,
     density: Callable[[FloatArray], FloatArray] | None = None,
+    tip_force: float = 0.0,
 ) -> StaticSolution:
     """The static deflection of ``pipe`` per unit load (:class:`StaticSolution`).
 
     ``force_at`` a [m] in (0, L]: a unit transverse force [N] there (u in m/N);
     ``None``: a unit acceleration [m/s^2] of the supports (u relative to them, in s^2), or
-    with ``density`` the distributed load q(x) [N/m per unit load] it gives at x [m].
+    with ``density`` the distributed load q(x) [N/m per unit load] it gives at x [m] and
+    ``tip_force`` [N per unit load] on a free or elastic end at L.
     ``velocity`` v [m/s] and ``omega0`` w0 [rad/s] set the frozen operating point.
     Any end supports and springs, intermediate pins and springs (a spring as stiff as
     :data:`pipeflow.supports.RIGID_POINT_SPRING` is a pin, as in the model), the axial force
@@ -250,8 +252,8 @@ def static_solution(
             conds = (w2_ + sign * Kr * w1, shear - sign * Kt * w + pull * w)
         if sign > 0 and at_tip:  # the tip's shear condition carries the force F_L = 1
             rhs[at + 1] = -1.0
-        elif sign > 0 and force_at is None and density is None and kind in ("free", "elastic"):
-            rhs[at + 1] = mt  # F_L = -m_t A, A = 1
+        elif sign > 0 and force_at is None and kind in ("free", "elastic"):
+            rhs[at + 1] = -tip_force if density is not None else mt  # F_L = -m_t A, A = 1
         A[at, c], A[at + 1, c] = conds
     with np.errstate(all="ignore"):
         try:
