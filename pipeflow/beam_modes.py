@@ -24,7 +24,7 @@ solutions.  Two forms of the f_i are used, each where it is well conditioned:
 The end conditions give a 4 x 4 matrix B(lambda) (each row scaled to unit norm); its
 determinant is a real entire function of lambda whose roots are the eigenvalues.  They are
 bracketed on a grid (geometric from 1e-4 to 4, then steps of 0.02) and refined by Brent's
-method to rounding; rigid-body modes (lambda = 0) are the null space of B(0).  A spring
+method to rounding; rigid-body modes (lambda = 0) are the lines the supports leave.  A spring
 with K_t = k_t L^3/EI or K_r = k_r L/EI below :data:`SPRING_FLOOR` is no spring (its
 frequency would be below 1e-3 of the beam's first).
 
@@ -213,17 +213,37 @@ def _normalised(mode: _Mode) -> _Mode:
     return _Mode(mode.lam, tuple(float(c) * sign / norm for c in mode.coef))
 
 
+def rigid_lines(
+    x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...]
+) -> list[tuple[float, float]]:
+    """The rigid-body modes (lambda = 0) of the supports as lines a + b xi, (a, b): zero
+    bending and spring energy leaves a straight line with w = 0 at every pin, translational
+    spring and pinned or clamped end, and w' = 0 at a clamped, sliding or rotationally
+    sprung end.  Counted from the supports, not from the rank of B(0): two supports close
+    together (a pin 1e-6 L from a clamp) make B(0) nearly singular although they leave no
+    rigid mode."""
+    at: set[float] = {xs for xs, k in points if k >= SPRING_FLOOR}
+    slope = False
+    for end, (kind, kt, kr) in ((0.0, x0), (1.0, xL)):
+        if kind in ("clamped", "pinned") or (kind == "elastic" and kt >= SPRING_FLOOR):
+            at.add(end)
+        if kind in ("clamped", "sliding") or (kind == "elastic" and kr >= SPRING_FLOOR):
+            slope = True
+    if len(at) + slope >= 2:
+        return []
+    if at:
+        return [(-at.pop(), 1.0)]  # a rotation about the one support
+    return [(1.0, 0.0)] if slope else [(1.0, 0.0), (0.0, 1.0)]
+
+
 @lru_cache(maxsize=32)
 def end_support_modes(x0: EndSpec, xL: EndSpec, count: int) -> tuple[tuple[_Mode, ...], FloatArray]:
     """The first ``count`` eigenfunctions of the beam with end conditions ``x0``, ``xL``
     (normalised, ascending) and their lambda_j^4 [-] (0 for a rigid-body mode)."""
     x0, xL = _clean(x0), _clean(xL)
-    B0 = _matrix(x0, xL, np.zeros(1), True)[0]
-    _, s, vt = np.linalg.svd(B0)
-    rigid = int(np.sum(s <= 1e-12 * s[0]))
     modes: list[_Mode] = []
-    if rigid:
-        polys = vt[-rigid:]
+    if lines := rigid_lines(x0, xL, ()):
+        polys = np.array([(a, b, 0.0, 0.0) for a, b in lines])  # Krylov form at lambda = 0
         xi, w = gauss_legendre_unit(16)
         vals = polys @ _krylov(0.0, xi, 0)
         c = np.linalg.cholesky((vals * w) @ vals.T)
@@ -494,16 +514,18 @@ def _span_modes(
     edges = (0.0, *(xs for xs, _ in points), 1.0)
     lengths = np.diff(edges)
     S = lengths.size
-    B0 = _span_matrix(x0, xL, points, np.zeros(1), (True,) * S)[0]
-    _, sv, vt = np.linalg.svd(B0)
-    rigid = int(np.sum(sv <= 1e-12 * sv[0]))
+    lines = rigid_lines(x0, xL, points)
     modes: list[_SpanMode] = []
-    if rigid:
-        raw = [_SpanMode(0.0, edges, tuple(map(tuple, v.reshape(S, 4)))) for v in vt[-rigid:]]
+    if lines:
+        # on span s (Krylov form at lambda = 0: 1, xi, xi^2/2, xi^3/6 from e_s) the line
+        # a + b xi has the coefficients (a + b e_s, b, 0, 0)
+        vt = np.array([[c for e in edges[:-1] for c in (a + b * e, b, 0.0, 0.0)]
+                       for a, b in lines])  # fmt: skip
+        raw = [_SpanMode(0.0, edges, tuple(map(tuple, v.reshape(S, 4)))) for v in vt]
         xi, w = span_quadrature(edges, 16)
         vals = np.array([m.values(xi, 0) for m in raw])
         c = np.linalg.cholesky((vals * w) @ vals.T)
-        coefs = np.linalg.solve(c, vt[-rigid:])  # orthonormal rigid-body modes
+        coefs = np.linalg.solve(c, vt)  # orthonormal rigid-body modes
         modes += [
             _span_normalised(_SpanMode(0.0, edges, tuple(map(tuple, v.reshape(S, 4)))))
             for v in coefs

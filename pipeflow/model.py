@@ -48,7 +48,7 @@ from pipeflow.basis import (
     cantilever_roots,
     paper_scale,
 )
-from pipeflow.beam_modes import support_basis
+from pipeflow.beam_modes import rigid_lines, support_basis
 from pipeflow.errors import InvalidInput
 from pipeflow.integrals import ModeIntegrals, basis_shapes, mode_integrals
 from pipeflow.loading import Coefficients, Integrals
@@ -180,14 +180,11 @@ class Pipe:
 
     @property
     def rotates_rigidly(self) -> bool:
-        """True when the pipe can rotate as a rigid body about one support: a pinned end, or
-        an elastic one without rotational spring, opposite a free end, with no intermediate
-        support (a zero eigenvalue at every velocity)."""
+        """True when the pipe can rotate as a rigid body about one support (a zero
+        eigenvalue at every velocity): a pinned end, or an elastic one without rotational
+        spring, opposite a free end; or a free-free pipe on one intermediate support."""
         key = self.basis_key
-        if key is None or key[2] or "free" not in (key[0][0], key[1][0]):
-            return False
-        held = key[0] if key[1][0] == "free" else key[1]
-        return held[0] == "pinned" or (held[0] == "elastic" and held[2] == 0.0)
+        return key is not None and bool(rigid_lines(*key))
 
     @property
     def has_static_axial_force(self) -> bool:

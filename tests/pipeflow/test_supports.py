@@ -411,6 +411,43 @@ def test_the_basis_of_many_unequal_spans() -> None:
         beam_modes.support_basis.cache_clear()
 
 
+@pytest.mark.parametrize("eps", [1e-3, 1e-4, 2.5e-6])
+def test_a_pin_next_to_the_clamp_is_a_rotational_spring(eps: float) -> None:
+    """A pin at eps L next to the clamp leaves no rigid-body mode (before, the rank of B(0)
+    counted one: natural frequencies [0, 290.8, ...] for a pin at 2.5e-6 L on the paper's
+    pipe).  The short clamped-pinned span is a rotational spring 4 EI / (eps L) at the
+    root of a cantilever of length (1 - eps) L (statics; its inertia enters at
+    (lambda eps)^4 < 1e-11): the exact basis agrees with that cantilever's exact one to
+    1e-12 (measured 3e-14)."""
+    C_, F_ = ("clamped", 0.0, 0.0), ("free", 0.0, 0.0)
+    b = support_basis(6, C_, F_, ((eps, math.inf),))
+    rest = 1.0 - eps
+    # a translational spring of 1e16 is a pin to rounding
+    from pipeflow.beam_modes import end_support_modes
+
+    _, lam4 = end_support_modes(("elastic", 1e16, 4.0 * rest / eps), F_, 6)
+    assert b.lam4**0.25 == pytest.approx(lam4**0.25 / rest, rel=1e-12)
+
+
+def test_two_pins_close_together_leave_no_rigid_mode() -> None:
+    """Pins 1e-6 L apart at midspan of a clamped-free pipe act as a clamp there: the first
+    frequency tends to the cantilever of length L / 2, lambda_1 = 2 x 1.8751.  The scan of
+    det B misses the near-double roots of the two nearly equal halves, so the Ritz basis
+    answers: an upper bound, measured 1.2 % above; tolerance 2 %.  Free-free with one pin
+    rotates about it: exactly one rigid mode, and the caveat says so."""
+    from pipeflow.model import basis_caveats
+
+    C_, F_ = ("clamped", 0.0, 0.0), ("free", 0.0, 0.0)
+    lam = support_basis(6, C_, F_, ((0.5, math.inf), (0.5 + 1e-6, math.inf))).lam4 ** 0.25
+    assert 2 * 1.8751040687 * (1 - 1e-9) <= lam[0] <= 2 * 1.8751040687 * 1.02
+    free = support_basis(6, F_, F_, ((0.5, math.inf),)).lam4
+    assert free[0] == 0.0 and np.all(free[1:] > 10.0)
+    p = pipe(F, F, intermediate_supports=(PointSupport(0.5, pinned=True),))
+    assert p.rotates_rigidly and any("rigid body" in w for w in basis_caveats(p))
+    spring = pipe(F, F, intermediate_supports=(PointSupport(0.3, translational=5.0),))
+    assert spring.rotates_rigidly and not pipe(C, F).rotates_rigidly
+
+
 def test_intermediate_spring_limits() -> None:
     """A point spring at midspan: k -> 0 gives the bare pinned-pinned pipe, k large the pin
     (the symmetric mode tends to 2 x 3.9266 like 1/k)."""
