@@ -562,9 +562,10 @@ def span_basis(
         xi, w = raw.quadrature(int(modes[-1].lam) + 60)
         p0 = raw.shapes(xi, 0)
         g, V = np.linalg.eigh((p0 * w) @ p0.T)
-        coef = (V / np.sqrt(g)) @ V.T
-        lam4.setflags(write=False)
-        return SpanBasis(n, modes, np.ascontiguousarray(coef), lam4, _held(x0, xL, points))
+        coef = np.ascontiguousarray((V / np.sqrt(g)) @ V.T)
+        for array in (coef, lam4):
+            array.setflags(write=False)  # (shared by the cache)
+        return SpanBasis(n, modes, coef, lam4, _held(x0, xL, points))
     return None
 
 
@@ -575,7 +576,9 @@ def support_basis(
     """The Galerkin basis of ``n`` functions for the supports (see the module docstring)."""
     if not points:
         modes, lam4 = end_support_modes(x0, xL, n)
-        return SupportBasis(n, modes, np.eye(n), lam4, _held(x0, xL, points))
+        eye = np.eye(n)
+        eye.setflags(write=False)
+        return SupportBasis(n, modes, eye, lam4, _held(x0, xL, points))
     pins = [p for p in points if math.isinf(p[1])]
     count = n + len(pins) + _EXTRA
     modes, lam4 = end_support_modes(x0, xL, count)
@@ -593,7 +596,8 @@ def support_basis(
     exact = span_basis(n, x0, xL, points, mu)
     if exact is not None:
         return exact
-    coef = (Z @ Y[:, :n]).T
+    coef = np.ascontiguousarray((Z @ Y[:, :n]).T)
     lam4_n = np.asarray(mu[:n], dtype=float)
-    lam4_n.setflags(write=False)
+    for array in (coef, lam4_n):
+        array.setflags(write=False)  # (shared by the cache)
     return SupportBasis(n, modes, coef, lam4_n, _held(x0, xL, points))

@@ -592,7 +592,7 @@ def frequency_response(
     level = float(rounding_level(op.xi))
     for pole in op.xi[np.abs(op.xi.real) <= level]:
         on_pole |= np.abs(W - pole.imag) <= max(level, 1e-12 * abs(pole))
-    xi = _modes_of(op.xi, added, W, warnings)
+    xi = _modes_of(op, added, W, warnings)
     res = _resonances(xi, pipe.damped)
     pole_free = W[~on_pole]
     if pole_free.size > 1 and np.any(pole_free[1:] < pole_free[:-1]):
@@ -701,13 +701,17 @@ def _check_load_vectors(count: int, residual: bool | None) -> int:
     return int(count)
 
 
-def _modes_of(xi: ComplexArray, added: int, W: FloatArray, warnings: list[str]) -> ComplexArray:
-    """The eigenvalues of the modes: all of ``xi`` but, with ``added`` load vectors, the
-    2 x added largest (the vectors' own, above the modes); a warning where one of those lies
-    in the frequency range (the response there is not resolved by the modes)."""
+def _modes_of(op: Operator, added: int, W: FloatArray, warnings: list[str]) -> ComplexArray:
+    """The eigenvalues of the modes: all of ``op.xi`` but, with ``added`` load vectors, the
+    2 x added whose eigenvectors lie most on the vectors' coordinates (the vectors' own: not
+    simply the largest, which with Kelvin-Voigt damping are the modes' overdamped roots); a
+    warning where one of those lies in the frequency range (the response there is not
+    resolved by the modes)."""
+    xi = op.xi
     if not added:
         return xi
-    order = np.argsort(np.abs(xi))
+    q = np.abs(op.V_low) ** 2
+    order = np.argsort(q[-added:].sum(axis=0) / q.sum(axis=0))
     own = xi[order[-2 * added :]]
     inside = [abs(w.imag) for w in own if W.min() <= abs(w.imag) <= W.max()]
     if inside:
