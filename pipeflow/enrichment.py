@@ -101,11 +101,19 @@ class Enriched:
 
     def raw(self, xi: FloatArray, r: int) -> FloatArray:
         """g_i^(r)(xi) (d/dxi), shape (n + k, len(xi))."""
+        return self.raws(xi, (r,))[0]
+
+    def raws(self, xi: FloatArray, orders: tuple[int, ...]) -> list[FloatArray]:
+        """:meth:`raw` for each derivative of ``orders`` (each vector's interpolation to
+        ``xi`` formed once)."""
         xi = np.atleast_1d(np.asarray(xi, dtype=float))
         L = self.pipe.L
-        modes = basis_shapes(self.n, xi, r, self.pipe.basis_key)
-        extra = [psi.at(xi * L, r) * L**r for psi in self.vectors]
-        return np.vstack([modes, *extra]) if extra else modes
+        scale = np.array([L**r for r in orders])[:, None]
+        extra = [psi.derivatives(xi * L, orders) * scale for psi in self.vectors]
+        return [
+            np.vstack([basis_shapes(self.n, xi, r, self.pipe.basis_key), *(e[i] for e in extra)])
+            for i, r in enumerate(orders)
+        ]
 
     def shapes(self, xi: FloatArray, r: int = 0) -> FloatArray:
         """The enriched basis' r-th derivatives (d/dxi) at ``xi``, shape (size, len(xi))."""
@@ -125,17 +133,17 @@ def enrich(
     order = mode_integrals(n, None, key).quadrature_order
     xi, w = span_quadrature(edges, order)
     basis = Enriched(pipe, n, tuple(vectors), np.eye(n + len(vectors)))
-    G = basis.raw(xi, 0)
+    raw = basis.raws(xi, (0, 1, 2))
+    G = raw[0]
     coef = np.eye(n + len(vectors))
     kept = list(range(n))
     for j in range(n, n + len(vectors)):
         row = coef[j].copy()
         norm0 = math.sqrt(float((G[j] * G[j]) @ w))
+        Q = coef[kept]
+        QGw = (Q @ G) * w
         for _ in range(2):  # twice is enough (Giraud et al., Numer. Math. 101, 2005)
-            value = row @ G
-            for i in kept:
-                qi = coef[i] @ G
-                row = row - float((value * qi) @ w) * coef[i]
+            row = row - (QGw @ (row @ G)) @ Q  # classical Gram-Schmidt against the kept
         value = row @ G
         norm = math.sqrt(float((value * value) @ w))
         if norm > INDEPENDENCE * norm0:
@@ -143,13 +151,16 @@ def enrich(
             kept.append(j)
     coef = coef[kept]
     enriched = Enriched(pipe, n, tuple(vectors), coef)
-    return enriched, _integrals(enriched, xi, w, order)
+    return enriched, _integrals(enriched, xi, w, order, raw)
 
 
-def _integrals(basis: Enriched, xi: FloatArray, w: FloatArray, order: int) -> ModeIntegrals:
-    """:class:`ModeIntegrals` of ``basis``; bending in weak form with the supports' springs
-    (end springs K_t u^2 + K_r u'^2, point springs K u(x_s)^2): the modes' own lambda^4."""
-    p0, p1, p2 = (basis.shapes(xi, r) for r in (0, 1, 2))
+def _integrals(
+    basis: Enriched, xi: FloatArray, w: FloatArray, order: int, raw: list[FloatArray]
+) -> ModeIntegrals:
+    """:class:`ModeIntegrals` of ``basis`` from the raw functions' derivatives 0..2 at the
+    nodes ``xi`` (weights ``w``); bending in weak form with the supports' springs (end
+    springs K_t u^2 + K_r u'^2, point springs K u(x_s)^2): the modes' own lambda^4."""
+    p0, p1, p2 = (basis.coef @ g for g in raw)
     pw = p0 * w
     flex = (p2 * w) @ p2.T
     k4 = flex.copy()
@@ -167,7 +178,7 @@ def _integrals(basis: Enriched, xi: FloatArray, w: FloatArray, order: int) -> Mo
                 u = basis.shapes(np.array([xs]), 0)[:, 0]
                 k4 += K * np.outer(u, u)
                 springs = True
-    one = np.ones(1)
+    tip, tip_slope = (basis.coef @ g[:, 0] for g in basis.raws(np.ones(1), (0, 1)))
     return ModeIntegrals(
         n=basis.size,
         quadrature_order=order,
@@ -181,8 +192,8 @@ def _integrals(basis: Enriched, xi: FloatArray, w: FloatArray, order: int) -> Mo
         d=(p1 * w) @ p1.T,
         xd=(p1 * (w * xi)) @ p1.T,
         f=pw.sum(axis=1),
-        tip=basis.shapes(one, 0)[:, 0],
-        tip_slope=basis.shapes(one, 1)[:, 0],
+        tip=tip,
+        tip_slope=tip_slope,
         x2d=(p1 * (w * xi * xi)) @ p1.T,
         flex=flex if springs else None,
     )

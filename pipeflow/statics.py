@@ -118,17 +118,24 @@ class StaticSolution:
     def at(self, positions: ArrayLike, derivative: int = 0) -> FloatArray:
         """d^r u / dx^r at ``positions`` x [m] in [0, L], r = 0..3 [m^(1-r) per unit load]
         (non-finite where the static problem is singular)."""
+        return np.asarray(self.derivatives(positions, (derivative,))[0])
+
+    def derivatives(self, positions: ArrayLike, orders: tuple[int, ...]) -> FloatArray:
+        """:meth:`at` for each derivative of ``orders`` (r in 0..3), shape
+        (len(orders), len(positions)): the interpolation to the positions formed once."""
         xo = np.atleast_1d(np.asarray(positions, dtype=float)) / self.L
         K = len(self._values)
         where = np.clip(np.searchsorted(self._edges, xo, side="right") - 1, 0, K - 1)
-        out = np.empty(xo.size)
+        rows = list(orders)
+        out = np.empty((len(rows), xo.size))
         for k in range(K):
             sel = where == k
             if np.any(sel):
                 x0, x1 = self._edges[k], self._edges[k + 1]
                 to = 2.0 * (xo[sel] - x0) / (x1 - x0) - 1.0
-                out[sel] = _interpolation(self._t, to) @ self._values[k][derivative]
-        return np.asarray(out * self.L ** (3 - derivative) / self.EI)
+                out[:, sel] = self._values[k][rows] @ _interpolation(self._t, to).T
+        scale = np.array([self.L ** (3 - r) for r in rows]) / self.EI
+        return np.asarray(out * scale[:, None])
 
 
 def static_deflection(
