@@ -104,6 +104,17 @@ class MagnusGenerator:
         assert self.loads is not None
         return np.asarray(forcing(self.model, self.loading, self.loads, times) / self.scale)
 
+    def forcing_coefficients(self, starts: FloatArray, h: FloatArray, order: int) -> FloatArray:
+        """The coefficients C (k, N, q) of each step's forcing polynomial
+        sum_j c_j tau^j / j! (:func:`forced_omega`) from the forcing at the q =
+        :data:`FORCING_NODES` Gauss-Legendre nodes of the steps [starts, starts + h]: for
+        many steps at once, sliced per block of steps (:meth:`omega`'s ``forcing``)."""
+        k, N = starts.size, self.model.size
+        q = FORCING_NODES[order]
+        tau, Vinv = FORCING_BASIS[q]
+        F = self.forcing(np.concatenate([starts + g * h for g in tau])).reshape(q, k * N)
+        return np.asarray((Vinv @ F).reshape(q, k, N).transpose(1, 2, 0))
+
     def node_weights(self, starts: FloatArray, h: FloatArray, order: int = 4) -> FloatArray:
         """The coefficient rows (:meth:`coefficients`) at the Gauss nodes of ``order``'s
         generator for steps [starts, starts + h], shape (nodes, steps, coefficients): computed
@@ -136,10 +147,12 @@ class MagnusGenerator:
         order: int = 4,
         weights: FloatArray | None = None,
         coefficients: FloatArray | None = None,
+        forcing: FloatArray | None = None,
     ) -> FloatArray:
         """Omega of ``order`` (4 or 6) for steps [starts, starts + h] (equal lengths) [-];
         ``weights``: their :meth:`node_weights`, when already computed; ``coefficients``:
-        their :meth:`omega4_coefficients` (order 4 without loads), when already computed.
+        their :meth:`omega4_coefficients` (order 4), when already computed; ``forcing``:
+        with loads, their :meth:`forcing_coefficients`, when already computed.
 
         With loads, the generator of the step's exponential-integrator form
         (:func:`forced_omega`), of size N + FORCING_NODES[order]."""
@@ -156,12 +169,12 @@ class MagnusGenerator:
                 return omega
             assert weights is not None
             variation = ((weights[1] - weights[0]) @ self.basis).reshape(k, n, n)  # A_2 - A_1
-            return forced_omega4(self, omega, variation, starts, h)
+            return forced_omega4(self, omega, variation, starts, h, forcing)
         if weights is None:
             weights = self.node_weights(starts, h, order)
         A = (weights.reshape(-1, weights.shape[-1]) @ self.basis).reshape(-1, n, n)
         if self.jordan:
-            return forced_omega(self, A, starts, h, order)
+            return forced_omega(self, A, starts, h, order, forcing)
         return np.asarray(magnus6_omega(A[:k], A[k : 2 * k], A[2 * k :], h))
 
     def propagators(self, omega: FloatArray) -> FloatArray:
@@ -221,15 +234,18 @@ FORCING_BASIS = {q: _forcing_basis(q) for q in FORCING_NODES.values()}
 
 
 def _bordered(
-    gen: MagnusGenerator, starts: FloatArray, h: FloatArray, order: int
+    gen: MagnusGenerator,
+    starts: FloatArray,
+    h: FloatArray,
+    order: int,
+    forcing: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """The bordered generators' frame (k, N + q, N + q) with the shift J in place, and the
-    forcing polynomial's coefficients C (k, N, q) of each step (:func:`forced_omega`)."""
+    forcing polynomial's coefficients C (k, N, q) of each step (:func:`forced_omega`;
+    ``forcing``: C, when already computed)."""
     k, N = starts.size, gen.model.size
     q = FORCING_NODES[order]
-    tau, Vinv = FORCING_BASIS[q]
-    F = gen.forcing(np.concatenate([starts + g * h for g in tau])).reshape(q, k, N)
-    C = (Vinv @ F.reshape(q, k * N)).reshape(q, k, N).transpose(1, 2, 0)  # (k, N, q)
+    C = gen.forcing_coefficients(starts, h, order) if forcing is None else forcing
     out = np.zeros((k, N + q, N + q))
     out[:, N + 1 :, N : N + q - 1] = np.eye(q - 1)  # J: w_j' = w_{j-1}
     return out, C
@@ -241,11 +257,12 @@ def forced_omega4(
     variation: FloatArray,
     starts: FloatArray,
     h: FloatArray,
+    forcing: FloatArray | None = None,
 ) -> FloatArray:
     """:func:`forced_omega` at order 4 from the homogeneous generator ``omega`` (k, N, N)
     and A's variation over the step A_2 - A_1 (``variation``): [[Omega, Y], [0, J]] with
     Y = h C + sqrt(3)/12 h^2 (A_2 - A_1) C."""
-    out, C = _bordered(gen, starts, h, 4)
+    out, C = _bordered(gen, starts, h, 4, forcing)
     N = gen.model.size
     hh = np.asarray(h, dtype=float)[:, None, None]
     out[:, :N, :N] = omega
@@ -254,7 +271,12 @@ def forced_omega4(
 
 
 def forced_omega(
-    gen: MagnusGenerator, A: FloatArray, starts: FloatArray, h: FloatArray, order: int
+    gen: MagnusGenerator,
+    A: FloatArray,
+    starts: FloatArray,
+    h: FloatArray,
+    order: int,
+    forcing: FloatArray | None = None,
 ) -> FloatArray:
     """The generator of one exponential-integrator step of z' = A(t) z + f(t), size N + q.
 
@@ -270,12 +292,14 @@ def forced_omega(
     column form made the steps follow h |xi_max| (Al-Mohy & Higham 2011, Saad 1992 for the
     phi-function trick: the exponential of the bordered matrix carries the integral of
     exp((1 - tau) Omega) p(tau)).  ``A`` are the state matrices at the Magnus nodes
-    (stacked node-major), ``h`` the step lengths; the state's constant c is in C.
+    (stacked node-major), ``h`` the step lengths; the state's constant c is in C
+    (``forcing``: C, when already computed).
     """
     k = starts.size
     if order == 4:
-        return forced_omega4(gen, magnus4_omega(A[:k], A[k:], h), A[k:] - A[:k], starts, h)
-    out, C = _bordered(gen, starts, h, order)
+        omega = magnus4_omega(A[:k], A[k:], h)
+        return forced_omega4(gen, omega, A[k:] - A[:k], starts, h, forcing)
+    out, C = _bordered(gen, starts, h, order, forcing)
     N = gen.model.size
     hh = np.asarray(h, dtype=float)[:, None, None]
     # order 6: the generic three-node generator of the bordered matrices (tau units)

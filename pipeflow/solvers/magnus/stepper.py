@@ -77,8 +77,10 @@ def propagate(
             starts_all = t[members][:, None] + np.arange(m)[None, :] * (dt[members] / m)[:, None]
             starts_all = starts_all.ravel()
             weights = gen.node_weights(starts_all, h_all, q)
-            # order 4 without loads: Omega's rows on the pieces, for the group at once
-            coeffs = gen.omega4_coefficients(h_all, weights) if q == 4 and not gen.jordan else None
+            # order 4: Omega's rows on the pieces, for the group at once; with loads their
+            # forcing polynomials too
+            coeffs = gen.omega4_coefficients(h_all, weights) if q == 4 else None
+            forcing = gen.forcing_coefficients(starts_all, h_all, q) if gen.jordan else None
             for b in range(0, members.size, limit):
                 idx = members[b : b + limit]
                 rows = slice(b * m, (b + idx.size) * m)
@@ -88,6 +90,7 @@ def propagate(
                     q,
                     weights[:, rows],
                     None if coeffs is None else coeffs[rows],
+                    None if forcing is None else forcing[rows],
                 )
                 E = gen.propagators(omega)
                 exps += E.shape[0]
