@@ -626,9 +626,14 @@ def frequency_response(
     H = H_all[:, : W.size]
     Hd = _direct(op, out, f, checks)
     with np.errstate(all="ignore"):
-        rel = np.linalg.norm(H_all[:, W.size : W.size + checks.size] - Hd, axis=0)
-        rel = rel / np.linalg.norm(Hd, axis=0)
-    rel = np.where(np.isfinite(rel), rel, np.inf)
+        diff = np.linalg.norm(H_all[:, W.size : W.size + checks.size] - Hd, axis=0)
+        rel = diff / np.linalg.norm(Hd, axis=0)
+    # both zero (a load on a held point: the support takes it) is no difference
+    rel = np.where(diff == 0.0, 0.0, np.where(np.isfinite(rel), rel, np.inf))
+    if not np.any(f):
+        warnings.append(
+            "the load acts where the pipe is held (a support takes it): the response is zero"
+        )
     max_rel = float(rel.max()) if rel.size else 0.0
     method = "modal"
     if not max_rel <= FALLBACK_RTOL:

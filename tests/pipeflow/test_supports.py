@@ -651,3 +651,23 @@ def test_residual_flexibility_with_a_midspan_pin() -> None:
     assert err(corrected.H) < err(plain) / 50
     static = static_deflection(p, 0.0, 0.0, [0.3, 0.7], force_at=0.3)
     assert np.allclose(corrected.H[:, 0].real, static, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("at", [0.5, 1.0])
+@pytest.mark.parametrize("vectors", [0, 2])
+def test_a_force_on_a_held_point_is_taken_by_the_support(at: float, vectors: int) -> None:
+    """A force on the midspan pin or at the pinned end does nothing: H is exactly 0 (every
+    function vanishes there), the modal answer stands (before, 0 against 0 read as a relative
+    difference of inf and every frequency was solved directly, blamed on 'coalescing
+    eigenvalues'), and a warning says why the response is zero."""
+    from pipeflow.frequency import PointForce, frequency_response
+
+    p = pipe(P, P, intermediate_supports=(PointSupport(0.5, pinned=True),))
+    r = frequency_response(p, 1.0, 0.0, load=PointForce(at), positions=[0.3],
+                           frequencies=np.geomspace(1.0, 1e3, 40), modes=8,
+                           load_vectors=vectors)  # fmt: skip
+    assert np.all(r.H == 0.0)
+    assert r.diagnostics.method == "modal" and r.diagnostics.max_relative_difference == 0.0
+    assert r.warnings == (
+        "the load acts where the pipe is held (a support takes it): the response is zero",
+    )
