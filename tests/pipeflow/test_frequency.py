@@ -438,7 +438,7 @@ def test_modal_sum_agrees_with_direct_solves() -> None:
     assert min(abs(np.array(d.check_frequencies) - first)) < 0.05 * first
     op = operator_at(pipe, 5.0, 100.0, 20)
     out = op.model.shapes(np.array([0.2, 1.0])).T
-    direct = fr._direct(op, out, fr._generalised_force(op.model, PointForce(0.6 * L)), W)
+    direct = op.direct(out, fr._generalised_force(op.model, PointForce(0.6 * L)), W)
     assert np.max(np.abs(r.H - direct)) < 1e-9 * np.max(np.abs(direct))
 
 
