@@ -312,6 +312,11 @@ class ExternalForcing:
         """True when every load is constant in time (then z' = S z + const)."""
         return all(p.is_constant for p in self.profiles)
 
+    def held(self) -> list[int]:
+        """The indices of the loads that act where the pipe is held (a pin, a clamped or
+        pinned end): every basis function vanishes there, so they force nothing."""
+        return [int(i) for i in np.flatnonzero(~np.any(self.columns, axis=1))]
+
     @property
     def rate(self) -> float:
         """The fastest variation of the loads [rad/s] (:func:`profile_rate`)."""

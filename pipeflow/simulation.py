@@ -418,6 +418,11 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
         warnings.append(REVERSE_FLOW_CAVEAT)
     warnings.extend(basis_caveats(sim.pipe))
     warnings.extend(load_notes(tuple(sim.loads)))
+    if forcing is not None:
+        warnings.extend(
+            f"loads.{i}: it acts where the pipe is held (a support takes it): it moves nothing"
+            for i in forcing.held()
+        )
     diagnostics = {"method": sim.method, "method_used": solver.name, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,
