@@ -100,17 +100,28 @@ class PointForce:
 
     H is per unit force [N]; at a = L the force acts on the tip body, if any.  Like the
     time-domain loads (:mod:`pipeflow.loads`, whose generalised force it uses), it carries
-    its own behaviour: ``stations`` (where it acts [m]), ``unit_index`` (the column of
-    :data:`UNITS`: per N), ``checked``, ``generalized_force``, ``to_dict``.
+    its own behaviour: ``stations`` (where it acts [m]), ``force_at`` (the static problem's
+    load point [m]), ``unit_index`` (the column of :data:`UNITS`: per N), ``input_name`` and
+    ``input_unit`` (the state space's input), ``checked``, ``generalized_force``,
+    ``to_dict``.
     """
 
     position: float
     kind: ClassVar[str] = "point_force"
     unit_index: ClassVar[int] = 0
+    input_unit: ClassVar[str] = "N"
 
     @property
     def stations(self) -> list[float]:
         return [self.position]
+
+    @property
+    def force_at(self) -> float | None:
+        return self.position
+
+    @property
+    def input_name(self) -> str:
+        return f"F(x={self.position!r})"
 
     def checked(self, pipe: Pipe) -> PointForce:
         a = float(self.position)
@@ -136,10 +147,17 @@ class BaseAcceleration:
 
     kind: ClassVar[str] = "base_acceleration"
     unit_index: ClassVar[int] = 1  # per m/s^2
+    input_unit: ClassVar[str] = "m/s^2"
+    input_name: ClassVar[str] = "clamp_acceleration"
 
     @property
     def stations(self) -> list[float]:
         return []
+
+    @property
+    def force_at(self) -> float | None:
+        """None: the static problem of a unit acceleration of the supports."""
+        return None
 
     def checked(self, pipe: Pipe) -> BaseAcceleration:
         return self
@@ -424,8 +442,9 @@ def _residual_flexibility(
     """u_static(x) - Phi_out K^-1 f [m per unit load]: the static response of the modes left
     out (:func:`pipeflow.statics.truncation_residual`), None where the static problem is
     singular (divergence)."""
-    a = load.position if isinstance(load, PointForce) else None
-    return truncation_residual(op.model.pipe, v, w0, x, force_at=a, K=op.K, f=f, shapes=out)
+    return truncation_residual(
+        op.model.pipe, v, w0, x, force_at=load.force_at, K=op.K, f=f, shapes=out
+    )
 
 
 def residual_part(
@@ -544,13 +563,7 @@ def frequency_response(
     count = _check_load_vectors(load_vectors, residual)
 
     warnings: list[str] = []
-    enriched = (
-        enriched_operator(
-            pipe, v, w0, n, load.position if isinstance(load, PointForce) else None, count
-        )
-        if count
-        else None
-    )
+    enriched = enriched_operator(pipe, v, w0, n, load.force_at, count) if count else None
     if count and enriched is None:
         warnings.append(
             "the static problem has no solution at this operating point (a rigid rotation "

@@ -37,7 +37,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from pipeflow.frequency import (
     Load,
-    PointForce,
     _check_load,
     _check_modes,
     _check_operating_point,
@@ -130,10 +129,9 @@ def state_space(
     else:
         C = (Phi * w[None, :]) @ A[:n]
         D = (Phi * w[None, :]) @ B[:n]
-    is_force = isinstance(load, PointForce)
     states = tuple(f"qdot_{j}/w_{j}" for j in range(1, n + 1))
     states += tuple(f"q_{j}" for j in range(1, n + 1))
-    name = f"F(x={load.position!r})" if isinstance(load, PointForce) else "clamp_acceleration"
+    name = load.input_name
     symbol = {"displacement": "u", "velocity": "du/dt", "acceleration": "d2u/dt2"}[quantity]
     warnings: list[str] = []
     growth = float(max_growth_rates(op.xi[None])[0])
@@ -171,7 +169,7 @@ def state_space(
         states=states,
         inputs=(name,),
         outputs=tuple(f"{symbol}(x={float(xi)!r})" for xi in x),
-        input_unit="N" if is_force else "m/s^2",
+        input_unit=load.input_unit,
         output_unit=OUTPUT_UNITS[quantity],
         velocity=v,
         omega0=w0,
