@@ -187,9 +187,10 @@ class CMA(Solver):
             for s0 in range(0, t.size, block):
                 sl = slice(s0, min(s0 + block, t.size))
                 E = modal_exponentials(t[sl], w[keep], start=s0, dt=dt)
-                A = E * coef
-                if closed is not None:
-                    A += closed.amplitudes(t[sl], None if dt is None else (s0, dt), E)
+                if closed is None:
+                    A = E * coef
+                else:  # the free response's E c0 and the loads' in one pass over E
+                    A = closed.amplitudes(t[sl], None if dt is None else (s0, dt), E, coef)
                 Z[sl] = (A @ Vt).real
         return Z, np.array([cond]), 0, (w, V)
 

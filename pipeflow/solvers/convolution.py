@@ -51,7 +51,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import expm
+from scipy.linalg import blas, expm
 
 from pipeflow._types import FloatArray
 from pipeflow.errors import BudgetExceeded
@@ -331,47 +331,78 @@ class ClosedForm:
         t: FloatArray,
         grid: tuple[int, float] | None = None,
         E: NDArray[np.complex128] | None = None,
+        homogeneous: NDArray[np.complex128] | None = None,
     ) -> NDArray[np.complex128]:
         """The modal amplitudes (weights folded in) at the times ``t`` [s], shape
         ``(len(t), kept modes)``; ``grid`` as :func:`term_response`; ``E``: e^{lam t} at
-        these times when the caller has it (a step's response reuses it)."""
-        a = np.zeros((t.size, self.lam.size), dtype=complex)
+        these times when the caller has it (the pieces c e^{s t} from t = 0, constants and
+        harmonics, then reuse it: :meth:`_from_e`); ``homogeneous``: with ``E``, the
+        caller's coefficients c0 of its free response E c0, added here (E is then
+        multiplied once, by c0 and the pieces' weights together)."""
+        from_e: list[tuple[complex, NDArray[np.complex128]]] = []
+        others: list[tuple[Term, NDArray[np.complex128]]] = []
+        for piece, c in self.pieces.items():
+            if E is not None and piece.power == 0 and piece.start == 0 and piece.end == math.inf:
+                from_e.append((piece.rate, c))
+            else:
+                others.append((piece, c))
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            for piece, c in self.pieces.items():
-                if (
-                    E is not None
-                    and piece.power == 0
-                    and piece.start == 0
-                    and piece.end == math.inf
-                ):
-                    a += self._from_e(piece.rate, c, t, E)
-                    continue
+            if E is not None and (from_e or homogeneous is not None):
+                base = (
+                    np.zeros(self.lam.size, dtype=complex) if homogeneous is None else homogeneous
+                )
+                a = self._from_e(from_e, t, E, base)
+            else:
+                a = np.zeros((t.size, self.lam.size), dtype=complex)
+            for piece, c in others:
                 r = term_response(piece, self.lam, t, grid)
                 r *= c
                 a += r
         return a
 
     def _from_e(
-        self, s: complex, c: NDArray[np.complex128], t: FloatArray, E: NDArray[np.complex128]
+        self,
+        pieces: list[tuple[complex, NDArray[np.complex128]]],
+        t: FloatArray,
+        E: NDArray[np.complex128],
+        base: NDArray[np.complex128],
     ) -> NDArray[np.complex128]:
-        """c e^{s t} from t = 0: c (e^{lam t} - e^{s t}) / (lam - s), from the caller's
-        E = e^{lam t} (one subtraction and one product per entry); where |lam - s| t < 2
-        (near resonance, early times) the series of phi_1 instead."""
-        d = self.lam - s
-        es = np.exp(s * t)
-        r = E - es[:, None]
-        r *= c / d
-        with np.errstate(divide="ignore"):
-            reach = np.where(d != 0, _SERIES_RADIUS / np.abs(d), np.inf)  # [s]
-        # t is increasing: the rows of column j below its reach are the first counts[j]
-        counts = np.searchsorted(t, reach, side="left")
+        """E base + sum_p c_p e^{s_p t} from t = 0 for the ``pieces`` (s_p, c_p):
+        sum_p c_p (e^{lam t} - e^{s_p t}) / (lam - s_p) = E sum_p W_p - e^{t s} @ W with
+        W_p = c_p / (lam - s_p), from the caller's E = e^{lam t}: one product of E with the
+        summed weights and one matrix product subtracted in place (BLAS zgemm), where each
+        piece cost three passes over the (times x modes) array (a harmonic is two pieces);
+        where |lam - s_p| t < 2 (near resonance, early times, where the difference
+        cancels) the series of phi_1 instead."""
+        a = E * base
+        if not pieces:
+            return a
+        s = np.array([rate for rate, _ in pieces], dtype=complex)
+        C = np.stack([c for _, c in pieces])  # (P, modes)
+        D = self.lam[None, :] - s[:, None]
+        reach = np.where(D != 0, _SERIES_RADIUS / np.abs(np.where(D != 0, D, 1.0)), np.inf)
+        # a (piece, mode) the series covers at every time stays out of the bulk: there
+        # 1 / (lam - s) is large (at resonance infinite), and adding then removing it would
+        # leave its rounding in the answer
+        W = np.where(reach > t[-1], 0.0, C / np.where(D != 0, D, 1.0))  # (P, modes)
+        a = E * (base + W.sum(axis=0))
+        es = np.exp(np.outer(t, s))  # (T, P)
+        # a -= es @ W in place: a.T (F-ordered) := -W.T es.T + a.T
+        out = blas.zgemm(-1.0, W.T, es.T, 1.0, a.T, overwrite_c=1)
+        if not np.shares_memory(out, a):
+            a = np.ascontiguousarray(out.T)
+        # t is increasing: the rows of (piece, column) below its reach are the first counts
+        counts = np.searchsorted(t, reach.ravel(), side="left")
         if counts.any():
-            cols = np.repeat(np.arange(d.size), counts)
+            pair = np.repeat(np.arange(counts.size), counts)  # (piece, column) flat
             first = np.repeat(np.cumsum(counts) - counts, counts)
-            rows = np.arange(cols.size) - first
-            tr = t[rows]
-            r[rows, cols] = c[cols] * tr * es[rows] * phi(1, d[cols] * tr)
-        return r
+            rows = np.arange(pair.size) - first
+            p, cols = np.divmod(pair, D.shape[1])
+            tr, ep = t[rows], es[rows, p]
+            bulk = (E[rows, cols] - ep) * W[p, cols]
+            series = C[p, cols] * tr * ep * phi(1, D[p, cols] * tr)
+            np.add.at(a, (rows, cols), series - bulk)  # (two pieces may share an entry)
+        return a
 
 
 def exact_particular(
