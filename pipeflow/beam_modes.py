@@ -573,7 +573,13 @@ def span_basis(
 def support_basis(
     n: int, x0: EndSpec, xL: EndSpec, points: tuple[PointSpec, ...] = ()
 ) -> SupportBasis | SpanBasis:
-    """The Galerkin basis of ``n`` functions for the supports (see the module docstring)."""
+    """The Galerkin basis of ``n`` functions for the supports (see the module docstring).
+    Springs below :data:`SPRING_FLOOR` are no springs here too, as for the rigid-body
+    modes (:func:`rigid_lines`): a basis that kept them would hold the rigid line and a
+    nearly equal root of det B twice."""
+    clean = (_clean(x0), _clean(xL), tuple(p for p in points if p[1] >= SPRING_FLOOR))
+    if clean != (x0, xL, points):
+        return support_basis(n, *clean)
     if not points:
         modes, lam4 = end_support_modes(x0, xL, n)
         eye = np.eye(n)
@@ -597,7 +603,7 @@ def support_basis(
     if exact is not None:
         return exact
     coef = np.ascontiguousarray((Z @ Y[:, :n]).T)
-    lam4_n = np.asarray(mu[:n], dtype=float)
+    lam4_n = np.maximum(np.asarray(mu[:n], dtype=float), 0.0)  # (rounding below 0)
     for array in (coef, lam4_n):
         array.setflags(write=False)  # (shared by the cache)
     return SupportBasis(n, modes, coef, lam4_n, _held(x0, xL, points))

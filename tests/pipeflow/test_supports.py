@@ -694,3 +694,46 @@ def test_simulate_names_a_load_on_a_held_point() -> None:
     assert not any("where the pipe is held" in w for w in alone.warnings)
     peak = np.abs(alone.d).max()
     assert peak > 0 and np.abs(both.d - alone.d).max() <= 1e-13 * peak
+
+
+@pytest.mark.parametrize(
+    ("x0", "xL", "points"),
+    [
+        (("free", 0.0, 0.0), ("free", 0.0, 0.0), ((0.3, math.inf),)),
+        (("free", 0.0, 0.0), ("free", 0.0, 0.0), ((0.62, 25.0),)),
+        (("elastic", 1e-13, 0.0), ("free", 0.0, 0.0), ((0.5, 7.0),)),
+        (("free", 0.0, 0.0), ("free", 0.0, 0.0), ((0.4, 1e-13), (0.8, math.inf))),
+    ],
+)
+def test_rigid_modes_vanish_at_their_supports(
+    x0: tuple[str, float, float],
+    xL: tuple[str, float, float],
+    points: tuple[tuple[float, float], ...],
+) -> None:
+    """Each rigid-body mode (lambda = 0) of an exact span basis is a line that is zero at
+    every support that holds the pipe there (evaluated through the raw span functions, not
+    the basis' forced zeros at held stations: a line through the wrong point passes every
+    other test) and satisfies the span equations B(0) c = 0, to 1e-12; and the basis is
+    orthonormal (a spring below SPRING_FLOOR, 1e-13, is no spring: before, it and the rigid
+    line gave the same function twice, NaN coefficients)."""
+    from pipeflow import beam_modes
+
+    b = support_basis(6, x0, xL, points)
+    assert isinstance(b, beam_modes.SpanBasis)
+    x0, xL = beam_modes._clean(x0), beam_modes._clean(xL)
+    xi, w = b.quadrature(100)
+    p0 = b.shapes(xi, 0)
+    assert np.max(np.abs((p0 * w) @ p0.T - np.eye(6))) < 1e-12
+    rigid = [m for m in b.modes if m.lam == 0.0]
+    assert rigid
+    held = [xs for xs, k in points if k >= beam_modes.SPRING_FLOOR]
+    held += [
+        at
+        for at, (kind, kt, _) in ((0.0, x0), (1.0, xL))
+        if kind in ("pinned", "clamped") or kt > 0
+    ]
+    kept = tuple(p for p in points if p[1] >= beam_modes.SPRING_FLOOR)
+    for m in rigid:
+        assert np.max(np.abs(m.values(np.array(held), 0))) < 1e-12
+        B0 = beam_modes._span_matrix(x0, xL, kept, np.zeros(1), (True,) * (len(kept) + 1))[0]
+        assert np.max(np.abs(B0 @ np.ravel(m.coef))) < 1e-12
