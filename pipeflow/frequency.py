@@ -604,10 +604,8 @@ def frequency_response(
         rel = diff / np.linalg.norm(Hd, axis=0)
     # both zero (a load on a held point: the support takes it) is no difference
     rel = np.where(diff == 0.0, 0.0, np.where(np.isfinite(rel), rel, np.inf))
-    if not np.any(f):
-        warnings.append(
-            "the load acts where the pipe is held (a support takes it): the response is zero"
-        )
+    if loads.moves_nothing(f):
+        warnings.append(loads.held_note("load") + " (the response is zero)")
     max_rel = float(rel.max()) if rel.size else 0.0
     method = "modal"
     if not max_rel <= FALLBACK_RTOL:

@@ -283,6 +283,18 @@ def load_notes(loads: tuple[Load, ...]) -> list[str]:
     return list(dict.fromkeys(load.note for load in loads if load.note))
 
 
+def moves_nothing(force: ArrayLike) -> bool:
+    """Whether a load's generalised force (or its state column) ``force`` is zero: the load
+    acts where the pipe is held (a pin, a clamped or pinned end), where every basis function
+    vanishes, so the support takes it.  One test for simulate() and the FRF."""
+    return not np.any(force)
+
+
+def held_note(name: str) -> str:
+    """What a result says of the load ``name`` when :func:`moves_nothing` holds for it."""
+    return f"{name}: it acts where the pipe is held (a support takes it): it moves nothing"
+
+
 def profile_rate(profile: Profile) -> float:
     """A rate [rad/s] at which ``profile`` varies, for quadrature step sizes: the frequency
     of a harmonic, 0 for constants, polynomials and tables (piecewise polynomials: their
@@ -315,7 +327,7 @@ class ExternalForcing:
     def held(self) -> list[int]:
         """The indices of the loads that act where the pipe is held (a pin, a clamped or
         pinned end): every basis function vanishes there, so they force nothing."""
-        return [int(i) for i in np.flatnonzero(~np.any(self.columns, axis=1))]
+        return [i for i, column in enumerate(self.columns) if moves_nothing(column)]
 
     @property
     def rate(self) -> float:

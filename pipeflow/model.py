@@ -182,7 +182,9 @@ class Pipe:
     def rotates_rigidly(self) -> bool:
         """True when the pipe can rotate as a rigid body about one support (a zero
         eigenvalue at every velocity): a pinned end, or an elastic one without rotational
-        spring, opposite a free end; or a free-free pipe on one intermediate support."""
+        spring, opposite a free end; or a free-free pipe on one intermediate support.  (A
+        pipe free to translate is refused by :func:`~pipeflow.supports.check_mounting`, so
+        the one rigid line left is this rotation.)"""
         key = self.basis_key
         return key is not None and bool(rigid_lines(*key))
 

@@ -25,7 +25,7 @@ from pipeflow.divergence import default_bound, divergence
 from pipeflow.divergence import message as divergence_message
 from pipeflow.errors import InvalidInput
 from pipeflow.loading import Loading
-from pipeflow.loads import Load, load_notes, project_loads, validate_loads
+from pipeflow.loads import Load, held_note, load_notes, project_loads, validate_loads
 from pipeflow.model import REVERSE_FLOW_CAVEAT, Pipe, PipeModel, basis_caveats, build_model
 from pipeflow.modeshapes import (
     DEFAULT_SHAPE_POINTS,
@@ -419,10 +419,7 @@ def simulate(sim: Simulation, progress: Progress | None = None) -> Result:
     warnings.extend(basis_caveats(sim.pipe))
     warnings.extend(load_notes(tuple(sim.loads)))
     if forcing is not None:
-        warnings.extend(
-            f"loads.{i}: it acts where the pipe is held (a support takes it): it moves nothing"
-            for i in forcing.held()
-        )
+        warnings.extend(held_note(f"loads.{i}") for i in forcing.held())
     diagnostics = {"method": sim.method, "method_used": solver.name, **out.diagnostics}
     diagnostics.update(
         modes=sim.modes,

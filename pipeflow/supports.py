@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pipeflow._types import FloatArray
+from pipeflow.beam_modes import rigid_lines
 
 if TYPE_CHECKING:  # pragma: no cover
     from pipeflow.integrals import ModeIntegrals
@@ -181,12 +182,15 @@ def check_mounting(pipe: Pipe) -> None:
         if p.position in seen:
             raise ValueError(f"pipe.intermediate_supports.{i}.position: {p.position} m repeated")
         seen.add(p.position)
-    held = [e.kind in ("clamped", "pinned") or (e.kind == "elastic" and e.translational > 0)
-            for e in (s.x0, s.xL)]  # fmt: skip
-    if not any(held) and not pts:
+    key = basis_key(pipe)
+    # the rigid lines the supports leave free (as the basis counts them: springs below
+    # SPRING_FLOOR are none, so a 0 N/m point support holds nothing): a translation
+    # (1, 0) among them is a pipe that nothing holds; a rotation about one support is allowed
+    if key is not None and (1.0, 0.0) in rigid_lines(*key):
         raise ValueError(
-            f"pipe.supports: nothing holds the pipe transversely ({s.describe()}): it would "
-            "translate freely; clamp, pin or spring (translational) one end, or add an "
+            f"pipe.supports: nothing holds the pipe transversely ({s.describe()}"
+            f"{'; its intermediate springs hold nothing' if pts else ''}): it would translate "
+            "freely; clamp, pin or spring (translational) one end, or add a pinned or sprung "
             "intermediate support"
         )
     for name in ("tension", "pressure", "gravity"):

@@ -524,6 +524,16 @@ def test_a_pipe_nothing_holds_is_refused_and_a_rigid_rotation_is_flagged() -> No
     for x0, xL in ((F, F), (S, F), (S, S)):
         with pytest.raises(ValueError, match=r"pipe\.supports"):
             pipe(x0, xL)
+    # springs that hold nothing (0 N/m, or below the basis' SPRING_FLOOR, 1e-12 EI / L^3)
+    # leave the pipe as free to translate: refused too (before, accepted, and flagged as
+    # "rotating" rigidly while it translated)
+    soft = (PointSupport(0.3, 0.0), PointSupport(0.6, 1e-14))
+    for x0, xL, points in ((S, F, soft[:1]), (F, F, soft), (Support("elastic", 1e-14), S, ())):
+        with pytest.raises(ValueError, match=r"pipe\.supports: nothing holds"):
+            pipe(x0, xL, intermediate_supports=points)
+    # one real spring is enough: sliding-free on a 1 N/m spring is held (no rigid line)
+    assert not pipe(S, F, intermediate_supports=(PointSupport(0.3, 1.0),)).rotates_rigidly
+    assert pipe(F, F, intermediate_supports=(PointSupport(0.3, pinned=True),)).rotates_rigidly
     assert any("rigid body" in w for w in basis_caveats(pipe(P, F)))
     assert not basis_caveats(pipe(C, P))
 
@@ -669,7 +679,8 @@ def test_a_force_on_a_held_point_is_taken_by_the_support(at: float, vectors: int
     assert np.all(r.H == 0.0)
     assert r.diagnostics.method == "modal" and r.diagnostics.max_relative_difference == 0.0
     assert r.warnings == (
-        "the load acts where the pipe is held (a support takes it): the response is zero",
+        "load: it acts where the pipe is held (a support takes it): it moves nothing "
+        "(the response is zero)",
     )
 
 

@@ -102,6 +102,9 @@ def test_supported_simulation_runs(api: TestClient) -> None:
                                     for i in range(9)]}, "pipe.intermediate_supports"),
         ({"poisson": 0.7}, "pipe.poisson"),
         ({"supports": {"x0": "free", "xL": "free"}}, "pipe.supports"),
+        # a 0 N/m intermediate spring holds nothing: the pipe would still translate freely
+        ({"supports": {"x0": "sliding", "xL": "free"},
+          "intermediate_supports": [{"position": 0.5, "translational": 0.0}]}, "pipe.supports"),
         ({"tension": 1e13}, "pipe.tension"),
     ],
 )  # fmt: skip
