@@ -24,7 +24,10 @@ the unforced steps): each step is an exponential-integrator step (:func:`forced_
 the total forcing interpolated by a polynomial at Gauss nodes and the polynomial's
 monomials added to the state as a nilpotent Jordan block, whose bordered Magnus generator
 [[Omega, Y], [0, J]] sees the forcing only through A's variation; one exponential of size
-N + 4 (order 4) per step, cut to the affine step [[P, r], [0, 1]].  For constant
+N + 4 (order 4) per step, cut to the affine step [[P, r], [0, 1]].  At constant
+coefficients, loads that are sums of exponential-polynomial terms (constants, polynomials,
+harmonics) are instead the states of their own linear system (:mod:`.states`: at most 4,
+in place of the Jordan block): the forcing is then exact and so is each step.  For constant
 coefficients Omega = h S exactly, so the method is exact to rounding (one exponential for a
 uniform output grid).
 
