@@ -48,7 +48,11 @@ observed ratio is 5-15 and the estimate is within a factor ~2.  Above the tolera
 interval's sub-step count is multiplied by (estimate / (SAFETY tolerance))^(1/rate), with
 the rate log2(d2/d1) observed against a third run with four times the step (clipped to
 [log2 5, order]): not halving over the whole run, and not the h^4 law where the error falls
-slower (h |xi_max| > pi) or faster (the transition to the asymptotic regime).  A refined
+slower (h |xi_max| > pi) or faster (the transition to the asymptotic regime); and by at
+most :data:`MAX_REFINEMENT` = 8 at once (an estimate far outside the asymptotic regime
+asks for too much: a 3,000 rad/s force on the paper example asked 67x, 134,000 steps for a
+true 7e-13, where 16,000 meet the tolerance; the supported pipe of benchmarks/bench_supports
+15x).  A refined
 attempt is checked against the previous attempt (no fresh run with twice the step): the
 difference over ratio^2 - 1 (:data:`REFINED_FLOOR_RATE`: the error of a refinement is
 assumed to fall at least like h^2; with log2 5, the first check's rate, the paper example
@@ -110,6 +114,7 @@ propagation, :func:`propagate`), :mod:`~pipeflow.solvers.magnus.control` (the so
 
 from pipeflow.solvers.magnus.checkpoints import MagnusCheckpoints as MagnusCheckpoints
 from pipeflow.solvers.magnus.control import MAX_ATTEMPTS as MAX_ATTEMPTS
+from pipeflow.solvers.magnus.control import MAX_REFINEMENT as MAX_REFINEMENT
 from pipeflow.solvers.magnus.control import PILOT_STEPS as PILOT_STEPS
 from pipeflow.solvers.magnus.control import REFINED_FLOOR_RATE as REFINED_FLOOR_RATE
 from pipeflow.solvers.magnus.control import RICHARDSON_DIVISOR as RICHARDSON_DIVISOR

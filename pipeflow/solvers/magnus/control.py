@@ -50,6 +50,8 @@ ROUNDING_PER_STEP = float(np.finfo(float).eps)
 PILOT_STEPS = 256
 #: attempts at meeting the tolerance (each refines the steps from the previous estimate)
 MAX_ATTEMPTS = 4
+#: the most one refinement multiplies the steps by (:meth:`_Control.refine`)
+MAX_REFINEMENT = 8.0
 
 
 def observed_rate(d1: float, Zc: FloatArray, Zcc: FloatArray, size: int, order: int) -> float:
@@ -272,9 +274,11 @@ class _Control:
 
     def refine(self, plan: StepPlan, Zaug: FloatArray) -> NDArray[np.int64]:
         """The next attempt's sub-steps: refined by the factor that brings the estimate to
-        SAFETY * tolerance at the rate, spread over the intervals (no rounding up to whole
+        SAFETY * tolerance at the rate, at most MAX_REFINEMENT (the next attempt's own check
+        decides whether more is needed), spread over the intervals (no rounding up to whole
         multiples); on a dense grid, coarse intervals split at samples."""
-        factor = (self.estimate / (SAFETY * self.tolerance)) ** (1.0 / self.rate)
+        wanted = (self.estimate / (SAFETY * self.tolerance)) ** (1.0 / self.rate)
+        factor = min(wanted, MAX_REFINEMENT)
         sel = None if self.dense is None else self.dense.sel
         self.previous = (Zaug[:, : self.size].copy(), plan.steps, sel)
         substeps = _substeps(np.diff(self.t), self.h0, self.budget, factor, plan.substeps)

@@ -37,16 +37,18 @@ pytestmark = pytest.mark.slow
 SIMULATION = COMPUTATIONS["simulation"]
 #: the allowance the servers run with [s] (the default, stated: the tests do not follow it)
 ALLOWANCE_S = "0.1"
-#: the paper's example at 501 samples: its step control runs 500 + 250 + 125 steps (pilot,
-#: check, rate) and then plans a refinement of 13,500 steps (~0.21 s estimated), which
-#: passes the 0.1 s allowance: handed off before that propagation
-REFINED: dict[str, Any] = {**PAPER_EXAMPLE, "time": {"t_end": 1.0, "samples": 501}}
-#: pulsating flow v = 2 + sin 50 t over 4 s: ~90,000 + 180,000 steps, several seconds in
-#: the lane when its allowance admits it (10 s); killed while it runs
+#: the paper's example at the tolerance 1e-10: its step control runs 2,000 + 1,000 + 500
+#: steps (pilot, check, rate; ~0.05 s estimated) and then plans a refinement of 8,000 steps
+#: (~0.12 s), which passes the 0.1 s allowance: handed off before that propagation
+REFINED: dict[str, Any] = {**PAPER_EXAMPLE, "options": {"tolerance": 1e-10}}
+#: pulsating flow v = 2 + sin 50 t over 4 s at the tolerance 1e-10: ~220,000 exponentials
+#: (16,000 then 128,000 steps), a few seconds in the lane when its allowance admits it
+#: (10 s); killed while it runs
 LONG: dict[str, Any] = {
     **PAPER_EXAMPLE,
     "flow": {"velocity": {"kind": "harmonic", "mean": 2.0, "amplitude": 1.0, "frequency": 50.0}},
     "time": {"t_end": 4.0, "samples": 4001},
+    "options": {"tolerance": 1e-10},
 }
 
 
