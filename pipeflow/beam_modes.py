@@ -59,6 +59,9 @@ from pipeflow.basis import gauss_legendre_unit
 EndSpec = tuple[str, float, float]
 #: (xi_s, K): an intermediate support; K = inf for a pin
 PointSpec = tuple[float, float]
+#: a support set on the unit interval: (x0 spec, xL spec, intermediate points), the key of
+#: its basis (:func:`support_basis`; pipeflow.supports.basis_key makes it from a pipe)
+BasisKey = tuple[EndSpec, EndSpec, tuple[PointSpec, ...]]
 
 #: non-dimensional springs below this are zero (K_t = k_t L^3/EI, K_r = k_r L/EI)
 SPRING_FLOOR = 1e-12

@@ -20,8 +20,10 @@ from pipeflow.basis import (
     tip_slopes,
     tip_values,
 )
-from pipeflow.beam_modes import support_basis
-from pipeflow.supports import BasisKey
+from pipeflow.beam_modes import BasisKey, support_basis
+
+#: N(xi) = a0 + a1 xi + a2 xi^2 [N]: an axial force distribution (tension positive)
+AxialForce = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -125,3 +127,8 @@ def basis_shapes(
     if supports is None:
         return mode_shapes(n, xi, derivative)
     return support_basis(n, *supports).shapes(xi, derivative)
+
+
+def axial_matrix(a: AxialForce, g: ModeIntegrals, L: float) -> FloatArray:
+    """Weak form of -(N w')' on the basis: integral of N phi_i' phi_j' dx / L^2 [N/m]."""
+    return np.asarray((a[0] * g.d + a[1] * g.xd + a[2] * g.x2d) / L)

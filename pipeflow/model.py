@@ -48,16 +48,14 @@ from pipeflow.basis import (
     cantilever_roots,
     paper_scale,
 )
-from pipeflow.beam_modes import rigid_lines, support_basis
+from pipeflow.beam_modes import BasisKey, rigid_lines, support_basis
 from pipeflow.errors import InvalidInput
-from pipeflow.integrals import ModeIntegrals, basis_shapes, mode_integrals
+from pipeflow.integrals import ModeIntegrals, axial_matrix, basis_shapes, mode_integrals
 from pipeflow.loading import Coefficients, Integrals
 from pipeflow.supports import (
     CANTILEVER,
-    BasisKey,
     PointSupport,
     Supports,
-    axial_matrix,
     basis_key,
     check_mounting,
     effective_pressure,

@@ -24,16 +24,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
-import numpy as np
-
-from pipeflow._types import FloatArray
-from pipeflow.beam_modes import rigid_lines
-
-if TYPE_CHECKING:  # pragma: no cover
-    from pipeflow.integrals import ModeIntegrals
-    from pipeflow.model import Pipe
+from pipeflow.beam_modes import BasisKey, rigid_lines
+from pipeflow.integrals import AxialForce
 
 KINDS = ("clamped", "pinned", "sliding", "free", "elastic")
 #: the most intermediate supports a pipe may have
@@ -126,13 +120,44 @@ class PointSupport:
 
 # -- the model's view of the supports and axial loads (docs/model.md 9) ----------------------
 
-#: a support set on the unit interval: (x0 spec, xL spec, intermediate points) with
-#: specs (kind, K_t, K_r) and points (xi_s, K) (K = inf: a pin), see pipeflow.beam_modes
-BasisKey = tuple[
-    tuple[str, float, float], tuple[str, float, float], tuple[tuple[float, float], ...]
-]
-#: N(xi) = a0 + a1 xi + a2 xi^2 [N]: an axial force distribution (tension positive)
-AxialForce = tuple[float, float, float]
+
+class Mounted(Protocol):
+    """What the functions below read of a pipe (:class:`pipeflow.model.Pipe` has it): its
+    supports, stiffness, masses and axial loads, in the units of ``Pipe``'s fields."""
+
+    @property
+    def supports(self) -> Supports: ...
+    @property
+    def intermediate_supports(self) -> tuple[PointSupport, ...]: ...
+    @property
+    def E(self) -> float: ...
+    @property
+    def I(self) -> float: ...  # noqa: E743 (the second moment of area, as Pipe names it)
+    @property
+    def L(self) -> float: ...
+    @property
+    def M1(self) -> float: ...
+    @property
+    def M2(self) -> float: ...
+    @property
+    def hub_radius(self) -> float: ...
+    @property
+    def tip_mass(self) -> float: ...
+    @property
+    def tip_inertia(self) -> float: ...
+    @property
+    def tension(self) -> float: ...
+    @property
+    def pressure(self) -> float: ...
+    @property
+    def gravity(self) -> float: ...
+    @property
+    def flow_area(self) -> float: ...
+    @property
+    def poisson(self) -> float: ...
+    @property
+    def axially_restrained(self) -> bool: ...
+
 
 #: an intermediate spring with K = k L^3 / EI at or above this is a rigid (pinned) point
 #: support.  Its effect on the frequencies differs from the pin's by O(1/K) (below 1e-8 of
@@ -150,7 +175,7 @@ def _point_stiffness(p: PointSupport, EI: float, L: float) -> float:
     return math.inf if p.pinned or K >= RIGID_POINT_SPRING else K
 
 
-def basis_key(pipe: Pipe) -> BasisKey | None:
+def basis_key(pipe: Mounted) -> BasisKey | None:
     """The pipe's supports on the unit interval; None for the cantilever without
     intermediate supports (the model then keeps the cantilever modes of pipeflow.basis)."""
     s = pipe.supports
@@ -163,7 +188,7 @@ def basis_key(pipe: Pipe) -> BasisKey | None:
     return (s.x0.nondimensional(EI, L), s.xL.nondimensional(EI, L), points)
 
 
-def check_mounting(pipe: Pipe) -> None:
+def check_mounting(pipe: Mounted) -> None:
     """Refuse supports and axial loads that do not describe a pipe (ValueError naming the
     field, as :class:`pipeflow.model.Pipe` does for its other fields)."""
     s = pipe.supports
@@ -216,7 +241,7 @@ def check_mounting(pipe: Pipe) -> None:
         )
 
 
-def pressure_force_per_pascal(pipe: Pipe) -> float:
+def pressure_force_per_pascal(pipe: Mounted) -> float:
     """A (1 - 2 nu delta) [m^2]: the pressurisation's compressive force per pascal of
     internal pressure; 0 when the pipe discharges freely at x = L (the jet leaves at ambient
     pressure, and the axial balance of the fluid cancels p A against the wall's tension:
@@ -227,7 +252,7 @@ def pressure_force_per_pascal(pipe: Pipe) -> float:
     return pipe.flow_area * (1.0 - 2.0 * pipe.poisson * delta)
 
 
-def effective_pressure(pipe: Pipe) -> float:
+def effective_pressure(pipe: Mounted) -> float:
     """p A (1 - 2 nu delta) [N], the pressurisation's compressive force of the pipe's
     constant pressure (:func:`pressure_force_per_pascal`)."""
     if not pipe.pressure:
@@ -235,7 +260,7 @@ def effective_pressure(pipe: Pipe) -> float:
     return pipe.pressure * pressure_force_per_pascal(pipe)
 
 
-def _restrained(pipe: Pipe, a: AxialForce) -> AxialForce:
+def _restrained(pipe: Mounted, a: AxialForce) -> AxialForce:
     """Both ends axially fixed: the ends share the body force, N - mean(N) (the axial strain
     of an extensible pipe integrates to zero)."""
     if not pipe.axially_restrained:
@@ -244,22 +269,17 @@ def _restrained(pipe: Pipe, a: AxialForce) -> AxialForce:
     return (a[0] - mean, a[1], a[2])
 
 
-def static_axial_force(pipe: Pipe) -> AxialForce:
+def static_axial_force(pipe: Mounted) -> AxialForce:
     """N(xi) [N] at rest: T - p A (1 - 2 nu delta) + gravity's (m (L - x) + m_t) g_x."""
     m, L = pipe.M1 + pipe.M2, pipe.L
     grav = _restrained(pipe, (pipe.gravity * (m * L + pipe.tip_mass), -pipe.gravity * m * L, 0.0))
     return (pipe.tension - effective_pressure(pipe) + grav[0], grav[1], grav[2])
 
 
-def spin_axial_force(pipe: Pipe) -> AxialForce:
+def spin_axial_force(pipe: Mounted) -> AxialForce:
     """N(xi) per w0^2 [N s^2]: M1 [R (L - x) + (L^2 - x^2)/2] + m_t (R + L) (the paper's
     convention: the pipe mass carries the centrifugal tension), free to slide at x = L, or
     shared by both ends when axially restrained."""
     M1, L, R, mt = pipe.M1, pipe.L, pipe.hub_radius, pipe.tip_mass
     a = (M1 * (R * L + L * L / 2) + mt * (R + L), -M1 * R * L, -M1 * L * L / 2)
     return _restrained(pipe, a)
-
-
-def axial_matrix(a: AxialForce, g: ModeIntegrals, L: float) -> FloatArray:
-    """Weak form of -(N w')' on the basis: integral of N phi_i' phi_j' dx / L^2 [N/m]."""
-    return np.asarray((a[0] * g.d + a[1] * g.xd + a[2] * g.x2d) / L)
