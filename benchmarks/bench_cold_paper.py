@@ -14,8 +14,8 @@ fast lane on, started as ``benchmarks/bench_cold_ab.py`` does):
   before the metered lane (the LTI case still in the lane).
 
 Each round, in a rotating order: a cold paper request to each server, a cold LTI request to
-the ``lane`` server, a cold request of the paper example at 501 samples to each server
-(``refined``: its step control plans a 13,500-step refinement past the lane's allowance, so
+the ``lane`` server, a cold request of the paper example at the tolerance 1e-10 to each server
+(``refined``: its step control plans an 8,000-step refinement past the lane's allowance, so
 the ``lane`` server hands it off to its worker: what a hand-off costs over going to the
 worker at once), ``documents.simulation(simulate())`` of the paper example and
 ``simulate()`` of the LTI case in this process (``bench_service.simulate_timer``).  Each
@@ -52,9 +52,11 @@ SERVERS: dict[str, dict[str, str]] = {
 }
 
 
-#: the paper example at 501 samples: 875 steps of pilot, check and rate (13 ms estimated),
-#: then a refinement of 13,500 steps (206 ms) past the default allowance (0.1 s)
-REFINED: dict[str, Any] = {**BENCH.PAPER, "time": {"t_end": 1.0, "samples": 501}}
+#: the paper example at the tolerance 1e-10: 3,500 steps of pilot, check and rate (53 ms
+#: estimated), then a refinement of 8,000 steps (122 ms) past the default allowance (0.1 s).
+#: (At 501 samples, the case before, the refinement is capped at 8x since 5 Dec 2026:
+#: 4,000 steps, which the lane now computes itself.)
+REFINED: dict[str, Any] = {**BENCH.PAPER, "options": {"tolerance": 1e-10}}
 
 
 def where(log: Path) -> dict[str, int]:
@@ -150,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{paired(out, 'paper lane', 'paper worker'):.2f}x"
     )
     print(
-        f"paper example at 501 samples (handed off by the lane server): lane server "
+        f"paper example at tolerance 1e-10 (handed off by the lane server): lane server "
         f"{p50['refined lane'] * 1e3:.1f} ms, worker server {p50['refined worker'] * 1e3:.1f} "
         f"ms p50, ratio {p50['refined lane'] / p50['refined worker']:.2f}x, median per-round "
         f"{paired(out, 'refined lane', 'refined worker'):.2f}x"

@@ -252,7 +252,7 @@ def test_checkpoint_benchmark_smoke(capsys) -> None:  # type: ignore[no-untyped-
 def test_bench_cold_paper_smoke() -> None:
     """benchmarks/bench_cold_paper.py --rounds 2 (two real servers): the rows are printed,
     and the servers' logs show each side where it claims to be: on the ``lane`` server the
-    paper example and the LTI case in the API process, the 501-sample case handed off and
+    paper example and the LTI case in the API process, the tolerance-1e-10 case handed off and
     computed on its worker; on the ``worker`` server (``fast_lane_max_metered_s=0``) both
     time-variant cases on its worker (its LTI warm-up in its lane)."""
     import ast
@@ -269,13 +269,13 @@ def test_bench_cold_paper_smoke() -> None:
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     for row in ("paper example, fast lane (metered)", "paper example, Dask worker", "LTI"):
         assert f"| {row}" in done.stdout, done.stdout
-    assert "paper example at 501 samples (handed off by the lane server)" in done.stdout
+    assert "paper example at tolerance 1e-10 (handed off by the lane server)" in done.stdout
     counts = {
         line.split(":")[0]: ast.literal_eval(line.split("lane/outcome ", 1)[1])
         for line in done.stdout.splitlines()
         if line.startswith("server ")
     }
-    # (2 warm-up + 2 rounds) x (paper + LTI) in the lane; (1 + 2) x 501 samples handed off
+    # (2 warm-up + 2 rounds) x (paper + LTI) in the lane; (1 + 2) x tolerance 1e-10 handed off
     lane = {"api/ok": 8, "api/handoff": 3, "worker/ok": 3}
     assert counts["server lane"] == lane, counts
     assert counts["server worker"] == {"worker/ok": 4 + 3, "api/ok": 2}, counts

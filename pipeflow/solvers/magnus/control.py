@@ -256,7 +256,9 @@ class _Control:
         if self.attempts >= MAX_ATTEMPTS or not math.isfinite(self.estimate):
             self.warnings.append(
                 f"magnus could not verify the tolerance {self.tolerance:.3g}: estimated "
-                f"relative error {self.estimate:.3g} after {self.attempts} attempts"
+                f"relative error {self.estimate:.3g} after {self.attempts} attempts (each "
+                f"refinement multiplies the steps by at most {MAX_REFINEMENT:g}); give "
+                "options.step, or a looser tolerance"
             )
             return True
         return False
