@@ -206,15 +206,15 @@ class MagnusGenerator:
         (the forcing's states start each step from e_0)."""
         if not self.jordan:
             return expm_stack(omega)
-        # exp([[Omega, Y], [0, J]]) restricted to (z, w_0): [[P, r], [0, 1]] (exp(J) is
-        # lower triangular with unit diagonal, and w(0) = e_0)
+        # exp([[Omega, Y], [0, B]]) restricted to (z, w_0): [[P, r], [0, 1]].  The forcing's
+        # states restart from e_0 at each step (the loads' value at the step's start is in
+        # its border), so the last row carries the constant: [0, 1] by definition, whatever
+        # B is (the polynomial's shift J gives it exactly; the loads' generator does not)
         N = self.model.size
         E = expm_stack(omega)
         out = np.ascontiguousarray(E[:, : N + 1, : N + 1])
-        if self.states is not None:
-            # the loads' states restart from e_0 at each step (their value at the step's
-            # start is in its border): the last row keeps the constant, not exp(h Lambda)
-            out[:, N, N] = 1.0
+        out[:, N, :N] = 0.0
+        out[:, N, N] = 1.0
         return out
 
     def local_errors(self, starts: FloatArray, h: FloatArray, order: int) -> FloatArray:
